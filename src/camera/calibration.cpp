@@ -1,0 +1,102 @@
+#include "massage_cell/camera/calibration.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace massage_cell::camera {
+
+namespace {
+
+Eigen::Matrix3d mat3(const std::array<double, 9>& a) {
+  Eigen::Matrix3d m;
+  m << a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8];
+  return m;
+}
+
+std::string num(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+bool near(double a, double b, double rel) { return std::abs(a - b) <= rel * std::max(1.0, std::abs(a)); }
+
+}  // namespace
+
+std::vector<std::string> checkCalibration(const CameraCalibration& c, cv::Size image, const std::string& which) {
+  std::vector<std::string> problems;
+  if (!c.isCalibrated()) return problems;  // uncalibrated: nothing to check
+  if (c.width != image.width || c.height != image.height) {
+    problems.push_back(which + " calibration is for " + std::to_string(c.width) + "x" + std::to_string(c.height) +
+                       " images but the camera delivers " + std::to_string(image.width) + "x" +
+                       std::to_string(image.height));
+  }
+  if (!(c.K[0] > 0.0) || !(c.K[4] > 0.0)) problems.push_back(which + " calibration: focal lengths K[0], K[4] must be > 0");
+  if (!(c.P[0] > 0.0) || !(c.P[5] > 0.0)) problems.push_back(which + " calibration: projection P[0], P[5] must be > 0");
+  for (double v : c.K)
+    if (!std::isfinite(v)) problems.push_back(which + " calibration: K holds a non-finite value");
+  const Eigen::Matrix3d R = mat3(c.R);
+  if (!(R.transpose() * R).isIdentity(1e-3) || std::abs(R.determinant() - 1.0) > 1e-3) {
+    problems.push_back(which + " calibration: rectification_matrix R is not a rotation");
+  }
+  const std::size_t n = c.D.size();
+  if (c.distortion_model == "plumb_bob" && n != 5 && n != 0) {
+    problems.push_back(which + " calibration: plumb_bob needs 5 distortion coefficients, got " + std::to_string(n));
+  } else if (c.distortion_model == "rational_polynomial" && n != 8) {
+    problems.push_back(which + " calibration: rational_polynomial needs 8 distortion coefficients, got " +
+                       std::to_string(n));
+  } else if (c.distortion_model == "equidistant" && n != 4) {
+    problems.push_back(which + " calibration: equidistant needs 4 distortion coefficients, got " + std::to_string(n));
+  } else if (c.distortion_model != "plumb_bob" && c.distortion_model != "rational_polynomial" &&
+             c.distortion_model != "equidistant") {
+    problems.push_back(which + " calibration: unknown distortion model '" + c.distortion_model + "'");
+  }
+  return problems;
+}
+
+std::vector<std::string> checkStereoCalibration(const CameraCalibration& l, const CameraCalibration& r) {
+  std::vector<std::string> problems;
+  if (!l.isCalibrated() || !r.isCalibrated()) return problems;
+  if (l.width != r.width || l.height != r.height) {
+    problems.push_back("left and right calibrations are for different image sizes");
+  }
+  if (!near(l.P[0], r.P[0], 1e-3) || !near(l.P[5], r.P[5], 1e-3) || !near(l.P[6], r.P[6], 1e-3)) {
+    problems.push_back("left and right projections P differ in fx, fy or cy (" + num(l.P[0]) + "/" + num(r.P[0]) +
+                       ", " + num(l.P[5]) + "/" + num(r.P[5]) + ", " + num(l.P[6]) + "/" + num(r.P[6]) +
+                       "): the pair is not rectified together");
+  }
+  if (std::abs(l.P[3]) > 1e-9) problems.push_back("left projection P[3] must be 0 (Tx of the reference camera)");
+  if (!(r.P[3] < 0.0)) {
+    problems.push_back("right projection P[3] = " + num(r.P[3]) +
+                       " must be -fx * baseline < 0 (right camera to the right of the left one); "
+                       "stereo_image_proc computes no depth otherwise");
+  }
+  return problems;
+}
+
+CameraCalibration declareRectified(const CameraCalibration& c) {
+  CameraCalibration out = c;
+  if (!c.isCalibrated()) return out;
+  out.D.assign(c.distortion_model == "rational_polynomial" ? 8 : c.distortion_model == "equidistant" ? 4 : 5, 0.0);
+  out.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  out.K = {c.P[0], c.P[1], c.P[2], c.P[4], c.P[5], c.P[6], c.P[8], c.P[9], c.P[10]};
+  return out;
+}
+
+double baseline(const CameraCalibration& right) {
+  if (!(right.P[0] > 0.0)) return 0.0;
+  return -right.P[3] / right.P[0];
+}
+
+Eigen::Isometry3d rightCameraInLeft(const CameraCalibration& left, const CameraCalibration& right) {
+  Eigen::Matrix3d Rl = mat3(left.R);
+  Eigen::Matrix3d Rr = mat3(right.R);
+  if (!left.isCalibrated() || Rl.isZero()) Rl.setIdentity();
+  if (!right.isCalibrated() || Rr.isZero()) Rr.setIdentity();
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = Rl.transpose() * Rr;
+  pose.translation() = Rl.transpose() * Eigen::Vector3d(baseline(right), 0.0, 0.0);
+  return pose;
+}
+
+}  // namespace massage_cell::camera
