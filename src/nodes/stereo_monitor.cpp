@@ -6,7 +6,9 @@
 //             right/camera_info (in its namespace; exact-time synchronised).
 // Parameters: ~idle_timeout (s, 3.0): exit this long after the last pair;
 //             ~start_timeout (s, 30.0): exit with an error if no pair comes;
-//             ~max_pairs (0 = unlimited); ~print_every (1): print every n-th pair.
+//             ~max_pairs (0 = unlimited); ~print_every (1): print every n-th pair;
+//             ~stereo_products (false): also count stereo_image_proc's
+//             `disparity` and `points2` and report the median depth of points2.
 // Exit code: 0 when pairs arrived and every check held, 1 otherwise.
 #include <cstdio>
 
@@ -16,6 +18,12 @@
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+#include <stereo_msgs/DisparityImage.h>
+
+#include <algorithm>
+#include <cmath>
 
 namespace {
 
@@ -37,6 +45,13 @@ class Monitor {
     pnh.param("max_pairs", max_pairs_, max_pairs_);
     pnh.param("print_every", print_every_, print_every_);
     if (print_every_ < 1) print_every_ = 1;
+    bool products = false;
+    pnh.param("stereo_products", products, products);
+    if (products) {
+      disparity_sub_ = nh.subscribe<stereo_msgs::DisparityImage>(
+          "disparity", 5, [this](const stereo_msgs::DisparityImageConstPtr&) { ++disparities_; });
+      points_sub_ = nh.subscribe<sensor_msgs::PointCloud2>("points2", 5, &Monitor::onPoints, this);
+    }
     sync_.registerCallback(&Monitor::onPair, this);
     left_.registerCallback([this](const ImageConstPtr&) { ++left_count_; });
     right_.registerCallback([this](const ImageConstPtr&) { ++right_count_; });
@@ -69,6 +84,11 @@ class Monitor {
     std::printf("baseline (from right P): %.4f m\n", baseline_);
     std::printf("left/right stamps equal: %s; camera_info stamps equal image stamps: %s; one frame id: %s\n",
                 "yes (exact-time synchronised)", info_mismatch_ == 0 ? "yes" : "NO", frame_mismatch_ == 0 ? "yes" : "NO");
+    if (disparity_sub_) {
+      std::printf("stereo_image_proc:      %lu disparity images, %lu point clouds", disparities_, clouds_);
+      if (clouds_ > 0) std::printf("; last cloud: %.1f%% valid points, median depth %.4f m", valid_percent_, median_z_);
+      std::printf("\n");
+    }
     return info_mismatch_ == 0 && frame_mismatch_ == 0 ? 0 : 1;
   }
 
@@ -105,6 +125,20 @@ class Monitor {
     ++pairs_;
   }
 
+  void onPoints(const sensor_msgs::PointCloud2ConstPtr& cloud) {
+    ++clouds_;
+    std::vector<float> z;
+    for (sensor_msgs::PointCloud2ConstIterator<float> it(*cloud, "z"); it != it.end(); ++it) {
+      if (std::isfinite(*it)) z.push_back(*it);
+    }
+    const std::size_t n = static_cast<std::size_t>(cloud->width) * cloud->height;
+    valid_percent_ = n > 0 ? 100.0 * z.size() / n : 0.0;
+    if (!z.empty()) {
+      std::nth_element(z.begin(), z.begin() + z.size() / 2, z.end());
+      median_z_ = z[z.size() / 2];
+    }
+  }
+
   message_filters::Subscriber<Image> left_, right_;
   message_filters::Subscriber<CameraInfo> left_info_, right_info_;
   message_filters::Synchronizer<Policy> sync_;
@@ -117,6 +151,9 @@ class Monitor {
   ros::Time first_stamp_, last_stamp_;
   double min_dt_ = 0.0, max_dt_ = 0.0, baseline_ = 0.0;
   unsigned width_ = 0, height_ = 0;
+  ros::Subscriber disparity_sub_, points_sub_;
+  unsigned long disparities_ = 0, clouds_ = 0;
+  double valid_percent_ = 0.0, median_z_ = 0.0;
   std::string encoding_, frame_id_;
 };
 

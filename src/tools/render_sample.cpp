@@ -48,8 +48,8 @@ distance + amplitude * sin(2 pi i / frames) and its texture drifts sideways by
 Options:
   --out DIR             output directory, created if missing (required)
   --frames N            number of stereo pairs (default 20, >= 1)
-  --width W             image width in pixels (default 320)
-  --height H            image height in pixels (default 240)
+  --width W             image width in pixels (default 320, at most 16384)
+  --height H            image height in pixels (default 240, at most 16384)
   --fx F                focal length in pixels, fx = fy (default 300); the
                         principal point is the image centre
   --baseline B          stereo baseline in metres (default 0.06)

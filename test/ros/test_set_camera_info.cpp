@@ -5,6 +5,8 @@
 // Parameters (private): left_url, right_url (the driver's camera_info_url).
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include <camera_calibration_parsers/parse.h>
 #include <camera_info_manager/camera_info_manager.h>
 #include <ros/ros.h>
@@ -85,6 +87,12 @@ INSTANTIATE_TEST_SUITE_P(BothCameras, SetCameraInfo, ::testing::Values("left", "
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_set_camera_info");
-  ros::NodeHandle nh;
-  return RUN_ALL_TESTS();
+  ros::NodeHandle nh, pnh("~");
+  const int result = RUN_ALL_TESTS();
+  std::string url;  // the saved calibrations' folder is this run's own: remove it
+  if (pnh.getParam("left_url", url)) {
+    std::error_code ec;
+    std::filesystem::remove_all(std::filesystem::path(pathOf(url)).parent_path(), ec);
+  }
+  return result;
 }

@@ -1,7 +1,11 @@
 // Tests of the textured-plane stereo renderer: exact geometry, the stereo
 // relation between the views, texture properties, determinism, validation.
+#include <array>
 #include <cmath>
 #include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
