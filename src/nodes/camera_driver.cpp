@@ -258,7 +258,8 @@ void CameraDriver::start() {
   checkCalibrations();
 
   expected_rate_ = source_->nominalRate();
-  updater_.setHardwareID(source_->describe());
+  source_description_ = source_->describe();
+  updater_.setHardwareID(source_description_);
   rate_diagnostic_ = std::make_unique<diagnostic_updater::HeaderlessTopicDiagnostic>(
       view_count_ == 2 ? "image pairs" : "images", updater_,
       diagnostic_updater::FrequencyStatusParam(&expected_rate_, &expected_rate_, 0.1, 10));
@@ -297,6 +298,8 @@ void CameraDriver::captureLoop() {
         source_ = camera::openSource(config_);
         ROS_INFO_STREAM(who << "source reopened: " << source_->describe());
         setState("running");
+        std::lock_guard<std::mutex> lock(status_mutex_);
+        source_description_ = source_->describe();
       } catch (const std::exception& e) {
         setState("reopening", e.what());
         ROS_ERROR_STREAM_THROTTLE(10.0, who << "cannot reopen the source: " << e.what());
@@ -342,6 +345,7 @@ void CameraDriver::captureLoop() {
         {
           std::lock_guard<std::mutex> lock(status_mutex_);
           ++reopens_;
+          source_description_ = "(closed, reopening)";
         }
         break;
     }
@@ -409,7 +413,7 @@ void CameraDriver::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status)
     status.summary(DiagnosticStatus::OK, state_);
   }
   status.add("state", state_);
-  status.add("source", source_ ? source_->describe() : std::string("(closed)"));
+  status.add("source", source_description_);
   status.add("frames published", published_);
   status.add("bad frames", bad_frames_);
   status.add("dropped frames", dropped_frames_);

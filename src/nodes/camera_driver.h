@@ -75,7 +75,8 @@ class CameraDriver {
   std::unique_ptr<diagnostic_updater::HeaderlessTopicDiagnostic> rate_diagnostic_;
   ros::WallTimer diagnostics_timer_;
 
-  std::mutex status_mutex_;
+  std::mutex status_mutex_;  // guards the status below (capture thread vs diagnostics)
+  std::string source_description_;
   std::string state_ = "starting";
   std::string last_error_;
   std::uint64_t published_ = 0;
