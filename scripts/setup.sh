@@ -31,8 +31,10 @@ install_packages() {
   local wanted missing
   wanted=$(awk '!/^[[:space:]]*#/ && NF {print $1}' "$list")
   # shellcheck disable=SC2086
-  missing=$(dpkg-query -W -f='${Package} ${db:Status-Abbrev}\n' $wanted 2>/dev/null \
-              | awk '$2 == "ii" {print $1}' | sort -u | comm -13 - <(echo "$wanted" | sort -u))
+  # dpkg-query exits non-zero when some package is unknown to dpkg: that is the point here.
+  local installed
+  installed=$(dpkg-query -W -f='${Package} ${db:Status-Abbrev}\n' $wanted 2>/dev/null | awk '$2 == "ii" {print $1}' || true)
+  missing=$(comm -13 <(echo "$installed" | sort -u) <(echo "$wanted" | sort -u))
   if [ -z "$missing" ]; then
     log "all $(echo "$wanted" | wc -l) Debian packages are installed"
     return
