@@ -30,9 +30,9 @@ install_packages() {
   local list="$root/scripts/debian_packages.txt"
   local wanted missing
   wanted=$(awk '!/^[[:space:]]*#/ && NF {print $1}' "$list")
-  # shellcheck disable=SC2086
   # dpkg-query exits non-zero when some package is unknown to dpkg: that is the point here.
   local installed
+  # shellcheck disable=SC2086
   installed=$(dpkg-query -W -f='${Package} ${db:Status-Abbrev}\n' $wanted 2>/dev/null | awk '$2 == "ii" {print $1}' || true)
   missing=$(comm -13 <(echo "$installed" | sort -u) <(echo "$wanted" | sort -u))
   if [ -z "$missing" ]; then
