@@ -63,7 +63,7 @@ install_packages() {
 [ "$install" -eq 1 ] && install_packages
 
 jobs=$(nproc 2>/dev/null || echo 2)
-if [ ! -f "$build/CMakeCache.txt" ]; then
+if [ ! -f "$build/Makefile" ]; then  # (re)configure: first run, or a configure that failed
   log "configuring into $build"
   cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release \
         -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3

@@ -2,18 +2,12 @@
 // seen by a rectified pair (massage_cell::sim::renderStereo), as numbered
 // image pairs with camera_info calibrations and the ground truth.
 #include <algorithm>
-#include <cctype>
-#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <functional>
 #include <iostream>
-#include <limits>
-#include <map>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -25,10 +19,18 @@
 
 #include "massage_cell/camera/calibration_io.h"
 #include "massage_cell/sim/textured_plane.h"
+#include "cli.h"
 
 namespace {
 
 namespace sim = massage_cell::sim;
+using massage_cell::tools::OptionTable;
+using massage_cell::tools::parseArguments;
+using massage_cell::tools::parseDouble;
+using massage_cell::tools::parseInt;
+using massage_cell::tools::parseSeed;
+using massage_cell::tools::require;
+using massage_cell::tools::UsageError;
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDriftPerFrame = 0.001;  // metres: sideways texture motion between frames
@@ -64,11 +66,6 @@ Options:
 Exit status: 0 success, 1 output could not be written, 2 bad command line.
 )";
 
-/// A command-line problem: reported with exit status 2.
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
 struct Options {
   std::string out;
   int frames = 20;
@@ -85,55 +82,10 @@ struct Options {
   std::string prefix_right = "right_";
 };
 
-bool startsWithSpace(const std::string& s) { return !s.empty() && std::isspace(static_cast<unsigned char>(s[0])); }
-
-int parseInt(const std::string& option, const std::string& text) {
-  char* end = nullptr;
-  errno = 0;
-  const long v = std::strtol(text.c_str(), &end, 10);
-  if (text.empty() || startsWithSpace(text) || *end != '\0') {
-    throw UsageError(option + ": expected an integer, got '" + text + "'");
-  }
-  if (errno == ERANGE || v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max()) {
-    throw UsageError(option + ": " + text + " is out of range");
-  }
-  return static_cast<int>(v);
-}
-
-double parseDouble(const std::string& option, const std::string& text) {
-  char* end = nullptr;
-  errno = 0;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || startsWithSpace(text) || *end != '\0') {
-    throw UsageError(option + ": expected a number, got '" + text + "'");
-  }
-  if (!std::isfinite(v)) throw UsageError(option + ": expected a finite number, got '" + text + "'");
-  if (errno == ERANGE) throw UsageError(option + ": " + text + " is out of range");
-  return v;
-}
-
-std::uint32_t parseSeed(const std::string& option, const std::string& text) {
-  char* end = nullptr;
-  errno = 0;
-  const unsigned long long v = std::strtoull(text.c_str(), &end, 10);
-  if (text.empty() || !std::isdigit(static_cast<unsigned char>(text[0])) || *end != '\0') {
-    throw UsageError(option + ": expected a non-negative integer, got '" + text + "'");
-  }
-  if (errno == ERANGE || v > std::numeric_limits<std::uint32_t>::max()) {
-    throw UsageError(option + ": " + text + " is out of range (0.." +
-                     std::to_string(std::numeric_limits<std::uint32_t>::max()) + ")");
-  }
-  return static_cast<std::uint32_t>(v);
-}
-
-void require(bool ok, const std::string& message) {
-  if (!ok) throw UsageError(message);
-}
-
 /// Parses the command line; returns false when --help was printed.
 bool parseOptions(int argc, char** argv, Options& o) {
-  using Setter = std::function<void(const std::string& option, const std::string& value)>;
-  const std::map<std::string, Setter> setters = {
+  OptionTable table;
+  table.values = {
       {"--out", [&](const std::string&, const std::string& v) { o.out = v; }},
       {"--frames", [&](const std::string& opt, const std::string& v) { o.frames = parseInt(opt, v); }},
       {"--width", [&](const std::string& opt, const std::string& v) { o.width = parseInt(opt, v); }},
@@ -149,22 +101,7 @@ bool parseOptions(int argc, char** argv, Options& o) {
       {"--prefix-right", [&](const std::string&, const std::string& v) { o.prefix_right = v; }},
   };
 
-  const std::vector<std::string> args(argv + 1, argv + argc);
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& option = args[i];
-    if (option == "--help" || option == "-h") {
-      std::cout << kUsage;
-      return false;
-    }
-    const auto setter = setters.find(option);
-    if (setter == setters.end()) {
-      throw UsageError(option.rfind("-", 0) == 0 ? "unknown option '" + option + "'"
-                                                 : "unexpected argument '" + option + "'");
-    }
-    // Every option takes a value; another option in its place means it is missing.
-    if (i + 1 >= args.size() || args[i + 1].rfind("--", 0) == 0) throw UsageError(option + ": missing value");
-    setter->second(option, args[++i]);
-  }
+  if (!parseArguments(argc, argv, table, kUsage)) return false;
 
   require(!o.out.empty(), "--out: an output directory is required");
   require(o.frames >= 1, "--frames must be >= 1, got " + std::to_string(o.frames));
@@ -280,17 +217,6 @@ void run(const Options& o) {
 
 int main(int argc, char** argv) {
   Options options;
-  try {
-    if (!parseOptions(argc, argv, options)) return 0;
-  } catch (const UsageError& e) {
-    std::cerr << "render_sample: " << e.what() << " (see --help)\n";
-    return 2;
-  }
-  try {
-    run(options);
-  } catch (const std::exception& e) {
-    std::cerr << "render_sample: " << e.what() << "\n";
-    return 1;
-  }
-  return 0;
+  return massage_cell::tools::runTool(
+      "render_sample", [&] { return parseOptions(argc, argv, options); }, [&] { run(options); });
 }
