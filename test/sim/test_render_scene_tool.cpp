@@ -1,0 +1,124 @@
+// The render_scene tool: every preset writes the files its manifest lists,
+// and bad input ends with a clear message and a non-zero exit status.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+#include <yaml-cpp/yaml.h>
+
+#include "../ros/test_util.h"
+#include "massage_cell/camera/calibration_io.h"
+
+namespace {
+
+using massage_cell::test::runCommand;
+using massage_cell::test::TempDir;
+namespace fs = std::filesystem;
+
+const std::string kTool = RENDER_SCENE_TOOL;
+const std::string kSmall = " --width 160 --height 120 --fx 125 --supersample 1";
+
+void expectFailure(const std::string& args, int code, const std::string& message) {
+  const auto r = runCommand(kTool + " " + args, 120);
+  EXPECT_EQ(r.exit_code, code) << args << "\n" << r.output;
+  EXPECT_NE(r.output.find(message), std::string::npos) << "expected '" << message << "' in:\n" << r.output;
+}
+
+/// Runs the tool; checks exit 0 and that every file of the manifest exists.
+YAML::Node renderOk(const std::string& args, const TempDir& dir) {
+  const auto r = runCommand(kTool + " --out " + dir.str() + " " + args, 300);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(" s"), std::string::npos) << "the tool prints its time";
+  const YAML::Node manifest = YAML::LoadFile((dir.path() / "manifest.yaml").string());
+  for (const auto& f : manifest["files"]) EXPECT_TRUE(fs::exists(dir.path() / f.as<std::string>())) << f.as<std::string>();
+  return manifest;
+}
+
+TEST(RenderSceneTool, BackPresetWritesImagesGroundTruthAndCalibration) {
+  TempDir dir;
+  const YAML::Node m = renderOk("--preset back --subject 7" + kSmall, dir);
+  for (const char* f : {"left.png", "right.png", "left_depth.pfm", "right_depth.pfm", "left_disparity.pfm",
+                        "right_disparity.pfm", "left_points.pfm", "left_labels.png", "left_visible.png",
+                        "left_camera_info.yaml", "right_camera_info.yaml", "acupoints.yaml", "manifest.yaml"}) {
+    EXPECT_TRUE(fs::exists(dir.path() / f)) << f;
+  }
+  const cv::Mat left = cv::imread((dir.path() / "left.png").string());
+  EXPECT_EQ(left.size(), cv::Size(160, 120));
+  const cv::Mat disparity = cv::imread((dir.path() / "left_disparity.pfm").string(), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(disparity.type(), CV_32F);
+  const YAML::Node acupoints = YAML::LoadFile((dir.path() / "acupoints.yaml").string());
+  ASSERT_TRUE(acupoints["BL23_L"]);
+  const double z = acupoints["GV4"][2].as<double>();
+  EXPECT_GT(z, 0.5);  // in the left optical frame: in front of the camera
+  EXPECT_LT(z, 0.95);
+  const auto info = massage_cell::camera::readCameraInfoYaml((dir.path() / "right_camera_info.yaml").string());
+  EXPECT_LT(info.P[3], 0.0);
+  EXPECT_EQ(m["subject"]["index"].as<int>(), 7);
+}
+
+TEST(RenderSceneTool, RawPairHasNoDisparityButDistortedCalibration) {
+  TempDir dir;
+  renderOk("--preset back --raw" + kSmall, dir);
+  EXPECT_FALSE(fs::exists(dir.path() / "left_disparity.pfm"));
+  const auto info = massage_cell::camera::readCameraInfoYaml((dir.path() / "left_camera_info.yaml").string());
+  EXPECT_NE(info.D[0], 0.0);
+}
+
+TEST(RenderSceneTool, SessionWritesNumberedPairsAndPerFrameGroundTruth) {
+  TempDir dir;
+  renderOk("--preset back --frames 3 --rate 10" + kSmall, dir);
+  for (const char* f : {"left_0000.png", "right_0002.png", "ground_truth.yaml"}) EXPECT_TRUE(fs::exists(dir.path() / f)) << f;
+  const YAML::Node gt = YAML::LoadFile((dir.path() / "ground_truth.yaml").string());
+  ASSERT_EQ(gt["frames"].size(), 3u);
+  EXPECT_NEAR(gt["frames"][2]["time"].as<double>(), 0.2, 1e-9);
+  // Breathing moves the upper back between frames.
+  EXPECT_NE(gt["frames"][0]["acupoints"]["BL15_L"][2].as<double>(), gt["frames"][2]["acupoints"]["BL15_L"][2].as<double>());
+}
+
+TEST(RenderSceneTool, OtherPresets) {
+  {
+    TempDir dir;
+    const YAML::Node m = renderOk("--preset efficiency_layers" + kSmall, dir);
+    EXPECT_EQ(m["right_views"].size(), 8u);
+    EXPECT_TRUE(fs::exists(dir.path() / "right_8.png"));
+    EXPECT_EQ(m["right_views"][7]["levels"].as<int>(), 64);
+  }
+  {
+    TempDir dir;
+    renderOk("--preset efficiency_gradient" + kSmall, dir);
+    EXPECT_TRUE(fs::exists(dir.path() / "left_disparity_1.pfm"));
+  }
+  {
+    TempDir dir;
+    renderOk("--preset boxes --boxes 2" + kSmall, dir);
+    const cv::Mat labels = cv::imread((dir.path() / "left_labels.png").string(), cv::IMREAD_UNCHANGED);
+    double hi = 0;
+    cv::minMaxLoc(labels, nullptr, &hi);
+    EXPECT_GE(hi, 10.0) << "box faces carry labels 10+";
+  }
+  {
+    TempDir dir;
+    const YAML::Node m = renderOk("--preset multiview --views 3" + kSmall, dir);
+    EXPECT_TRUE(fs::exists(dir.path() / "view_2.png"));
+    EXPECT_TRUE(m["cameras"]["view_1"]["projection"]);
+  }
+}
+
+TEST(RenderSceneTool, BadInputFailsWithAMessage) {
+  TempDir dir;
+  const std::string out = " --out " + dir.str();
+  expectFailure("--preset bogus" + out, 2, "unknown preset 'bogus'");
+  expectFailure("--preset back --subject 29" + out, 2, "unknown subject 29");
+  expectFailure("--preset back --width 0" + out, 2, "--width / --height must be in 1..16384");
+  expectFailure("--preset back --light sideways" + out, 2, "--light must be");
+  expectFailure("--preset back --frames x" + out, 2, "--frames: expected an integer");
+  expectFailure("--preset back" + kSmall + " --shift 2.0" + out, 1, "the back is not in view");
+  expectFailure("--preset back" + kSmall + " --out /proc/massage_cell/forbidden", 1, "cannot create output folder");
+  expectFailure("--preset back", 2, "--out: an output folder is required");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
