@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include "cli.h"
@@ -72,7 +73,9 @@ frame), left_disparity.pfm right_disparity.pfm (pixels; rectified pairs only),
 left_labels.png right_labels.png (0 background, 1 back, 2 table, 3 floor, 9 plane,
 10+ box faces), left_visible.png (255: seen by the right camera too),
 left_camera_info.yaml right_camera_info.yaml (ROS calibration), acupoints.yaml and
-landmarks.yaml (back: name -> [x, y, z] in the left optical frame, metres), manifest.yaml.
+landmarks.yaml (back: name -> [x, y, z] in the left optical frame, metres; landmarks.yaml
+also holds the spine midline), preview.png (left | right | GT disparity | acupoints
+overlaid), manifest.yaml.
 A session (--frames > 1) writes left_NNNN.png / right_NNNN.png, the calibrations,
 ground_truth.yaml (per frame: time, breathing phase, acupoints) and manifest.yaml.
 Exit status: 0 success, 1 rendering or writing failed (or the back is not in view),
@@ -200,6 +203,52 @@ void writePoints(const fs::path& path, const std::map<std::string, Eigen::Vector
   std::ofstream file(path);
   file << out.c_str() << "\n";
   if (!file) throw std::runtime_error("cannot write '" + path.string() + "'");
+}
+
+/// Landmarks (name -> [x, y, z]) plus the spine midline as a list of points.
+void writeLandmarks(const fs::path& path, const std::map<std::string, Eigen::Vector3d>& landmarks,
+                    const std::vector<Eigen::Vector3d>& midline) {
+  YAML::Emitter out;
+  out.SetDoublePrecision(9);
+  out << YAML::BeginMap;
+  for (const auto& [name, p] : landmarks) out << YAML::Key << name << YAML::Value << YAML::Flow << std::vector<double>{p.x(), p.y(), p.z()};
+  out << YAML::Key << "midline" << YAML::Value << YAML::BeginSeq;
+  for (const auto& p : midline) out << YAML::Flow << std::vector<double>{p.x(), p.y(), p.z()};
+  out << YAML::EndSeq << YAML::EndMap;
+  std::ofstream file(path);
+  file << out.c_str() << "\n";
+  if (!file) throw std::runtime_error("cannot write '" + path.string() + "'");
+}
+
+/// A picture of a rendered pair: left | right | GT disparity (colour) | left
+/// with the acupoints (green), landmarks (red) and midline (yellow).
+cv::Mat previewImage(const sim::StereoFrame& f, const sim::CameraModel& left,
+                     const std::map<std::string, Eigen::Vector3d>& acupoints,
+                     const std::map<std::string, Eigen::Vector3d>& landmarks, const std::vector<Eigen::Vector3d>& midline) {
+  std::vector<cv::Mat> tiles{f.left.image, f.right.image};
+  if (!f.left_disparity.empty()) {
+    cv::Mat d = f.left_disparity.clone(), valid = (d == d), shown;
+    double lo = 0, hi = 1;
+    cv::minMaxLoc(d, &lo, &hi, nullptr, nullptr, valid);
+    cv::patchNaNs(d, lo);
+    d.convertTo(shown, CV_8U, 255.0 / std::max(1e-6, hi - lo), -lo * 255.0 / std::max(1e-6, hi - lo));
+    cv::applyColorMap(shown, shown, cv::COLORMAP_TURBO);
+    shown.setTo(cv::Scalar(0, 0, 0), ~valid);
+    tiles.push_back(shown);
+  }
+  cv::Mat overlay = f.left.image.clone();
+  const int r = std::max(2, overlay.cols / 200);
+  auto dot = [&](const Eigen::Vector3d& p, const cv::Scalar& colour, int radius) {
+    Eigen::Vector2d px;
+    if (left.project(p, &px)) cv::circle(overlay, cv::Point2d(px.x(), px.y()), radius, colour, cv::FILLED, cv::LINE_AA);
+  };
+  for (const auto& p : midline) dot(p, cv::Scalar(0, 220, 255), std::max(1, r / 2));
+  for (const auto& [name, p] : acupoints) dot(p, cv::Scalar(40, 200, 40), r);
+  for (const auto& [name, p] : landmarks) dot(p, cv::Scalar(40, 40, 230), r);
+  tiles.push_back(overlay);
+  cv::Mat out;
+  cv::hconcat(tiles, out);
+  return out;
 }
 
 void writeYaml(const fs::path& path, const YAML::Emitter& out) {
@@ -362,9 +411,15 @@ void renderBack(const Options& o, const fs::path& dir) {
     total_render = secondsSince(start);
     writeStereoFrame(dir, pair, frame, files);
     writePoints(dir / "acupoints.yaml", sim::toCameraFrame(acupoints, pair.left));
-    writePoints(dir / "landmarks.yaml", sim::toCameraFrame(back.landmarks(), pair.left));
+    const Eigen::Isometry3d left_from_world = pair.left.world_from_camera.inverse();
+    std::vector<Eigen::Vector3d> midline;
+    for (const auto& p : back.midline()) midline.push_back(left_from_world * p);
+    writeLandmarks(dir / "landmarks.yaml", sim::toCameraFrame(back.landmarks(), pair.left), midline);
+    sim::writeImage((dir / "preview.png").string(),
+                    previewImage(frame, pair.left, acupoints, back.landmarks(), back.midline()));
     files.push_back("acupoints.yaml");
     files.push_back("landmarks.yaml");
+    files.push_back("preview.png");
     m << YAML::Key << "breathing_phase" << YAML::Value << o.breathing_phase;
     m << YAML::Key << "acupoints_not_visible_in_both" << YAML::Value << YAML::Flow << hidden;
   } else {

@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Regenerates the README's pictures in docs/ with render_scene (each is the
+# tool's own preview.png: left | right | GT disparity | acupoints overlaid).
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+"$root/scripts/setup.sh" --no-install
+tool="$root/_build/devel/lib/massage_cell/render_scene"
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+small="--width 320 --height 240 --fx 250"
+"$tool" --preset back $small --out "$work/mean"
+cp "$work/mean/preview.png" "$root/docs/back_mean_subject.png"
+"$tool" --preset back $small --subject 21 --light top_left --out "$work/s21"
+cp "$work/s21/preview.png" "$root/docs/back_subject21_top_left.png"
+"$tool" --preset back $small --subject 5 --light top_right --shift 0.14 --raw --out "$work/s5"
+cp "$work/s5/preview.png" "$root/docs/back_subject5_raw_shift14.png"
+"$tool" --preset boxes $small --out "$work/boxes"
+cp "$work/boxes/left.png" "$root/docs/boxes_left.png"
+ls -la "$root/docs"
