@@ -68,17 +68,6 @@ std::map<std::string, Eigen::Vector3d> toCameraFrame(const std::map<std::string,
   return out;
 }
 
-void writePfm(const std::string& path, const cv::Mat& map) {
-  CV_Assert(map.type() == CV_32F || map.type() == CV_32FC3);
-  bool ok = false;
-  try {
-    ok = cv::imwrite(path, map);
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error("cannot write '" + path + "': " + e.what());
-  }
-  if (!ok) throw std::runtime_error("cannot write '" + path + "'");
-}
-
 void writeImage(const std::string& path, const cv::Mat& image) {
   bool ok = false;
   try {
@@ -87,6 +76,11 @@ void writeImage(const std::string& path, const cv::Mat& image) {
     throw std::runtime_error("cannot write '" + path + "': " + e.what());
   }
   if (!ok) throw std::runtime_error("cannot write '" + path + "'");
+}
+
+void writePfm(const std::string& path, const cv::Mat& map) {
+  CV_Assert(map.type() == CV_32F || map.type() == CV_32FC3);
+  writeImage(path, map);  // OpenCV's PFM codec keeps NaN
 }
 
 }  // namespace massage_cell::sim
