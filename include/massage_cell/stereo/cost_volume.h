@@ -1,0 +1,89 @@
+// HBDS matching cost (thesis Eq. 2.6-2.8), winner-takes-all and the break
+// point (Eq. 2.9-2.10). ROS-free (OpenCV only).
+//
+// Conventions: left is the reference view; pixel (x, y) of the left image
+// with disparity d matches (x - d, y) of the right image (Middlebury).
+#pragma once
+
+#include <climits>
+#include <cstddef>
+#include <stdexcept>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace massage_cell::stereo {
+
+struct CostParams {
+  int dmin = 0;             ///< smallest disparity searched (pixels)
+  int dmax = 15;            ///< largest disparity searched, inclusive
+  float eta = 20.0f;        ///< colour-cost truncation eta of Eq. 2.7, grey levels (0..255)
+  int ncc_window = 5;       ///< odd side of the NCC window W of Eq. 2.8
+  /// How the texture weight w of Eq. 2.6 is normalised: 0 divides the Sobel
+  /// magnitude by its image maximum (the thesis's literal reading); > 0 divides
+  /// by this magnitude and clamps at 1 (w = 1 from this much gradient on).
+  float gradient_saturation = 20.0f;
+  int threads = 0;          ///< worker threads, 0 = all cores
+};
+
+/// S(x, y, d) in [0, 1] for d in [dmin, dmax], stored disparity-major: the
+/// slice of one disparity is a contiguous H x W float image. Memory:
+/// W * H * (dmax - dmin + 1) * 4 bytes (450 x 375 x 60: 40.5 MB).
+class CostVolume {
+ public:
+  CostVolume() = default;
+  CostVolume(int width, int height, int dmin, int dmax, float fill = 1.0f)
+      : width_(width), height_(height), dmin_(dmin), dmax_(dmax),
+        data_(static_cast<std::size_t>(width) * height * (dmax - dmin + 1), fill) {
+    if (width <= 0 || height <= 0 || dmax < dmin) throw std::invalid_argument("CostVolume: empty size or dmax < dmin");
+  }
+  int width() const { return width_; }
+  int height() const { return height_; }
+  int dmin() const { return dmin_; }
+  int dmax() const { return dmax_; }
+  int levels() const { return dmax_ - dmin_ + 1; }
+  std::size_t bytes() const { return data_.size() * sizeof(float); }
+  float* slice(int d) { return data_.data() + static_cast<std::size_t>(d - dmin_) * width_ * height_; }
+  const float* slice(int d) const { return data_.data() + static_cast<std::size_t>(d - dmin_) * width_ * height_; }
+  float& operator()(int x, int y, int d) { return slice(d)[static_cast<std::size_t>(y) * width_ + x]; }
+  float operator()(int x, int y, int d) const { return slice(d)[static_cast<std::size_t>(y) * width_ + x]; }
+
+ private:
+  int width_ = 0, height_ = 0, dmin_ = 0, dmax_ = -1;
+  std::vector<float> data_;
+};
+
+/// The matching cost S = w T + (1 - w) C of Eq. 2.6: C the truncated,
+/// normalised, sampling-insensitive (Birchfield-Tomasi, linearly
+/// interpolated, both directions) colour cost of Eq. 2.7; T = (1 - NCC) / 2
+/// over the window W (Eq. 2.8, box filters); w the normalised Sobel gradient
+/// magnitude of the left image. Where x - d falls outside the right image the
+/// cost is 1. Inputs: CV_8UC3 (BGR) or CV_8UC1, same size. Throws
+/// std::invalid_argument naming the problem (empty, sizes or types differ,
+/// unsupported type, dmax < dmin, range wider than the image, bad window).
+CostVolume computeCostVolume(const cv::Mat& left, const cv::Mat& right, const CostParams& params);
+
+/// The texture weight w of Eq. 2.6: Sobel gradient magnitude of the left
+/// image (grey), divided by its maximum (gradient_saturation 0) or by
+/// gradient_saturation and clamped at 1; CV_32F in [0, 1].
+cv::Mat textureWeight(const cv::Mat& left, float gradient_saturation = 0.0f);
+
+/// Winner-takes-all: for each pixel the d in [lo, hi] (default: the whole
+/// volume) of least cost; ties go to the smaller d. CV_32F.
+cv::Mat winnerTakesAll(const CostVolume& volume, int lo = INT_MIN, int hi = INT_MAX);
+
+/// Histogram of the integer disparities of `disparity` (CV_32F) in [lo, hi]
+/// (index d - lo), over the pixels where `mask` (CV_8U, optional) is non-zero.
+std::vector<double> disparityHistogram(const cv::Mat& disparity, int lo, int hi, const cv::Mat& mask = cv::Mat());
+
+/// The break point psi of Eq. 2.10 for a histogram over disparities
+/// lo..hi (histogram.size() == hi - lo + 1, hi > lo): Otsu's threshold (Eq.
+/// 2.9) gives the two class means; psi is the least-populated level between
+/// them (ties: the one nearest the middle). The set splits into B = [lo, psi]
+/// and F = [psi + 1, hi], so lo <= psi < hi always. Defined cases: an empty
+/// histogram splits in the middle; a one-level-occupied or unimodal histogram
+/// still yields lo <= psi < hi. Throws std::invalid_argument if hi <= lo or
+/// the size does not match.
+int breakPoint(const std::vector<double>& histogram, int lo, int hi);
+
+}  // namespace massage_cell::stereo

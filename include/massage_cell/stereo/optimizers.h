@@ -1,0 +1,40 @@
+// Dense disparity optimisers on a cost volume: HBDS (thesis Ch. 2) and the
+// graph-cut baselines alpha-expansion and alpha-beta swap (Boykov, Veksler,
+// Zabih 2001) minimising the energy of energy.h. ROS-free.
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include "massage_cell/stereo/cost_volume.h"
+#include "massage_cell/stereo/energy.h"
+
+namespace massage_cell::stereo {
+
+struct OptimizerResult {
+  cv::Mat disparity;   ///< CV_32F integer disparities
+  Energy energy;       ///< under Eq. 2.2 with the run's weights and truncation
+  int cuts = 0;        ///< binary graph cuts solved
+  int cycles = 0;      ///< expansion / swap cycles (0 for HBDS)
+  int layers = 0;      ///< HBDS: depth of the hierarchy
+};
+
+/// HBDS: hierarchical bilateral disparity structure. The set [dmin, dmax] is
+/// split at its break point (rough WTA histogram of the layer's pixels); one
+/// binary graph cut over that layer's active pixels (4-connected pairs inside
+/// the layer) with data term Eq. 2.4 (min cost in each subset) and smooth term
+/// Eq. 2.5 (u_{p,q} |D*| / 2 when labels differ) assigns each pixel to B or F;
+/// recursion until every set holds one level. `threads` parallelises
+/// independent sub-problems (0 = all cores).
+OptimizerResult hbds(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                     int threads = 0);
+
+/// alpha-expansion from `initial` (empty: WTA), cycles over all labels until a
+/// cycle brings no improvement (or max_cycles).
+OptimizerResult alphaExpansion(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                               const cv::Mat& initial = cv::Mat(), int max_cycles = 20);
+
+/// alpha-beta swap, same stopping rule.
+OptimizerResult alphaBetaSwap(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                              const cv::Mat& initial = cv::Mat(), int max_cycles = 20);
+
+}  // namespace massage_cell::stereo

@@ -1,0 +1,65 @@
+// One call from a rectified image pair to a disparity map with any of the
+// project's methods, and the Middlebury evaluation used by the tools.
+// ROS-free.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "massage_cell/stereo/cost_volume.h"
+#include "massage_cell/stereo/energy.h"
+
+namespace massage_cell::stereo {
+
+enum class Method { kHbds, kExpansion, kSwap, kWta, kSgbm };
+Method parseMethod(const std::string& name);  ///< "hbds" | "expansion" | "swap" | "wta" | "sgbm"
+std::string toString(Method method);
+
+struct StereoParams {
+  CostParams cost;
+  SmoothParams smooth;
+  int max_cycles = 20;  ///< expansion / swap
+  int threads = 0;      ///< 0 = all cores
+};
+
+struct MatchResult {
+  cv::Mat disparity;         ///< CV_32F, NaN where the method gives none (SGBM)
+  double cost_ms = 0.0;      ///< matching cost volume (0 for SGBM)
+  double optimize_ms = 0.0;  ///< the method itself
+  double total_ms() const { return cost_ms + optimize_ms; }
+  Energy energy;             ///< Eq. 2.2 of the (rounded, clamped) result on this pair's cost volume
+  int cuts = 0;
+};
+
+/// Runs `method` on a rectified pair (CV_8UC1 / CV_8UC3, same size). Throws
+/// std::invalid_argument for bad input (see computeCostVolume).
+MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, const StereoParams& params);
+
+/// A Middlebury 2001/2003 scene as laid out in shared/data/middlebury2003.
+struct MiddleburyScene {
+  std::string name;
+  cv::Mat left, right;
+  cv::Mat ground_truth;          ///< CV_32F pixels, 0 = unknown
+  cv::Mat nonocc, all, disc;     ///< CV_8U masks, non-zero (255) = evaluated
+  int dmax = 0;                  ///< official search range 0..dmax
+  int scale = 1;                 ///< GT value / scale = disparity
+};
+
+/// The folder of the Middlebury data: $MASSAGE_CELL_MIDDLEBURY if set, else
+/// ../shared/data/middlebury2003 next to the package's source folder.
+std::string middleburyRoot();
+/// The four scene names in the order of the thesis's tables.
+const std::vector<std::string>& middleburyScenes();
+/// Loads a scene; throws std::runtime_error naming the missing file or folder.
+MiddleburyScene loadMiddleburyScene(const std::string& root, const std::string& name);
+
+/// Percentage of evaluated pixels (mask == 255 and GT known) whose disparity
+/// is off by more than `threshold` pixels (NaN counts as bad).
+double badPixelPercent(const cv::Mat& disparity, const cv::Mat& ground_truth, const cv::Mat& mask, double threshold);
+
+/// A colour picture of a disparity map (dmin..dmax -> turbo; NaN black).
+cv::Mat colourise(const cv::Mat& disparity, double dmin, double dmax);
+
+}  // namespace massage_cell::stereo

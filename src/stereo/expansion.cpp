@@ -1,0 +1,421 @@
+// Graph-cut baselines of optimizers.h: alpha-expansion and alpha-beta swap
+// (Boykov, Veksler, Zabih, PAMI 2001) for E(d) = sum_p S(p, d_p)
+// + sum_{p,q} u_pq V(d_p, d_q), V(a, b) = min(|a - b|, T) (T <= 0: |a - b|),
+// on 4-connected pairs. Every binary move is one MaxFlow (max_flow.h).
+//
+// Graph convention of both moves: binary variable x_p, x_p = 0 <-> p on the
+// source side, x_p = 1 <-> sink side. A node's source capacity is paid when
+// x_p = 1 and its sink capacity when x_p = 0; an arc p -> q is paid when
+// x_p = 0 and x_q = 1. Per node the unary costs E_p(0), E_p(1) are
+// accumulated first, then min(E_p(0), E_p(1)) is subtracted (a constant) and
+// addTerminalWeights(p, E_p(1) - m, E_p(0) - m).
+//
+// alpha-expansion (x_p = 0: keep d_p, x_p = 1: take alpha). Nodes only for
+// pixels with d_p != alpha (pixels already at alpha cannot change).
+//   unary: E_p(0) = S(p, d_p), E_p(1) = S(p, alpha)
+//   pair with q fixed at alpha: E_p(0) += u V(d_p, alpha)   (E_p(1): V = 0)
+//   pair of two nodes (Kolmogorov-Zabih 2004 submodular term):
+//     A = E(0,0) = u V(d_p, d_q), B = E(0,1) = u V(d_p, alpha),
+//     C = E(1,0) = u V(alpha, d_q), D = E(1,1) = 0
+//     E(x_p, x_q) = A + (C - A) x_p + (D - C) x_q + (B + C - A - D)(1 - x_p) x_q
+//     -> E_p(1) += C - A, E_q(1) += D - C = -C, arc p -> q capacity B + C - A.
+//   B + C - A >= 0 is the triangle inequality of the metric V (truncating a
+//   metric at T keeps it a metric); it is clamped at 0 against float rounding.
+//
+// alpha-beta swap, alpha < beta (x_p = 0: alpha, x_p = 1: beta). Nodes only
+// for pixels labelled alpha or beta.
+//   unary: E_p(0) = S(p, alpha), E_p(1) = S(p, beta); for each neighbour q
+//   outside the move E_p(0) += u V(alpha, d_q), E_p(1) += u V(beta, d_q)
+//   pair of two nodes: arcs p -> q and q -> p, both u V(alpha, beta)
+//   (E(0,0) = E(1,1) = 0; needs only a semi-metric).
+//
+// Cycles: labels in increasing order dmin..dmax (swap: pairs (alpha, beta) in
+// lexicographic order), deterministic. A move is accepted only when it lowers
+// the energy (exact change recomputed from the labelling, tolerance 1e-9
+// relative), so the energy never increases even if a cut were inexact. A
+// move whose last attempt failed with no accepted move since then is skipped:
+// the graph would be identical (the labelling is unchanged), so is the cut.
+// The same holds for the move just accepted (the new labelling is optimal
+// among its own alpha-expansions / its alpha-beta swaps). Hence the run stops
+// as soon as every label (pair) has failed since the last change, possibly in
+// the middle of a cycle, or after max_cycles cycles. `cycles` counts the
+// cycles begun.
+//
+// Default initial labelling: winner-takes-all (ties to the smaller d),
+// computed locally here.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "massage_cell/stereo/max_flow.h"
+#include "massage_cell/stereo/optimizers.h"
+
+namespace massage_cell::stereo {
+
+namespace {
+
+/// Validated problem data shared by both optimisers.
+struct Problem {
+  const CostVolume* volume = nullptr;
+  int w = 0, h = 0, n = 0, dmin = 0, dmax = 0;
+  std::vector<float> ur, ud;  ///< u of pair (p, p + 1) and (p, p + w); 0 where absent
+  std::vector<float> vdist;   ///< V for |a - b| = 0..levels-1
+
+  float cost(int p, int d) const { return volume->slice(d)[p]; }
+  float v(int a, int b) const { return vdist[static_cast<std::size_t>(std::abs(a - b))]; }
+};
+
+void copyWeights(const cv::Mat& m, std::vector<float>& out, const char* name) {
+  out.resize(static_cast<std::size_t>(m.rows) * m.cols);
+  for (int y = 0; y < m.rows; ++y) {
+    const float* row = m.ptr<float>(y);
+    for (int x = 0; x < m.cols; ++x) {
+      if (!(row[x] >= 0.0f) || !std::isfinite(row[x]))
+        throw std::invalid_argument(std::string("graph cuts: weights.") + name + " must be finite and >= 0");
+      out[static_cast<std::size_t>(y) * m.cols + x] = row[x];
+    }
+  }
+}
+
+Problem makeProblem(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                    int max_cycles) {
+  Problem pb;
+  pb.volume = &volume;
+  pb.w = volume.width();
+  pb.h = volume.height();
+  if (pb.w <= 0 || pb.h <= 0) throw std::invalid_argument("graph cuts: empty cost volume");
+  if (max_cycles < 0) throw std::invalid_argument("graph cuts: max_cycles must be >= 0");
+  if (std::isnan(smooth.truncation)) throw std::invalid_argument("graph cuts: truncation is NaN");
+  const cv::Size size(pb.w, pb.h);
+  if (weights.right.type() != CV_32FC1 || weights.right.size() != size || weights.down.type() != CV_32FC1 ||
+      weights.down.size() != size)
+    throw std::invalid_argument("graph cuts: weights must be CV_32FC1 of the volume's size");
+  pb.n = pb.w * pb.h;
+  pb.dmin = volume.dmin();
+  pb.dmax = volume.dmax();
+  copyWeights(weights.right, pb.ur, "right");
+  copyWeights(weights.down, pb.ud, "down");
+  // Pairs that do not exist must not contribute, whatever the caller stored.
+  for (int y = 0; y < pb.h; ++y) pb.ur[static_cast<std::size_t>(y) * pb.w + pb.w - 1] = 0.0f;
+  for (int x = 0; x < pb.w; ++x) pb.ud[static_cast<std::size_t>(pb.h - 1) * pb.w + x] = 0.0f;
+  pb.vdist.resize(static_cast<std::size_t>(volume.levels()));
+  for (int k = 0; k < volume.levels(); ++k)
+    pb.vdist[static_cast<std::size_t>(k)] =
+        smooth.truncation > 0.0f ? std::min(static_cast<float>(k), smooth.truncation) : static_cast<float>(k);
+  return pb;
+}
+
+/// Local WTA (ties to the smaller d), so this file does not depend on cost_volume.cpp.
+std::vector<int> argminLabels(const Problem& pb) {
+  std::vector<int> lab(static_cast<std::size_t>(pb.n), pb.dmin);
+  std::vector<float> best(pb.volume->slice(pb.dmin), pb.volume->slice(pb.dmin) + pb.n);
+  for (int d = pb.dmin + 1; d <= pb.dmax; ++d) {
+    const float* s = pb.volume->slice(d);
+    for (int p = 0; p < pb.n; ++p)
+      if (s[p] < best[static_cast<std::size_t>(p)]) {
+        best[static_cast<std::size_t>(p)] = s[p];
+        lab[static_cast<std::size_t>(p)] = d;
+      }
+  }
+  return lab;
+}
+
+std::vector<int> initialLabels(const Problem& pb, const cv::Mat& initial) {
+  if (initial.empty()) return argminLabels(pb);
+  if (initial.type() != CV_32FC1 || initial.size() != cv::Size(pb.w, pb.h))
+    throw std::invalid_argument("graph cuts: initial labelling must be CV_32FC1 of the volume's size");
+  std::vector<int> lab(static_cast<std::size_t>(pb.n));
+  for (int y = 0; y < pb.h; ++y) {
+    const float* row = initial.ptr<float>(y);
+    for (int x = 0; x < pb.w; ++x) {
+      const float v = row[x];
+      if (!std::isfinite(v) || v != std::floor(v) || v < pb.dmin || v > pb.dmax)
+        throw std::invalid_argument("graph cuts: initial labelling at (" + std::to_string(x) + ", " +
+                                    std::to_string(y) + ") is not an integer in [" + std::to_string(pb.dmin) +
+                                    ", " + std::to_string(pb.dmax) + "]");
+      lab[static_cast<std::size_t>(y) * pb.w + x] = static_cast<int>(v);
+    }
+  }
+  return lab;
+}
+
+double energyOf(const Problem& pb, const std::vector<int>& lab) {
+  double e = 0.0;
+  for (int p = 0; p < pb.n; ++p) {
+    const int d = lab[static_cast<std::size_t>(p)];
+    e += pb.cost(p, d);
+    const int x = p % pb.w;
+    if (x + 1 < pb.w) e += static_cast<double>(pb.ur[static_cast<std::size_t>(p)]) * pb.v(d, lab[p + 1]);
+    if (p + pb.w < pb.n) e += static_cast<double>(pb.ud[static_cast<std::size_t>(p)]) * pb.v(d, lab[p + pb.w]);
+  }
+  return e;
+}
+
+/// Shared state of a run: current labels, the labels proposed by a cut and
+/// buffers reused across moves.
+class Mover {
+ public:
+  explicit Mover(const Problem& pb, std::vector<int> lab)
+      : pb_(pb), lab_(std::move(lab)), next_(lab_), node_(static_cast<std::size_t>(pb.n), -1) {
+    energy_ = energyOf(pb_, lab_);
+  }
+
+  const std::vector<int>& labels() const { return lab_; }
+  double energy() const { return energy_; }
+  int cuts() const { return cuts_; }
+
+  /// One alpha-expansion move; true when accepted (energy decreased).
+  bool expand(int alpha) {
+    const int n = pb_.n, w = pb_.w;
+    nodes_.clear();
+    for (int p = 0; p < n; ++p)
+      if (lab_[static_cast<std::size_t>(p)] != alpha) {
+        node_[static_cast<std::size_t>(p)] = static_cast<int>(nodes_.size());
+        nodes_.push_back(p);
+      } else {
+        node_[static_cast<std::size_t>(p)] = -1;
+      }
+    const int m = static_cast<int>(nodes_.size());
+    if (m == 0) return false;
+    e0_.assign(static_cast<std::size_t>(m), 0.0);
+    e1_.assign(static_cast<std::size_t>(m), 0.0);
+    MaxFlow mf(m, 2 * m);
+    mf.addNodes(m);
+    for (int i = 0; i < m; ++i) {
+      const int p = nodes_[static_cast<std::size_t>(i)];
+      e0_[static_cast<std::size_t>(i)] = pb_.cost(p, lab_[static_cast<std::size_t>(p)]);
+      e1_[static_cast<std::size_t>(i)] = pb_.cost(p, alpha);
+    }
+    auto pair = [&](int p, int q, float u) {
+      if (u == 0.0f) return;
+      const int np = node_[static_cast<std::size_t>(p)], nq = node_[static_cast<std::size_t>(q)];
+      const int dp = lab_[static_cast<std::size_t>(p)], dq = lab_[static_cast<std::size_t>(q)];
+      if (np < 0 && nq < 0) return;
+      if (np < 0) {
+        e0_[static_cast<std::size_t>(nq)] += static_cast<double>(u) * pb_.v(dq, alpha);
+        return;
+      }
+      if (nq < 0) {
+        e0_[static_cast<std::size_t>(np)] += static_cast<double>(u) * pb_.v(dp, alpha);
+        return;
+      }
+      const double a = static_cast<double>(u) * pb_.v(dp, dq);
+      const double b = static_cast<double>(u) * pb_.v(dp, alpha);
+      const double c = static_cast<double>(u) * pb_.v(alpha, dq);
+      e1_[static_cast<std::size_t>(np)] += c - a;
+      e1_[static_cast<std::size_t>(nq)] -= c;
+      mf.addEdge(np, nq, std::max(0.0, b + c - a), 0.0);
+    };
+    for (int i = 0; i < m; ++i) {
+      const int p = nodes_[static_cast<std::size_t>(i)];
+      const int x = p % w;
+      // Each pair once, from its first member if that is a node, else from
+      // the second (the first is then at alpha).
+      if (x + 1 < w) pair(p, p + 1, pb_.ur[static_cast<std::size_t>(p)]);
+      if (p + w < n) pair(p, p + w, pb_.ud[static_cast<std::size_t>(p)]);
+      if (x > 0 && node_[static_cast<std::size_t>(p - 1)] < 0) pair(p - 1, p, pb_.ur[static_cast<std::size_t>(p - 1)]);
+      if (p >= w && node_[static_cast<std::size_t>(p - w)] < 0) pair(p - w, p, pb_.ud[static_cast<std::size_t>(p - w)]);
+    }
+    addTerminals(mf, m);
+    mf.solve();
+    ++cuts_;
+    changed_.clear();
+    for (int i = 0; i < m; ++i)
+      if (!mf.isSource(i)) {
+        const int p = nodes_[static_cast<std::size_t>(i)];
+        next_[static_cast<std::size_t>(p)] = alpha;
+        changed_.push_back(p);
+      }
+    return commit();
+  }
+
+  /// One alpha-beta swap move over the pixels currently labelled alpha or beta.
+  bool swap(int alpha, int beta, const std::vector<int>& members) {
+    const int n = pb_.n, w = pb_.w;
+    const int m = static_cast<int>(members.size());
+    if (m == 0) return false;
+    for (int i = 0; i < m; ++i) node_[static_cast<std::size_t>(members[static_cast<std::size_t>(i)])] = i;
+    e0_.assign(static_cast<std::size_t>(m), 0.0);
+    e1_.assign(static_cast<std::size_t>(m), 0.0);
+    MaxFlow mf(m, 2 * m);
+    mf.addNodes(m);
+    const double vab = pb_.v(alpha, beta);
+    auto neighbour = [&](int i, int q, float u) {
+      if (u == 0.0f) return;
+      const int nq = node_[static_cast<std::size_t>(q)];
+      if (nq < 0) {
+        const int dq = lab_[static_cast<std::size_t>(q)];
+        e0_[static_cast<std::size_t>(i)] += static_cast<double>(u) * pb_.v(alpha, dq);
+        e1_[static_cast<std::size_t>(i)] += static_cast<double>(u) * pb_.v(beta, dq);
+      } else if (nq > i) {
+        const double c = static_cast<double>(u) * vab;
+        mf.addEdge(i, nq, c, c);
+      }
+    };
+    for (int i = 0; i < m; ++i) {
+      const int p = members[static_cast<std::size_t>(i)];
+      e0_[static_cast<std::size_t>(i)] += pb_.cost(p, alpha);
+      e1_[static_cast<std::size_t>(i)] += pb_.cost(p, beta);
+      const int x = p % w;
+      if (x + 1 < w) neighbour(i, p + 1, pb_.ur[static_cast<std::size_t>(p)]);
+      if (x > 0) neighbour(i, p - 1, pb_.ur[static_cast<std::size_t>(p - 1)]);
+      if (p + w < n) neighbour(i, p + w, pb_.ud[static_cast<std::size_t>(p)]);
+      if (p >= w) neighbour(i, p - w, pb_.ud[static_cast<std::size_t>(p - w)]);
+    }
+    addTerminals(mf, m);
+    mf.solve();
+    ++cuts_;
+    changed_.clear();
+    for (int i = 0; i < m; ++i) {
+      const int p = members[static_cast<std::size_t>(i)];
+      const int d = mf.isSource(i) ? alpha : beta;
+      if (d != lab_[static_cast<std::size_t>(p)]) {
+        next_[static_cast<std::size_t>(p)] = d;
+        changed_.push_back(p);
+      }
+    }
+    for (int i = 0; i < m; ++i) node_[static_cast<std::size_t>(members[static_cast<std::size_t>(i)])] = -1;
+    return commit();
+  }
+
+ private:
+  void addTerminals(MaxFlow& mf, int m) const {
+    for (int i = 0; i < m; ++i) {
+      const double a = e0_[static_cast<std::size_t>(i)], b = e1_[static_cast<std::size_t>(i)];
+      const double lo = std::min(a, b);
+      mf.addTerminalWeights(i, b - lo, a - lo);
+    }
+  }
+
+  /// Exact energy change of next_ against lab_ (they differ on changed_);
+  /// applies it when negative, reverts next_ otherwise.
+  bool commit() {
+    if (changed_.empty()) return false;
+    const int n = pb_.n, w = pb_.w;
+    double delta = 0.0;
+    auto edge = [&](int p, int q, float u) {
+      delta += static_cast<double>(u) * (pb_.v(next_[static_cast<std::size_t>(p)], next_[static_cast<std::size_t>(q)]) -
+                                         pb_.v(lab_[static_cast<std::size_t>(p)], lab_[static_cast<std::size_t>(q)]));
+    };
+    auto isChanged = [&](int q) { return next_[static_cast<std::size_t>(q)] != lab_[static_cast<std::size_t>(q)]; };
+    for (int p : changed_) {
+      delta += static_cast<double>(pb_.cost(p, next_[static_cast<std::size_t>(p)])) -
+               static_cast<double>(pb_.cost(p, lab_[static_cast<std::size_t>(p)]));
+      const int x = p % w;
+      // A pair with both ends changed is counted from its first member only.
+      if (x + 1 < w) edge(p, p + 1, pb_.ur[static_cast<std::size_t>(p)]);
+      if (p + w < n) edge(p, p + w, pb_.ud[static_cast<std::size_t>(p)]);
+      if (x > 0 && !isChanged(p - 1)) edge(p - 1, p, pb_.ur[static_cast<std::size_t>(p - 1)]);
+      if (p >= w && !isChanged(p - w)) edge(p - w, p, pb_.ud[static_cast<std::size_t>(p - w)]);
+    }
+    const bool accept = delta < -1e-9 * std::max(1.0, std::abs(energy_));
+    for (int p : changed_) {
+      if (accept)
+        lab_[static_cast<std::size_t>(p)] = next_[static_cast<std::size_t>(p)];
+      else
+        next_[static_cast<std::size_t>(p)] = lab_[static_cast<std::size_t>(p)];
+    }
+    if (accept) energy_ += delta;
+    return accept;
+  }
+
+  const Problem& pb_;
+  std::vector<int> lab_, next_;
+  std::vector<int> node_;     ///< pixel -> graph node of the current move, -1 if none
+  std::vector<int> nodes_;    ///< graph node -> pixel (expansion)
+  std::vector<int> changed_;  ///< pixels whose label the current cut changes
+  std::vector<double> e0_, e1_;
+  double energy_ = 0.0;
+  int cuts_ = 0;
+};
+
+OptimizerResult finish(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                       const Problem& pb, const Mover& mover, int cycles) {
+  OptimizerResult r;
+  r.disparity.create(pb.h, pb.w, CV_32F);
+  for (int y = 0; y < pb.h; ++y) {
+    float* row = r.disparity.ptr<float>(y);
+    for (int x = 0; x < pb.w; ++x) row[x] = static_cast<float>(mover.labels()[static_cast<std::size_t>(y) * pb.w + x]);
+  }
+  r.energy = labellingEnergy(volume, weights, r.disparity, smooth.truncation);
+  r.cuts = mover.cuts();
+  r.cycles = cycles;
+  return r;
+}
+
+}  // namespace
+
+OptimizerResult alphaExpansion(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                               const cv::Mat& initial, int max_cycles) {
+  const Problem pb = makeProblem(volume, weights, smooth, max_cycles);
+  Mover mover(pb, initialLabels(pb, initial));
+  const int levels = volume.levels();
+  // failed_at[a]: value of `accepted` when alpha = dmin + a last failed (or
+  // succeeded); -1: never tried. Equal to `accepted` -> the move cannot help.
+  std::vector<std::int64_t> failed_at(static_cast<std::size_t>(levels), -1);
+  std::int64_t accepted = 0;
+  int streak = 0;  // consecutive labels that cannot improve the current labelling
+  int cycles = 0;
+  bool converged = levels < 2;
+  while (!converged && cycles < max_cycles) {
+    ++cycles;
+    for (int a = 0; a < levels && !converged; ++a) {
+      if (failed_at[static_cast<std::size_t>(a)] != accepted) {
+        if (mover.expand(volume.dmin() + a)) {
+          ++accepted;
+          streak = 0;
+        }
+        failed_at[static_cast<std::size_t>(a)] = accepted;
+      }
+      converged = ++streak >= levels;
+    }
+  }
+  return finish(volume, weights, smooth, pb, mover, cycles);
+}
+
+OptimizerResult alphaBetaSwap(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                              const cv::Mat& initial, int max_cycles) {
+  const Problem pb = makeProblem(volume, weights, smooth, max_cycles);
+  Mover mover(pb, initialLabels(pb, initial));
+  const int levels = volume.levels();
+  // Pixels per label, kept up to date after every accepted swap.
+  std::vector<std::vector<int>> bucket(static_cast<std::size_t>(levels));
+  for (int p = 0; p < pb.n; ++p) bucket[static_cast<std::size_t>(mover.labels()[static_cast<std::size_t>(p)] - pb.dmin)].push_back(p);
+  const int pairs = levels * (levels - 1) / 2;
+  std::vector<std::int64_t> failed_at(static_cast<std::size_t>(pairs), -1);
+  std::int64_t accepted = 0;
+  int streak = 0;
+  int cycles = 0;
+  bool converged = pairs == 0;
+  std::vector<int> members;
+  while (!converged && cycles < max_cycles) {
+    ++cycles;
+    int k = 0;
+    for (int a = 0; a < levels && !converged; ++a) {
+      for (int b = a + 1; b < levels && !converged; ++b, ++k) {
+        auto& ba = bucket[static_cast<std::size_t>(a)];
+        auto& bb = bucket[static_cast<std::size_t>(b)];
+        if (failed_at[static_cast<std::size_t>(k)] != accepted && !(ba.empty() && bb.empty())) {
+          members.clear();
+          members.insert(members.end(), ba.begin(), ba.end());
+          members.insert(members.end(), bb.begin(), bb.end());
+          if (mover.swap(pb.dmin + a, pb.dmin + b, members)) {
+            ++accepted;
+            streak = 0;
+            ba.clear();
+            bb.clear();
+            for (int p : members) (mover.labels()[static_cast<std::size_t>(p)] == pb.dmin + a ? ba : bb).push_back(p);
+          }
+        }
+        failed_at[static_cast<std::size_t>(k)] = accepted;
+        converged = ++streak >= pairs;
+      }
+    }
+  }
+  return finish(volume, weights, smooth, pb, mover, cycles);
+}
+
+}  // namespace massage_cell::stereo

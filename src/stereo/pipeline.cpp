@@ -1,0 +1,193 @@
+#include "massage_cell/stereo/pipeline.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <stdexcept>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "massage_cell/stereo/optimizers.h"
+
+#ifndef MASSAGE_CELL_SOURCE_DIR
+#define MASSAGE_CELL_SOURCE_DIR "."
+#endif
+
+namespace massage_cell::stereo {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point start) { return std::chrono::duration<double, std::milli>(Clock::now() - start).count(); }
+
+/// Integer labelling for the energy: rounded, clamped into the volume's range (NaN -> dmin).
+cv::Mat toLabelling(const cv::Mat& disparity, int dmin, int dmax) {
+  cv::Mat out(disparity.size(), CV_32F);
+  for (int y = 0; y < disparity.rows; ++y) {
+    const float* d = disparity.ptr<float>(y);
+    float* o = out.ptr<float>(y);
+    for (int x = 0; x < disparity.cols; ++x) {
+      const float v = std::isfinite(d[x]) ? std::round(d[x]) : static_cast<float>(dmin);
+      o[x] = std::min(std::max(v, static_cast<float>(dmin)), static_cast<float>(dmax));
+    }
+  }
+  return out;
+}
+
+cv::Mat sgbm(const cv::Mat& left, const cv::Mat& right, const CostParams& cost) {
+  const int levels = cost.dmax - cost.dmin + 1;
+  const int num = ((levels + 15) / 16) * 16;
+  const int block = 5;
+  const int cn = left.channels();
+  auto matcher = cv::StereoSGBM::create(cost.dmin, num, block, 8 * cn * block * block, 32 * cn * block * block, 1, 63,
+                                        10, 100, 2, cv::StereoSGBM::MODE_SGBM_3WAY);
+  cv::Mat raw;
+  matcher->compute(left, right, raw);
+  cv::Mat disparity(raw.size(), CV_32F);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (int y = 0; y < raw.rows; ++y) {
+    const short* r = raw.ptr<short>(y);
+    float* d = disparity.ptr<float>(y);
+    for (int x = 0; x < raw.cols; ++x) {
+      d[x] = r[x] < cost.dmin * 16 ? nan : std::min(r[x] / 16.0f, static_cast<float>(cost.dmax));
+    }
+  }
+  return disparity;
+}
+
+cv::Mat readImage(const std::filesystem::path& path, int flags) {
+  if (!std::filesystem::exists(path)) throw std::runtime_error("missing file '" + path.string() + "'");
+  cv::Mat image = cv::imread(path.string(), flags);
+  if (image.empty()) throw std::runtime_error("cannot read image '" + path.string() + "'");
+  return image;
+}
+
+}  // namespace
+
+Method parseMethod(const std::string& name) {
+  static const std::map<std::string, Method> methods{{"hbds", Method::kHbds},
+                                                     {"expansion", Method::kExpansion},
+                                                     {"swap", Method::kSwap},
+                                                     {"wta", Method::kWta},
+                                                     {"sgbm", Method::kSgbm}};
+  const auto it = methods.find(name);
+  if (it == methods.end()) {
+    throw std::invalid_argument("unknown method '" + name + "' (hbds, expansion, swap, wta, sgbm)");
+  }
+  return it->second;
+}
+
+std::string toString(Method method) {
+  switch (method) {
+    case Method::kHbds: return "hbds";
+    case Method::kExpansion: return "expansion";
+    case Method::kSwap: return "swap";
+    case Method::kWta: return "wta";
+    case Method::kSgbm: return "sgbm";
+  }
+  return "?";
+}
+
+MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, const StereoParams& params) {
+  MatchResult result;
+  auto start = Clock::now();
+  const CostVolume volume = computeCostVolume(left, right, params.cost);  // validates the input
+  result.cost_ms = msSince(start);
+  const PairwiseWeights weights = pairwiseWeights(left, params.smooth);
+  start = Clock::now();
+  switch (method) {
+    case Method::kHbds: {
+      const OptimizerResult r = hbds(volume, weights, params.smooth, params.threads);
+      result.optimize_ms = msSince(start);
+      result.disparity = r.disparity;
+      result.cuts = r.cuts;
+      break;
+    }
+    case Method::kExpansion:
+    case Method::kSwap: {
+      const OptimizerResult r = method == Method::kExpansion
+                                    ? alphaExpansion(volume, weights, params.smooth, cv::Mat(), params.max_cycles)
+                                    : alphaBetaSwap(volume, weights, params.smooth, cv::Mat(), params.max_cycles);
+      result.optimize_ms = msSince(start);
+      result.disparity = r.disparity;
+      result.cuts = r.cuts;
+      break;
+    }
+    case Method::kWta:
+      result.disparity = winnerTakesAll(volume);
+      result.optimize_ms = msSince(start);
+      break;
+    case Method::kSgbm:
+      result.disparity = sgbm(left, right, params.cost);
+      result.optimize_ms = msSince(start);
+      result.cost_ms = 0.0;  // SGBM computes its own cost
+      break;
+  }
+  result.energy = labellingEnergy(volume, weights, toLabelling(result.disparity, volume.dmin(), volume.dmax()),
+                                  params.smooth.truncation);
+  return result;
+}
+
+std::string middleburyRoot() {
+  if (const char* env = std::getenv("MASSAGE_CELL_MIDDLEBURY")) return env;
+  return (std::filesystem::path(MASSAGE_CELL_SOURCE_DIR) / ".." / "shared" / "data" / "middlebury2003")
+      .lexically_normal()
+      .string();
+}
+
+const std::vector<std::string>& middleburyScenes() {
+  static const std::vector<std::string> scenes{"tsukuba", "venus", "teddy", "cones"};
+  return scenes;
+}
+
+MiddleburyScene loadMiddleburyScene(const std::string& root, const std::string& name) {
+  static const std::map<std::string, std::pair<int, int>> facts{
+      {"tsukuba", {15, 16}}, {"venus", {19, 8}}, {"teddy", {59, 4}}, {"cones", {59, 4}}};
+  const auto fact = facts.find(name);
+  if (fact == facts.end()) throw std::runtime_error("unknown Middlebury scene '" + name + "' (tsukuba, venus, teddy, cones)");
+  const std::filesystem::path dir = std::filesystem::path(root) / name;
+  if (!std::filesystem::is_directory(dir)) throw std::runtime_error("missing Middlebury scene folder '" + dir.string() + "'");
+  MiddleburyScene scene;
+  scene.name = name;
+  scene.dmax = fact->second.first;
+  scene.scale = fact->second.second;
+  scene.left = readImage(dir / "left.png", cv::IMREAD_COLOR);
+  scene.right = readImage(dir / "right.png", cv::IMREAD_COLOR);
+  readImage(dir / "gt_disp_left.png", cv::IMREAD_GRAYSCALE).convertTo(scene.ground_truth, CV_32F, 1.0 / scene.scale);
+  scene.nonocc = readImage(dir / "nonocc.png", cv::IMREAD_GRAYSCALE);
+  scene.all = readImage(dir / "all.png", cv::IMREAD_GRAYSCALE);
+  scene.disc = readImage(dir / "disc.png", cv::IMREAD_GRAYSCALE);
+  return scene;
+}
+
+double badPixelPercent(const cv::Mat& disparity, const cv::Mat& ground_truth, const cv::Mat& mask, double threshold) {
+  CV_Assert(disparity.size() == ground_truth.size() && mask.size() == disparity.size());
+  long evaluated = 0, bad = 0;
+  for (int y = 0; y < disparity.rows; ++y) {
+    const float* d = disparity.ptr<float>(y);
+    const float* g = ground_truth.ptr<float>(y);
+    const unsigned char* m = mask.ptr<unsigned char>(y);
+    for (int x = 0; x < disparity.cols; ++x) {
+      if (m[x] != 255 || !(g[x] > 0.0f)) continue;
+      ++evaluated;
+      if (!std::isfinite(d[x]) || std::abs(d[x] - g[x]) > threshold) ++bad;
+    }
+  }
+  return evaluated > 0 ? 100.0 * bad / evaluated : 0.0;
+}
+
+cv::Mat colourise(const cv::Mat& disparity, double dmin, double dmax) {
+  cv::Mat valid = disparity == disparity, scaled, out;
+  const double range = std::max(1e-6, dmax - dmin);
+  disparity.convertTo(scaled, CV_8U, 255.0 / range, -dmin * 255.0 / range);
+  cv::applyColorMap(scaled, out, cv::COLORMAP_TURBO);
+  out.setTo(cv::Scalar(0, 0, 0), ~valid);
+  return out;
+}
+
+}  // namespace massage_cell::stereo

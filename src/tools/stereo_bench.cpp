@@ -1,0 +1,228 @@
+// stereo_bench: time and energy of the stereo methods on Middlebury scenes,
+// the HBDS / alpha-expansion speed ratio measured in the same run, and the
+// level sweep on the simulator's efficiency sets (thesis Fig. 2.9 / 2.10).
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <sstream>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "massage_cell/sim/renderer.h"
+#include "massage_cell/sim/scene_builder.h"
+#include "stereo_params.h"
+
+namespace {
+
+namespace stereo = massage_cell::stereo;
+namespace sim = massage_cell::sim;
+using namespace massage_cell::tools;
+
+const char* const kUsageHead = R"(Usage: stereo_bench [--scenes teddy,cones] [--methods hbds,expansion,wta,sgbm]
+                    [--sweep] [--sweep-methods hbds,expansion,wta] [--sweep-size 320x240]
+                    [--plot FILE.png] [--data DIR] [--csv] [options]
+
+Part 1: per Middlebury scene and method: time (cost volume + optimisation) and
+the energy of Eq. 2.2 of the result; then per scene the HBDS / alpha-expansion
+speed ratio and energy ratio, measured in this run.
+Part 2 (--sweep): the efficiency sets rendered by the simulator (fronto-parallel
+layers and a slanted plane; one left view, right views spanning 8..64 levels):
+time per method per level count and time(64) / time(8).
+  --plot FILE.png    draw time vs levels of the sweep
+  --csv              print CSV: scene,method,levels,time_ms,energy
+)";
+
+std::vector<std::string> split(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream s(text);
+  for (std::string item; std::getline(s, item, ',');) {
+    if (!item.empty()) out.push_back(item);
+  }
+  return out;
+}
+
+struct Options {
+  std::vector<std::string> scenes{"teddy", "cones"};
+  std::vector<std::string> methods{"hbds", "expansion", "wta", "sgbm"};
+  std::vector<std::string> sweep_methods{"hbds", "expansion", "wta"};
+  bool sweep = false;
+  int sweep_width = 320, sweep_height = 240;
+  std::string plot;
+  std::string data;
+  bool csv = false;
+  stereo::StereoParams params;
+};
+
+bool parse(int argc, char** argv, Options& o) {
+  OptionTable t;
+  t.values["--scenes"] = [&](const std::string&, const std::string& v) { o.scenes = split(v); };
+  t.values["--methods"] = [&](const std::string&, const std::string& v) { o.methods = split(v); };
+  t.values["--sweep-methods"] = [&](const std::string&, const std::string& v) { o.sweep_methods = split(v); };
+  t.values["--sweep-size"] = [&](const std::string& opt, const std::string& v) {
+    const auto x = v.find('x');
+    if (x == std::string::npos) throw UsageError(opt + ": expected WxH, got '" + v + "'");
+    o.sweep_width = parseInt(opt, v.substr(0, x));
+    o.sweep_height = parseInt(opt, v.substr(x + 1));
+  };
+  t.values["--plot"] = [&](const std::string&, const std::string& v) { o.plot = v; };
+  t.values["--data"] = [&](const std::string&, const std::string& v) { o.data = v; };
+  t.flags["--sweep"] = [&] { o.sweep = true; };
+  t.flags["--csv"] = [&] { o.csv = true; };
+  addStereoParams(t, o.params);
+  const std::string text = std::string(kUsageHead) + stereoParamsHelp();
+  if (!parseArguments(argc, argv, t, text.c_str())) return false;
+  for (const auto* list : {&o.methods, &o.sweep_methods}) {
+    for (const auto& m : *list) {
+      try {
+        stereo::parseMethod(m);
+      } catch (const std::invalid_argument& e) {
+        throw UsageError(e.what());
+      }
+    }
+  }
+  require(o.sweep_width >= 64 && o.sweep_height >= 48, "--sweep-size must be at least 64x48");
+  require(o.plot.empty() || o.sweep, "--plot needs --sweep");
+  checkStereoParams(o.params);
+  if (o.data.empty()) o.data = stereo::middleburyRoot();
+  return true;
+}
+
+struct Row {
+  std::string scene, method;
+  int levels;
+  double ms;
+  double energy;
+};
+
+void printRow(const Options& o, const Row& r, const stereo::MatchResult* m) {
+  if (o.csv) {
+    std::printf("%s,%s,%d,%.1f,%.4f\n", r.scene.c_str(), r.method.c_str(), r.levels, r.ms, r.energy);
+  } else if (m) {
+    std::printf("%-22s %-10s %6d %10.1f %10.1f %10.1f %14.2f %7d\n", r.scene.c_str(), r.method.c_str(), r.levels, m->cost_ms,
+                m->optimize_ms, r.ms, r.energy, m->cuts);
+  }
+  std::fflush(stdout);
+}
+
+void header(const Options& o, const char* title) {
+  if (o.csv) return;
+  std::printf("\n%s\n%-22s %-10s %6s %10s %10s %10s %14s %7s\n", title, "scene", "method", "levels", "cost ms", "optim ms",
+              "total ms", "energy", "cuts");
+}
+
+void drawPlot(const std::string& path, const std::vector<Row>& rows, const std::vector<std::string>& methods) {
+  const int w = 800, h = 500, m = 60;
+  cv::Mat plot(h, w, CV_8UC3, cv::Scalar(255, 255, 255));
+  double max_ms = 1.0;
+  for (const auto& r : rows) max_ms = std::max(max_ms, r.ms);
+  const double lo = std::log10(std::max(0.1, max_ms / 1e4)), hi = std::log10(max_ms) + 0.1;
+  auto px = [&](int levels, double ms) {
+    return cv::Point(m + (levels - 8) * (w - 2 * m) / 56,
+                     h - m - static_cast<int>((std::log10(std::max(ms, 0.1)) - lo) / (hi - lo) * (h - 2 * m)));
+  };
+  cv::rectangle(plot, {m, m}, {w - m, h - m}, cv::Scalar(0, 0, 0));
+  for (int l = 8; l <= 64; l += 8) cv::putText(plot, std::to_string(l), px(l, std::pow(10, lo)) + cv::Point(-8, 20), cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0});
+  for (double e = std::ceil(lo); e <= hi; e += 1.0) {
+    cv::putText(plot, std::to_string(static_cast<long>(std::pow(10, e))) + " ms", {5, px(8, std::pow(10, e)).y + 4},
+                cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
+  }
+  cv::putText(plot, "time vs disparity levels (log scale)", {m, m - 20}, cv::FONT_HERSHEY_SIMPLEX, 0.6, {0, 0, 0});
+  const cv::Scalar colours[] = {{200, 60, 20}, {20, 20, 200}, {20, 150, 20}, {150, 20, 150}, {20, 150, 150}};
+  int k = 0;
+  for (const auto& method : methods) {
+    const cv::Scalar colour = colours[k % 5];
+    for (const char* scene : {"layers", "gradient"}) {
+      cv::Point prev(-1, -1);
+      for (const auto& r : rows) {
+        if (r.method != method || r.scene.find(scene) == std::string::npos) continue;
+        const cv::Point p = px(r.levels, r.ms);
+        if (prev.x >= 0) cv::line(plot, prev, p, colour, std::string(scene) == "layers" ? 2 : 1, cv::LINE_AA);
+        cv::circle(plot, p, 3, colour, cv::FILLED);
+        prev = p;
+      }
+    }
+    cv::putText(plot, method, {w - m + 5 - 60, m + 20 + 18 * k}, cv::FONT_HERSHEY_SIMPLEX, 0.5, colour);
+    ++k;
+  }
+  cv::putText(plot, "thick: layers, thin: gradient", {m + 10, h - m - 10}, cv::FONT_HERSHEY_SIMPLEX, 0.4, {80, 80, 80});
+  if (!cv::imwrite(path, plot)) throw std::runtime_error("cannot write '" + path + "'");
+}
+
+void run(const Options& o) {
+  if (o.csv) std::printf("scene,method,levels,time_ms,energy\n");
+  // Part 1: Middlebury.
+  if (!o.scenes.empty()) header(o, "Middlebury scenes: time and energy (Eq. 2.2) per method");
+  for (const auto& name : o.scenes) {
+    const stereo::MiddleburyScene scene = stereo::loadMiddleburyScene(o.data, name);
+    stereo::StereoParams params = o.params;
+    params.cost.dmin = 0;
+    params.cost.dmax = scene.dmax;
+    std::map<std::string, stereo::MatchResult> results;
+    for (const auto& method : o.methods) {
+      const stereo::MatchResult r = stereo::match(scene.left, scene.right, stereo::parseMethod(method), params);
+      results[method] = r;
+      printRow(o, {name, method, scene.dmax + 1, r.total_ms(), r.energy.total()}, &r);
+    }
+    if (!o.csv && results.count("hbds") && results.count("expansion")) {
+      const auto& h = results["hbds"];
+      const auto& e = results["expansion"];
+      std::printf("%-22s HBDS vs alpha-expansion: %.1fx faster (total time), %.1fx (optimisation only); energy ratio %.4f\n",
+                  name.c_str(), e.total_ms() / h.total_ms(), e.optimize_ms / h.optimize_ms,
+                  h.energy.total() / e.energy.total());
+    }
+  }
+  if (!o.sweep) return;
+  // Part 2: level sweep on the simulator's efficiency sets.
+  header(o, "Level sweep on the efficiency sets (simulator, thesis Fig. 2.9 / 2.10)");
+  std::vector<Row> rows;
+  const double fx = 0.9 * o.sweep_width;
+  for (bool gradient : {false, true}) {
+    const sim::EfficiencySet set = sim::makeEfficiencySet(gradient, o.sweep_width, o.sweep_height, fx, 3);
+    const sim::Renderer renderer(set.scene);
+    sim::RenderOptions render;
+    render.supersample = 2;
+    render.noise_sigma = 1.0f;
+    const sim::Lighting light = sim::Lighting::preset(sim::LightPreset::kTopCentre);
+    const cv::Mat left = renderer.render(set.left, light, render).image;
+    for (std::size_t k = 0; k < set.rights.size(); ++k) {
+      render.noise_seed = static_cast<std::uint32_t>(k + 1);
+      const cv::Mat right = renderer.render(set.rights[k], light, render).image;
+      stereo::StereoParams params = o.params;
+      params.cost.dmin = static_cast<int>(std::floor(fx * set.baselines[k] / set.z_far));
+      params.cost.dmax = static_cast<int>(std::ceil(fx * set.baselines[k] / set.z_near));  // spans levels[k] + 1 labels
+      const std::string scene = std::string(gradient ? "gradient" : "layers") + "/R" + std::to_string(k + 1);
+      for (const auto& method : o.sweep_methods) {
+        const stereo::MatchResult r = stereo::match(left, right, stereo::parseMethod(method), params);
+        Row row{scene, method, set.levels[k], r.total_ms(), r.energy.total()};
+        rows.push_back(row);
+        printRow(o, row, &r);
+      }
+    }
+  }
+  if (!o.csv) {
+    std::printf("\ntime(64 levels) / time(8 levels):\n");
+    for (const char* scene : {"layers", "gradient"}) {
+      for (const auto& method : o.sweep_methods) {
+        double t8 = 0, t64 = 0;
+        for (const auto& r : rows) {
+          if (r.method != method || r.scene.rfind(scene, 0) != 0) continue;
+          if (r.levels == 8) t8 = r.ms;
+          if (r.levels == 64) t64 = r.ms;
+        }
+        std::printf("  %-9s %-10s %6.2f  (%.1f -> %.1f ms)\n", scene, method.c_str(), t64 / t8, t8, t64);
+      }
+    }
+  }
+  if (!o.plot.empty()) {
+    drawPlot(o.plot, rows, o.sweep_methods);
+    if (!o.csv) std::printf("plot: %s\n", o.plot.c_str());
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options options;
+  return runTool("stereo_bench", [&] { return parse(argc, argv, options); }, [&] { run(options); });
+}

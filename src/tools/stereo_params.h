@@ -1,0 +1,50 @@
+// Options shared by the stereo tools: the cost and smoothness parameters of
+// massage_cell::stereo::StereoParams.
+#pragma once
+
+#include "cli.h"
+#include "massage_cell/stereo/pipeline.h"
+
+namespace massage_cell::tools {
+
+inline const char* stereoParamsHelp() {
+  return R"(  --eta E            colour-cost truncation, grey levels (default 20)
+  --ncc-window N     NCC window side, odd (default 5)
+  --gradient-saturation G  Sobel magnitude where the texture weight reaches 1 (default 20; 0: divide by the maximum)
+  --tau T            intensity difference where the smoothness weight reaches u_min (default 30)
+  --u-min U          smoothness weight across edges (default 0.01)
+  --u-max U          smoothness weight in uniform regions (default 0.08)
+  --truncation T     truncate |dp - dq| at T in the energy (default 0: none)
+  --max-cycles N     expansion / swap cycles at most (default 20)
+  --threads N        worker threads, 0 = all cores (default 0)
+)";
+}
+
+inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
+  auto number = [](float& field) {
+    return [&field](const std::string& opt, const std::string& v) { field = static_cast<float>(parseDouble(opt, v)); };
+  };
+  auto integer = [](int& field) { return [&field](const std::string& opt, const std::string& v) { field = parseInt(opt, v); }; };
+  table.values["--eta"] = number(p.cost.eta);
+  table.values["--ncc-window"] = integer(p.cost.ncc_window);
+  table.values["--gradient-saturation"] = number(p.cost.gradient_saturation);
+  table.values["--tau"] = number(p.smooth.tau);
+  table.values["--u-min"] = number(p.smooth.u_min);
+  table.values["--u-max"] = number(p.smooth.u_max);
+  table.values["--truncation"] = number(p.smooth.truncation);
+  table.values["--max-cycles"] = integer(p.max_cycles);
+  table.values["--threads"] = integer(p.threads);
+}
+
+inline void checkStereoParams(const stereo::StereoParams& p) {
+  require(p.cost.eta > 0.0f, "--eta must be > 0");
+  require(p.cost.ncc_window >= 1 && p.cost.ncc_window % 2 == 1, "--ncc-window must be odd and >= 1");
+  require(p.cost.gradient_saturation >= 0.0f, "--gradient-saturation must be >= 0");
+  require(p.smooth.tau > 0.0f, "--tau must be > 0");
+  require(p.smooth.u_min >= 0.0f && p.smooth.u_max >= p.smooth.u_min, "need 0 <= --u-min <= --u-max");
+  require(p.smooth.truncation >= 0.0f, "--truncation must be >= 0");
+  require(p.max_cycles >= 1, "--max-cycles must be >= 1");
+  require(p.threads >= 0, "--threads must be >= 0");
+}
+
+}  // namespace massage_cell::tools

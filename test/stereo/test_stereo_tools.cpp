@@ -1,0 +1,105 @@
+// The stereo command-line tools: outputs, CSV formats, and bad input ending
+// with a clear message and a non-zero exit status.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+#include <random>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "../ros/test_util.h"
+#include "massage_cell/stereo/pipeline.h"
+
+namespace {
+
+using massage_cell::test::runCommand;
+using massage_cell::test::TempDir;
+namespace fs = std::filesystem;
+
+const std::string kMatch = STEREO_MATCH_TOOL;
+const std::string kEval = STEREO_EVAL_TOOL;
+const std::string kBench = STEREO_BENCH_TOOL;
+
+/// A random-texture pair whose right view is the left shifted by `d`.
+void writePair(const TempDir& dir, int d, cv::Size size = {96, 64}) {
+  cv::Mat texture(size.height, size.width + d, CV_8UC3);
+  cv::RNG rng(3);
+  rng.fill(texture, cv::RNG::UNIFORM, 0, 255);
+  // left(x) = texture(x) and right(x) = texture(x + d): left x matches right x - d.
+  cv::imwrite((dir.path() / "left.png").string(), texture(cv::Rect(0, 0, size.width, size.height)));
+  cv::imwrite((dir.path() / "right.png").string(), texture(cv::Rect(d, 0, size.width, size.height)));
+}
+
+void expectFailure(const std::string& command, int code, const std::string& message) {
+  const auto r = runCommand(command, 60);
+  EXPECT_EQ(r.exit_code, code) << command << "\n" << r.output;
+  EXPECT_NE(r.output.find(message), std::string::npos) << "expected '" << message << "' in:\n" << r.output;
+}
+
+TEST(StereoMatch, WritesPfmAndPngWithTheRightDisparity) {
+  TempDir dir;
+  writePair(dir, 6);
+  const std::string images = " " + (dir.path() / "left.png").string() + " " + (dir.path() / "right.png").string();
+  for (const char* method : {"wta", "hbds", "sgbm"}) {
+    const std::string out = (dir.path() / method).string();
+    const auto r = runCommand(kMatch + images + " --method " + method + " --dmin 0 --dmax 15 -o " + out, 120);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    ASSERT_TRUE(fs::exists(out + ".png")) << method;
+    const cv::Mat d = cv::imread(out + ".pfm", cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(d.type(), CV_32F) << method;
+    // Away from the left border (no match there) the shift is found.
+    EXPECT_NEAR(d.at<float>(32, 60), 6.0f, 0.5f) << method;
+  }
+}
+
+TEST(StereoMatch, BadInputFailsWithAMessage) {
+  TempDir dir;
+  writePair(dir, 4);
+  const std::string l = (dir.path() / "left.png").string(), r = (dir.path() / "right.png").string();
+  cv::imwrite((dir.path() / "small.png").string(), cv::Mat(32, 48, CV_8UC3, cv::Scalar(1, 2, 3)));
+  cv::imwrite((dir.path() / "deep.png").string(), cv::Mat(64, 96, CV_16UC1, cv::Scalar(1000)));
+  std::ofstream(dir.path() / "empty.png").close();
+  const std::string out = " -o " + (dir.path() / "out").string();
+  expectFailure(kMatch + " " + l + " " + (dir.path() / "small.png").string() + " --dmax 8" + out, 1, "size");
+  expectFailure(kMatch + " " + l + " " + (dir.path() / "empty.png").string() + " --dmax 8" + out, 1, "cannot read image");
+  expectFailure(kMatch + " " + l + " " + r + " --dmin 5 --dmax 5" + out, 2, "--dmax must be greater than --dmin");
+  expectFailure(kMatch + " " + l + " " + r + " --dmax 200" + out, 1, "wider than the image");
+  expectFailure(kMatch + " " + (dir.path() / "deep.png").string() + " " + (dir.path() / "deep.png").string() + " --dmax 8" + out,
+                1, "type");
+  expectFailure(kMatch + " " + l + " /nonexistent/right.png --dmax 8" + out, 1, "missing image '/nonexistent/right.png'");
+  expectFailure(kMatch + " " + l + " " + r + " --dmax 8 --method magic" + out, 2, "unknown method 'magic'");
+  expectFailure(kMatch + " " + l + " " + r + " --dmax 8", 2, "-o OUT is required");
+}
+
+TEST(StereoEval, MissingDataFailsWithAMessage) {
+  expectFailure(kEval + " --data /nonexistent/middlebury --scenes teddy --methods wta", 1,
+                "missing Middlebury scene folder '/nonexistent/middlebury/teddy'");
+  expectFailure(kEval + " --methods magic", 2, "unknown method 'magic'");
+  expectFailure(kBench + " --plot /tmp/x.png", 2, "--plot needs --sweep");
+}
+
+TEST(StereoEval, CsvOnMiddlebury) {
+  const std::string root = massage_cell::stereo::middleburyRoot();
+  if (!fs::exists(fs::path(root) / "tsukuba" / "left.png")) {
+    GTEST_SKIP() << "Middlebury data not found at " << root << " (set MASSAGE_CELL_MIDDLEBURY)";
+  }
+  const auto r = runCommand(kEval + " --scenes tsukuba --methods wta --csv", 120);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::istringstream lines(r.output);
+  std::string line;
+  std::getline(lines, line);
+  EXPECT_EQ(line, "scene,method,mask,threshold,bad_percent,time_ms");
+  int rows = 0;
+  while (std::getline(lines, line)) {
+    if (line.rfind("tsukuba,wta,", 0) == 0) ++rows;
+  }
+  EXPECT_EQ(rows, 9) << r.output;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
