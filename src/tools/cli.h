@@ -12,6 +12,7 @@
 #include <iostream>
 #include <limits>
 #include <map>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -66,6 +67,16 @@ inline std::uint32_t parseSeed(const std::string& option, const std::string& tex
                      std::to_string(std::numeric_limits<std::uint32_t>::max()) + ")");
   }
   return static_cast<std::uint32_t>(v);
+}
+
+/// "a,b,c" -> {"a", "b", "c"} (empty items dropped).
+inline std::vector<std::string> splitList(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream s(text);
+  for (std::string item; std::getline(s, item, ',');) {
+    if (!item.empty()) out.push_back(item);
+  }
+  return out;
 }
 
 /// Options that take a value, and flags that do not.

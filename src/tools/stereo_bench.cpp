@@ -4,7 +4,6 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
-#include <sstream>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -33,15 +32,6 @@ time per method per level count and time(64) / time(8).
   --csv              print CSV: scene,method,levels,time_ms,energy
 )";
 
-std::vector<std::string> split(const std::string& text) {
-  std::vector<std::string> out;
-  std::stringstream s(text);
-  for (std::string item; std::getline(s, item, ',');) {
-    if (!item.empty()) out.push_back(item);
-  }
-  return out;
-}
-
 struct Options {
   std::vector<std::string> scenes{"teddy", "cones"};
   std::vector<std::string> methods{"hbds", "expansion", "wta", "sgbm"};
@@ -56,9 +46,9 @@ struct Options {
 
 bool parse(int argc, char** argv, Options& o) {
   OptionTable t;
-  t.values["--scenes"] = [&](const std::string&, const std::string& v) { o.scenes = split(v); };
-  t.values["--methods"] = [&](const std::string&, const std::string& v) { o.methods = split(v); };
-  t.values["--sweep-methods"] = [&](const std::string&, const std::string& v) { o.sweep_methods = split(v); };
+  t.values["--scenes"] = [&](const std::string&, const std::string& v) { o.scenes = splitList(v); };
+  t.values["--methods"] = [&](const std::string&, const std::string& v) { o.methods = splitList(v); };
+  t.values["--sweep-methods"] = [&](const std::string&, const std::string& v) { o.sweep_methods = splitList(v); };
   t.values["--sweep-size"] = [&](const std::string& opt, const std::string& v) {
     const auto x = v.find('x');
     if (x == std::string::npos) throw UsageError(opt + ": expected WxH, got '" + v + "'");

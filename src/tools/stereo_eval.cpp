@@ -1,7 +1,6 @@
 // stereo_eval: the Middlebury evaluation of the stereo methods — bad-pixel
 // rates at 0.5 / 1 / 2 px in the nonocc, all and disc masks.
 #include <cstdio>
-#include <sstream>
 
 #include "stereo_params.h"
 
@@ -20,15 +19,6 @@ $MASSAGE_CELL_MIDDLEBURY, else ../shared/data/middlebury2003 beside the package.
   --csv              print CSV: scene,method,mask,threshold,bad_percent,time_ms
 )";
 
-std::vector<std::string> split(const std::string& text) {
-  std::vector<std::string> out;
-  std::stringstream s(text);
-  for (std::string item; std::getline(s, item, ',');) {
-    if (!item.empty()) out.push_back(item);
-  }
-  return out;
-}
-
 struct Options {
   std::vector<std::string> scenes = stereo::middleburyScenes();
   std::vector<std::string> methods{"hbds", "expansion", "swap", "wta", "sgbm"};
@@ -39,8 +29,8 @@ struct Options {
 
 bool parse(int argc, char** argv, Options& o) {
   OptionTable t;
-  t.values["--scenes"] = [&](const std::string&, const std::string& v) { o.scenes = split(v); };
-  t.values["--methods"] = [&](const std::string&, const std::string& v) { o.methods = split(v); };
+  t.values["--scenes"] = [&](const std::string&, const std::string& v) { o.scenes = splitList(v); };
+  t.values["--methods"] = [&](const std::string&, const std::string& v) { o.methods = splitList(v); };
   t.values["--data"] = [&](const std::string&, const std::string& v) { o.data = v; };
   t.flags["--csv"] = [&] { o.csv = true; };
   addStereoParams(t, o.params);
