@@ -392,7 +392,8 @@ CostVolume computeCostVolume(const cv::Mat& left, const cv::Mat& right, const Co
   in.sR = windowStats(rp8, in.W, in.H, in.n);
   in.w = textureWeight(left, params.gradient_saturation);
 
-  CostVolume vol(in.W, in.H, params.dmin, params.dmax, 1.0f);
+  // computeSlices writes every element (1 where x - d is outside the right image).
+  CostVolume vol(in.W, in.H, params.dmin, params.dmax, CostVolume::Uninitialised{});
   const int levels = vol.levels();
   // Window sums of products (<= n^2 * 255^2) are exact in float below 2^24.
   const bool exact_float = static_cast<double>(in.n) * in.n * 255.0 * 255.0 < 16777216.0;

@@ -262,6 +262,46 @@ TEST(Hbds, SmoothnessRemovesSaltNoise) {
                                                    sp.truncation).total());
 }
 
+TEST(Hbds, PairsCrossingTheLayerBoundaryPullTowardsTheNeighboursSet) {
+  // Left half Q: cost 0 only at d = 3. Right half P: cost 0 at both d = 1 and
+  // d = 2 (no data preference), 1 at 0 and 3. The root sends Q to F = [3] and
+  // P to B = [0, 2]; the node [0, 2] splits into [0, 1] and [2], where the P
+  // pixels have equal data terms (min 0 on both sides). Their left
+  // neighbours (in Q, d = 3) already left the node and Eq. 2.2 charges
+  // u |d_p - 3|, so P must resolve to d = 2 (the side nearer Q): the
+  // labelling of least energy. (Ignoring such pairs leaves the choice to the
+  // max-flow's tie-breaking, which sends free nodes to B, i.e. d = 1.)
+  const int W = 24, H = 10;
+  const float u = 0.05f;
+  cv::Mat expected(H, W, CV_32F, cv::Scalar(2.0f));
+  expected(cv::Rect(0, 0, W / 2, H)).setTo(3.0f);
+  CostVolume vol(W, H, 0, 3, 1.0f);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      if (x < W / 2) {
+        vol(x, y, 3) = 0.0f;
+      } else {
+        vol(x, y, 1) = 0.0f;
+        vol(x, y, 2) = 0.0f;
+      }
+    }
+  const SmoothParams sp = smoothParams(u, u);
+  PairwiseWeights w;
+  w.right = cv::Mat(H, W, CV_32F, cv::Scalar(u));
+  w.down = cv::Mat(H, W, CV_32F, cv::Scalar(u));
+  w.right.col(W - 1).setTo(0.0f);
+  w.down.row(H - 1).setTo(0.0f);
+  for (int threads : {1, 2}) {
+    SCOPED_TRACE(threads);
+    const OptimizerResult r = hbds(vol, w, sp, threads);
+    expectValidResult(r, vol);
+    EXPECT_EQ(countDifferent(r.disparity, expected), 0);
+    const Energy best = labellingEnergy(vol, w, expected, sp.truncation);
+    EXPECT_NEAR(best.total(), u * H, 1e-6);  // one level across the Q / P edge per row
+    EXPECT_NEAR(r.energy.total(), best.total(), 1e-6);
+  }
+}
+
 TEST(Hbds, RejectsBadArguments) {
   const CostVolume vol(20, 10, 0, 7);
   PairwiseWeights w = edgeWeights(cv::Mat(10, 20, CV_32F, cv::Scalar(0)), 0.06f, 0.01f);

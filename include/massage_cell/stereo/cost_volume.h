@@ -7,7 +7,10 @@
 
 #include <climits>
 #include <cstddef>
+#include <memory>
+#include <new>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -31,12 +34,16 @@ struct CostParams {
 /// W * H * (dmax - dmin + 1) * 4 bytes (450 x 375 x 60: 40.5 MB).
 class CostVolume {
  public:
+  /// Tag of the constructor that leaves the values unset (the caller writes
+  /// every one): the pages are then first touched by the parallel workers
+  /// that compute them, not by a single-threaded fill.
+  struct Uninitialised {};
+
   CostVolume() = default;
   CostVolume(int width, int height, int dmin, int dmax, float fill = 1.0f)
-      : width_(width), height_(height), dmin_(dmin), dmax_(dmax),
-        data_(static_cast<std::size_t>(width) * height * (dmax - dmin + 1), fill) {
-    if (width <= 0 || height <= 0 || dmax < dmin) throw std::invalid_argument("CostVolume: empty size or dmax < dmin");
-  }
+      : width_(width), height_(height), dmin_(dmin), dmax_(dmax), data_(checkedSize(width, height, dmin, dmax), fill) {}
+  CostVolume(int width, int height, int dmin, int dmax, Uninitialised)
+      : width_(width), height_(height), dmin_(dmin), dmax_(dmax), data_(checkedSize(width, height, dmin, dmax)) {}
   int width() const { return width_; }
   int height() const { return height_; }
   int dmin() const { return dmin_; }
@@ -49,8 +56,32 @@ class CostVolume {
   float operator()(int x, int y, int d) const { return slice(d)[static_cast<std::size_t>(y) * width_ + x]; }
 
  private:
+  /// std::allocator that default-initialises (leaves floats unset) when no value is given.
+  template <typename T>
+  struct DefaultInitAllocator : std::allocator<T> {
+    template <typename U>
+    struct rebind {
+      using other = DefaultInitAllocator<U>;
+    };
+    DefaultInitAllocator() = default;
+    template <typename U>
+    DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
+    template <typename U>
+    void construct(U* p) noexcept {
+      ::new (static_cast<void*>(p)) U;
+    }
+    template <typename U, typename... Args>
+    void construct(U* p, Args&&... args) {
+      ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+    }
+  };
+  static std::size_t checkedSize(int width, int height, int dmin, int dmax) {
+    if (width <= 0 || height <= 0 || dmax < dmin) throw std::invalid_argument("CostVolume: empty size or dmax < dmin");
+    return static_cast<std::size_t>(width) * height * (dmax - dmin + 1);
+  }
+
   int width_ = 0, height_ = 0, dmin_ = 0, dmax_ = -1;
-  std::vector<float> data_;
+  std::vector<float, DefaultInitAllocator<float>> data_;
 };
 
 /// The matching cost S = w T + (1 - w) C of Eq. 2.6: C the truncated,
