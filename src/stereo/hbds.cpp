@@ -43,11 +43,13 @@
 //    [lo, hi] (sets of one depth are disjoint intervals).
 //  * A node alone at its depth (the root) splits its two data-term passes
 //    over pixel chunks on the thread pool; the max-flow is sequential.
-//  * Nodes of one depth are independent (disjoint pixels and disjoint
-//    disparity sets) and are solved in parallel by a small std::thread pool,
-//    each with its own MaxFlow sized to the node. Results are independent of
-//    the thread count (every node is processed identically; children are
-//    gathered in node order).
+//  * Nodes are independent once their parent is cut (disjoint pixels and
+//    disjoint disparity sets; a neighbour outside the node is above or below
+//    the node's set whatever refinement it has reached), so a small
+//    std::thread pool cuts every queued node as soon as a worker is free,
+//    largest first, with no barrier between depths. Each worker reuses one
+//    MaxFlow (MaxFlow::reset keeps its memory). Results are independent of
+//    the thread count and the schedule (every node is processed identically).
 //  * Our choice — pairs crossing the layer boundary (evaluated, kept). The
 //    thesis's Eq. 2.3 sums V over the pairs of the layer P^B / P^F being
 //    split and says nothing about a pair {p, q} whose q was already sent to
@@ -83,7 +85,10 @@
 //    solved (ceil(log2(levels)) for a balanced split; 0 when dmin == dmax).
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
 #include <exception>
+#include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <thread>
 #include <utility>
@@ -118,6 +123,7 @@ struct Scratch {
   std::vector<int> arg;      // within-set WTA argmin
   std::vector<int> pending;  // node-local indices needing the other side
   std::vector<double> hist;
+  MaxFlow graph;  // reused across the worker's nodes (keeps its memory)
 };
 
 struct Context {
@@ -125,7 +131,9 @@ struct Context {
   const float* u_right = nullptr;  // continuous CV_32F H x W
   const float* u_down = nullptr;
   int width = 0, height = 0;
-  std::vector<int> set_lo, set_hi;  // current disparity set of every pixel
+  // Current disparity set of every pixel. Atomic (relaxed) because a node
+  // reads its neighbours' sets while other nodes may be refining theirs.
+  std::unique_ptr<std::atomic<int>[]> set_lo, set_hi;
   std::vector<int> index;  // compact graph id of the pixel in its node
   float* disparity = nullptr;
 };
@@ -245,10 +253,11 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
   const double half = 0.5 * static_cast<double>(hi - lo + 1);  // |D*| / 2 of Eq. 2.5
   const int W = ctx.width;
   const int N = ctx.width * ctx.height;
-  MaxFlow graph(n, 2 * n);
+  MaxFlow& graph = s.graph;
+  graph.reset(n, 2 * n);
   graph.addNodes(n);
-  const int* setLo = ctx.set_lo.data();
-  const int* setHi = ctx.set_hi.data();
+  const std::atomic<int>* setLo = ctx.set_lo.get();
+  const std::atomic<int>* setHi = ctx.set_hi.get();
   for (int i = 0; i < n; ++i) {
     const bool inB = s.arg[i] <= psi;
     double dB = inB ? s.best[i] : s.other[i];
@@ -257,8 +266,8 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
     const int x = p % W;
     double uB = 0.0, uF = 0.0;  // boundary pairs: penalty of the side away from q
     auto neighbour = [&](int q, float u, bool forward) {
-      if (setLo[q] > hi) uB += u;
-      else if (setHi[q] < lo) uF += u;
+      if (setLo[q].load(std::memory_order_relaxed) > hi) uB += u;
+      else if (setHi[q].load(std::memory_order_relaxed) < lo) uF += u;
       else if (forward && u > 0) graph.addEdge(i, ctx.index[q], u * half, u * half);
     };
     if (x + 1 < W) neighbour(p + 1, ctx.u_right[p], true);
@@ -273,6 +282,8 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
   graph.solve();
 
   Node back, fore;
+  back.pixels.reserve(n);
+  fore.pixels.reserve(n);
   back.lo = lo;
   back.hi = psi;
   fore.lo = psi + 1;
@@ -310,60 +321,114 @@ OptimizerResult hbds(const CostVolume& volume, const PairwiseWeights& weights, c
   ctx.u_down = u_down.ptr<float>();
   ctx.width = W;
   ctx.height = H;
-  ctx.set_lo.assign(static_cast<std::size_t>(W) * H, volume.dmin());
-  ctx.set_hi.assign(static_cast<std::size_t>(W) * H, volume.dmax());
-  ctx.index.assign(static_cast<std::size_t>(W) * H, 0);
+  const std::size_t N = static_cast<std::size_t>(W) * H;
+  ctx.set_lo.reset(new std::atomic<int>[N]);
+  ctx.set_hi.reset(new std::atomic<int>[N]);
+  for (std::size_t p = 0; p < N; ++p) {
+    ctx.set_lo[p].store(volume.dmin(), std::memory_order_relaxed);
+    ctx.set_hi[p].store(volume.dmax(), std::memory_order_relaxed);
+  }
+  ctx.index.assign(N, 0);
   ctx.disparity = result.disparity.ptr<float>();
 
   if (volume.dmin() < volume.dmax()) {
-    std::vector<Node> level(1);
-    level[0].lo = volume.dmin();
-    level[0].hi = volume.dmax();
-    level[0].pixels.resize(static_cast<std::size_t>(W) * H);
-    for (int p = 0; p < W * H; ++p) level[0].pixels[p] = p;
-
+    struct Task {
+      Node node;
+      int depth = 0;
+    };
+    // Nodes waiting to be cut, largest first (ties: the order of arrival;
+    // the schedule does not influence the results).
+    std::vector<Task> queue;
+    std::mutex mutex;
+    std::condition_variable wake;
+    int busy = 0;        // nodes being processed
+    int max_depth = -1;  // deepest node cut so far
+    bool failed = false;
+    std::exception_ptr error;
     std::vector<Scratch> scratch(threads);
-    while (!level.empty()) {
-      const int count = static_cast<int>(level.size());
-      // Largest nodes first for load balance (ties: node order, so the
-      // schedule is deterministic; results do not depend on it anyway).
-      std::vector<int> order(count);
-      for (int i = 0; i < count; ++i) order[i] = i;
-      std::stable_sort(order.begin(), order.end(),
-                       [&](int a, int b) { return level[a].pixels.size() > level[b].pixels.size(); });
 
-      // Phase 1: compact index of every node's pixels (separate phase so that
-      // phase 2 only reads pixels of other nodes).
-      runParallel(count, threads, [&](int t, int) {
-        const Node& node = level[order[t]];
-        for (std::size_t i = 0; i < node.pixels.size(); ++i) {
-          ctx.index[node.pixels[i]] = static_cast<int>(i);
-        }
-      });
-      // Phase 2: one graph cut per node.
-      std::vector<NodeOutput> outputs(count);
-      runParallel(count, threads, [&](int t, int worker) {
-        processNode(ctx, level[order[t]], count == 1 ? threads : 1, scratch[worker], outputs[order[t]]);
-      });
-      result.cuts += count;
-      ++result.layers;
+    Task root;
+    root.node.lo = volume.dmin();
+    root.node.hi = volume.dmax();
+    root.node.pixels.resize(N);
+    for (std::size_t p = 0; p < N; ++p) root.node.pixels[p] = static_cast<int>(p);
+    queue.push_back(std::move(root));
 
-      // Phase 3: the children's sets (read by the next depth's boundary terms).
-      runParallel(count, threads, [&](int t, int) {
-        for (const Node& child : outputs[order[t]].children) {
-          for (int p : child.pixels) {
-            ctx.set_lo[p] = child.lo;
-            ctx.set_hi[p] = child.hi;
-          }
-          if (child.lo == child.hi) assignLevel(ctx, child.pixels, child.lo);
+    // Cuts one node, then publishes its children's sets (and the final
+    // disparity of single-level children) before queueing the non-trivial
+    // ones. Correctness of running nodes concurrently: a node only reads the
+    // compact index of its own pixels, and the sets of its neighbours; a
+    // neighbour outside the node lies in a set disjoint from the node's
+    // parent's set, so every version of its set (it may be refined at any
+    // time) is entirely above or entirely below the node's set, which is all
+    // the boundary term looks at. Pixels of the node itself got their sets
+    // from the parent before the node was queued.
+    auto runTask = [&](Task& task, int worker, int helpers, std::vector<Task>& children) {
+      const Node& node = task.node;
+      for (std::size_t i = 0; i < node.pixels.size(); ++i) ctx.index[node.pixels[i]] = static_cast<int>(i);
+      NodeOutput out;
+      processNode(ctx, node, helpers, scratch[worker], out);
+      for (Node& child : out.children) {
+        for (int p : child.pixels) {
+          ctx.set_lo[p].store(child.lo, std::memory_order_relaxed);
+          ctx.set_hi[p].store(child.hi, std::memory_order_relaxed);
         }
-      });
-      std::vector<Node> next;
-      for (auto& out : outputs)
-        for (auto& child : out.children)
-          if (child.lo < child.hi) next.push_back(std::move(child));
-      level = std::move(next);
-    }
+        if (child.lo == child.hi) {
+          assignLevel(ctx, child.pixels, child.lo);
+        } else {
+          Task t;
+          t.node = std::move(child);
+          t.depth = task.depth + 1;
+          children.push_back(std::move(t));
+        }
+      }
+    };
+    auto bySize = [](const Task& a, const Task& b) { return a.node.pixels.size() < b.node.pixels.size(); };
+    auto body = [&](int worker) {
+      std::vector<Task> children;
+      std::unique_lock<std::mutex> lock(mutex);
+      for (;;) {
+        wake.wait(lock, [&] { return failed || !queue.empty() || busy == 0; });
+        if (failed || queue.empty()) break;  // error, or nothing queued and nothing running: done
+        // Largest waiting node; stable among equal sizes (first queued).
+        auto it = queue.begin();
+        for (auto j = queue.begin(); j != queue.end(); ++j)
+          if (bySize(*it, *j)) it = j;
+        Task task = std::move(*it);
+        queue.erase(it);
+        ++busy;
+        // A node started while nothing else can run (the root) shares its
+        // data-term passes with the idle threads.
+        const int helpers = (busy == 1 && queue.empty()) ? threads : 1;
+        lock.unlock();
+        children.clear();
+        try {
+          runTask(task, worker, helpers, children);
+        } catch (...) {
+          lock.lock();
+          if (!failed) error = std::current_exception();
+          failed = true;
+          --busy;
+          wake.notify_all();
+          break;
+        }
+        lock.lock();
+        --busy;
+        ++result.cuts;
+        max_depth = std::max(max_depth, task.depth);
+        for (Task& c : children) queue.push_back(std::move(c));
+        wake.notify_all();
+      }
+    };
+    // Nodes of any depth run as soon as their parent is cut (no barrier per
+    // depth), on `threads` workers (this thread is worker 0).
+    std::vector<std::thread> pool;
+    pool.reserve(threads - 1);
+    for (int w = 1; w < threads; ++w) pool.emplace_back(body, w);
+    body(0);
+    for (auto& th : pool) th.join();
+    result.layers = max_depth + 1;
+    if (error) std::rethrow_exception(error);
   }
 
   result.energy = labellingEnergy(volume, weights, result.disparity, smooth.truncation);

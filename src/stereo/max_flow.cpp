@@ -22,6 +22,8 @@
 //    parallel arcs are allowed.
 //  * maxFlow() asserts that at least one edge exists; a graph without edges
 //    gets a zero-capacity dummy edge (and, with a single node, a dummy node).
+//  * reset() replaces the GCGraph by a new one (GCGraph offers no clear());
+//    the freed blocks are usually handed back by malloc to the next graph.
 //  * inSourceSegment(i) reports the tree a node was last assigned to.
 #include "massage_cell/stereo/max_flow.h"
 
@@ -62,6 +64,16 @@ MaxFlow::MaxFlow(int node_hint, int edge_hint) : impl_(std::make_unique<Impl>())
 }
 
 MaxFlow::~MaxFlow() = default;
+
+void MaxFlow::reset(int node_hint, int edge_hint) {
+  if (node_hint < 0 || edge_hint < 0) throw std::invalid_argument("MaxFlow: negative size hint");
+  impl_->graph = cv::detail::GCGraph<double>();
+  impl_->nodes = 0;
+  impl_->has_edges = false;
+  impl_->solved = false;
+  impl_->flow = 0.0;
+  impl_->graph.create(static_cast<unsigned>(node_hint), 2u * static_cast<unsigned>(edge_hint));
+}
 
 int MaxFlow::addNodes(int count) {
   if (count < 0) throw std::invalid_argument("MaxFlow::addNodes: negative count");

@@ -632,3 +632,28 @@ int main(int argc, char** argv) {
   ::testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();
 }
+
+// reset() keeps the object's memory but must behave exactly like a new graph.
+TEST(MaxFlow, ResetReusesObject) {
+  auto build = [](ms::MaxFlow& mf, int seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const int n = 50;
+    mf.addNodes(n);
+    for (int i = 0; i < n; ++i) mf.addTerminalWeights(i, u(rng), u(rng));
+    for (int i = 0; i + 1 < n; ++i) mf.addEdge(i, i + 1, 0.3 * u(rng), 0.3 * u(rng));
+    return mf.solve();
+  };
+  ms::MaxFlow reused;
+  build(reused, 1);
+  for (int seed = 2; seed < 5; ++seed) {
+    reused.reset(50, 49);
+    ms::MaxFlow fresh;
+    EXPECT_EQ(build(reused, seed), build(fresh, seed));
+    for (int i = 0; i < 50; ++i) EXPECT_EQ(reused.isSource(i), fresh.isSource(i));
+  }
+  reused.reset();
+  EXPECT_THROW(reused.isSource(0), std::invalid_argument);
+  EXPECT_EQ(reused.solve(), 0.0);
+  EXPECT_THROW(reused.reset(-1, 0), std::invalid_argument);
+}

@@ -14,6 +14,10 @@ class MaxFlow {
   MaxFlow(const MaxFlow&) = delete;
   MaxFlow& operator=(const MaxFlow&) = delete;
 
+  /// Empties the graph (no nodes, no edges, not solved) and makes room for the
+  /// given numbers of nodes and edges, so one object can serve many graphs.
+  /// The next graph behaves exactly like one built in a new object.
+  void reset(int node_hint = 0, int edge_hint = 0);
   /// Adds `count` nodes; returns the index of the first.
   int addNodes(int count);
   /// Capacities from the source to `node` and from `node` to the sink (>= 0).
