@@ -22,6 +22,16 @@
 //   B + C - A >= 0 is the triangle inequality of the metric V (truncating a
 //   metric at T keeps it a metric); it is clamped at 0 against float rounding.
 //
+// Local expansion (localExpansion, our addition used to polish HBDS): the
+// move of alpha only takes the pixels whose label is within `window` levels
+// of alpha as nodes; every other pixel keeps its label and enters its
+// neighbours' unaries as a fixed label d_q: E_p(0) += u V(d_p, d_q),
+// E_p(1) += u V(alpha, d_q) (the general form of the fixed-at-alpha case).
+// Each move is still an exact minimisation over its own move space, so the
+// energy never rises; the graphs hold ~2 window / levels of the pixels and
+// their pairwise capacities are at most u * 2 window, which keeps the cuts
+// cheap.
+//
 // alpha-beta swap, alpha < beta (x_p = 0: alpha, x_p = 1: beta). Nodes only
 // for pixels labelled alpha or beta.
 //   unary: E_p(0) = S(p, alpha), E_p(1) = S(p, beta); for each neighbour q
@@ -168,11 +178,14 @@ class Mover {
   int cuts() const { return cuts_; }
 
   /// One alpha-expansion move; true when accepted (energy decreased).
-  bool expand(int alpha) {
+  /// window > 0 restricts the move to the pixels whose label is within
+  /// `window` levels of alpha (the others stay fixed).
+  bool expand(int alpha, int window = 0) {
     const int n = pb_.n, w = pb_.w;
     nodes_.clear();
     for (int p = 0; p < n; ++p)
-      if (lab_[static_cast<std::size_t>(p)] != alpha) {
+      if (lab_[static_cast<std::size_t>(p)] != alpha &&
+          (window <= 0 || std::abs(lab_[static_cast<std::size_t>(p)] - alpha) <= window)) {
         node_[static_cast<std::size_t>(p)] = static_cast<int>(nodes_.size());
         nodes_.push_back(p);
       } else {
@@ -194,12 +207,16 @@ class Mover {
       const int np = node_[static_cast<std::size_t>(p)], nq = node_[static_cast<std::size_t>(q)];
       const int dp = lab_[static_cast<std::size_t>(p)], dq = lab_[static_cast<std::size_t>(q)];
       if (np < 0 && nq < 0) return;
+      // A neighbour outside the move keeps its label (alpha, or any label
+      // outside the window of a restricted move).
       if (np < 0) {
-        e0_[static_cast<std::size_t>(nq)] += static_cast<double>(u) * pb_.v(dq, alpha);
+        e0_[static_cast<std::size_t>(nq)] += static_cast<double>(u) * pb_.v(dp, dq);
+        e1_[static_cast<std::size_t>(nq)] += static_cast<double>(u) * pb_.v(dp, alpha);
         return;
       }
       if (nq < 0) {
-        e0_[static_cast<std::size_t>(np)] += static_cast<double>(u) * pb_.v(dp, alpha);
+        e0_[static_cast<std::size_t>(np)] += static_cast<double>(u) * pb_.v(dp, dq);
+        e1_[static_cast<std::size_t>(np)] += static_cast<double>(u) * pb_.v(alpha, dq);
         return;
       }
       const double a = static_cast<double>(u) * pb_.v(dp, dq);
@@ -213,7 +230,7 @@ class Mover {
       const int p = nodes_[static_cast<std::size_t>(i)];
       const int x = p % w;
       // Each pair once, from its first member if that is a node, else from
-      // the second (the first is then at alpha).
+      // the second (the first is then outside the move).
       if (x + 1 < w) pair(p, p + 1, pb_.ur[static_cast<std::size_t>(p)]);
       if (p + w < n) pair(p, p + w, pb_.ud[static_cast<std::size_t>(p)]);
       if (x > 0 && node_[static_cast<std::size_t>(p - 1)] < 0) pair(p - 1, p, pb_.ur[static_cast<std::size_t>(p - 1)]);
@@ -348,8 +365,10 @@ OptimizerResult finish(const CostVolume& volume, const PairwiseWeights& weights,
 
 }  // namespace
 
-OptimizerResult alphaExpansion(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
-                               const cv::Mat& initial, int max_cycles) {
+namespace {
+
+OptimizerResult runExpansion(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                             const cv::Mat& initial, int max_cycles, int window) {
   const Problem pb = makeProblem(volume, weights, smooth, max_cycles);
   Mover mover(pb, initialLabels(pb, initial));
   const int levels = volume.levels();
@@ -364,7 +383,7 @@ OptimizerResult alphaExpansion(const CostVolume& volume, const PairwiseWeights& 
     ++cycles;
     for (int a = 0; a < levels && !converged; ++a) {
       if (failed_at[static_cast<std::size_t>(a)] != accepted) {
-        if (mover.expand(volume.dmin() + a)) {
+        if (mover.expand(volume.dmin() + a, window)) {
           ++accepted;
           streak = 0;
         }
@@ -374,6 +393,19 @@ OptimizerResult alphaExpansion(const CostVolume& volume, const PairwiseWeights& 
     }
   }
   return finish(volume, weights, smooth, pb, mover, cycles);
+}
+
+}  // namespace
+
+OptimizerResult alphaExpansion(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                               const cv::Mat& initial, int max_cycles) {
+  return runExpansion(volume, weights, smooth, initial, max_cycles, 0);
+}
+
+OptimizerResult localExpansion(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                               const cv::Mat& initial, int window, int max_cycles) {
+  if (window < 1) throw std::invalid_argument("localExpansion: window must be >= 1");
+  return runExpansion(volume, weights, smooth, initial, max_cycles, window);
 }
 
 OptimizerResult alphaBetaSwap(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,

@@ -102,7 +102,12 @@ MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, cons
   start = Clock::now();
   switch (method) {
     case Method::kHbds: {
-      const OptimizerResult r = hbds(volume, weights, params.smooth, params.threads);
+      OptimizerResult r = hbds(volume, weights, params.smooth, params.threads);
+      if (params.polish_window > 0) {
+        const int hbds_cuts = r.cuts;
+        r = localExpansion(volume, weights, params.smooth, r.disparity, params.polish_window, params.polish_cycles);
+        r.cuts += hbds_cuts;
+      }
       result.optimize_ms = msSince(start);
       result.disparity = r.disparity;
       result.cuts = r.cuts;

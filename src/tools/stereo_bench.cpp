@@ -1,6 +1,7 @@
 // stereo_bench: time and energy of the stereo methods on Middlebury scenes,
 // the HBDS / alpha-expansion speed ratio measured in the same run, and the
 // level sweep on the simulator's efficiency sets (thesis Fig. 2.9 / 2.10).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -8,8 +9,11 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "massage_cell/sim/body_model.h"
+#include "massage_cell/sim/camera_model.h"
 #include "massage_cell/sim/renderer.h"
 #include "massage_cell/sim/scene_builder.h"
+#include "massage_cell/sim/stereo_frame.h"
 #include "stereo_params.h"
 
 namespace {
@@ -20,7 +24,8 @@ using namespace massage_cell::tools;
 
 const char* const kUsageHead = R"(Usage: stereo_bench [--scenes teddy,cones] [--methods hbds,expansion,wta,sgbm]
                     [--sweep] [--sweep-methods hbds,expansion,wta] [--sweep-size 320x240]
-                    [--plot FILE.png] [--data DIR] [--csv] [options]
+                    [--plot FILE.png] [--frame] [--frame-size 640x480] [--frame-levels 64]
+                    [--frame-methods hbds,sgbm] [--repeat 3] [--data DIR] [--csv] [options]
 
 Part 1: per Middlebury scene and method: time (cost volume + optimisation) and
 the energy of Eq. 2.2 of the result; then per scene the HBDS / alpha-expansion
@@ -28,6 +33,14 @@ speed ratio and energy ratio, measured in this run.
 Part 2 (--sweep): the efficiency sets rendered by the simulator (fronto-parallel
 layers and a slanted plane; one left view, right views spanning 8..64 levels):
 time per method per level count and time(64) / time(8).
+Part 3 (--frame): the cell's own scenes rendered by the simulator at
+--frame-size (the mean subject's back on the massage table, and stacked
+boxes; camera 0.95 m above the table, baseline 10 cm, fx = 500 px at 640
+wide), searched over --frame-levels disparities centred on the scene's
+range: time per method (the 640x480 x 64-level speed target) and the bad
+pixels > 1 px against the exact ground truth (pixels seen by both cameras);
+times are the median of --repeat runs (default 3: a stream's steady state,
+not the first run's page faults).
   --plot FILE.png    draw time vs levels of the sweep
   --csv              print CSV: scene,method,levels,time_ms,energy
 )";
@@ -38,6 +51,9 @@ struct Options {
   std::vector<std::string> sweep_methods{"hbds", "expansion", "wta"};
   bool sweep = false;
   int sweep_width = 320, sweep_height = 240;
+  bool frame = false;
+  int frame_width = 640, frame_height = 480, frame_levels = 64, repeat = 3;
+  std::vector<std::string> frame_methods{"hbds", "sgbm"};
   std::string plot;
   std::string data;
   bool csv = false;
@@ -49,12 +65,20 @@ bool parse(int argc, char** argv, Options& o) {
   t.values["--scenes"] = [&](const std::string&, const std::string& v) { o.scenes = splitList(v); };
   t.values["--methods"] = [&](const std::string&, const std::string& v) { o.methods = splitList(v); };
   t.values["--sweep-methods"] = [&](const std::string&, const std::string& v) { o.sweep_methods = splitList(v); };
-  t.values["--sweep-size"] = [&](const std::string& opt, const std::string& v) {
-    const auto x = v.find('x');
-    if (x == std::string::npos) throw UsageError(opt + ": expected WxH, got '" + v + "'");
-    o.sweep_width = parseInt(opt, v.substr(0, x));
-    o.sweep_height = parseInt(opt, v.substr(x + 1));
+  auto size = [](int& width, int& height) {
+    return [&width, &height](const std::string& opt, const std::string& v) {
+      const auto x = v.find('x');
+      if (x == std::string::npos) throw UsageError(opt + ": expected WxH, got '" + v + "'");
+      width = parseInt(opt, v.substr(0, x));
+      height = parseInt(opt, v.substr(x + 1));
+    };
   };
+  t.values["--sweep-size"] = size(o.sweep_width, o.sweep_height);
+  t.values["--frame-size"] = size(o.frame_width, o.frame_height);
+  t.values["--frame-levels"] = [&](const std::string& opt, const std::string& v) { o.frame_levels = parseInt(opt, v); };
+  t.values["--frame-methods"] = [&](const std::string&, const std::string& v) { o.frame_methods = splitList(v); };
+  t.values["--repeat"] = [&](const std::string& opt, const std::string& v) { o.repeat = parseInt(opt, v); };
+  t.flags["--frame"] = [&] { o.frame = true; };
   t.values["--plot"] = [&](const std::string&, const std::string& v) { o.plot = v; };
   t.values["--data"] = [&](const std::string&, const std::string& v) { o.data = v; };
   t.flags["--sweep"] = [&] { o.sweep = true; };
@@ -62,7 +86,7 @@ bool parse(int argc, char** argv, Options& o) {
   addStereoParams(t, o.params);
   const std::string text = std::string(kUsageHead) + stereoParamsHelp();
   if (!parseArguments(argc, argv, t, text.c_str())) return false;
-  for (const auto* list : {&o.methods, &o.sweep_methods}) {
+  for (const auto* list : {&o.methods, &o.sweep_methods, &o.frame_methods}) {
     for (const auto& m : *list) {
       try {
         stereo::parseMethod(m);
@@ -72,6 +96,10 @@ bool parse(int argc, char** argv, Options& o) {
     }
   }
   require(o.sweep_width >= 64 && o.sweep_height >= 48, "--sweep-size must be at least 64x48");
+  require(o.frame_width >= 160 && o.frame_height >= 120 && o.frame_width <= 4096 && o.frame_height <= 4096,
+          "--frame-size must be between 160x120 and 4096x4096");
+  require(o.repeat >= 1 && o.repeat <= 100, "--repeat must be in 1..100");
+  require(o.frame_levels >= 2 && o.frame_levels < o.frame_width / 2, "--frame-levels must be >= 2 and below half the width");
   require(o.plot.empty() || o.sweep, "--plot needs --sweep");
   checkStereoParams(o.params);
   if (o.data.empty()) o.data = stereo::middleburyRoot();
@@ -139,6 +167,55 @@ void drawPlot(const std::string& path, const std::vector<Row>& rows, const std::
   if (!cv::imwrite(path, plot)) throw std::runtime_error("cannot write '" + path + "'");
 }
 
+/// Part 3: the cell's own scenes at the given frame size.
+void runFrames(const Options& o) {
+  char title[160];
+  std::snprintf(title, sizeof title, "Cell scenes (simulator) at %dx%d, %d levels: time, energy and bad pixels > 1 px",
+                o.frame_width, o.frame_height, o.frame_levels);
+  if (!o.csv) {
+    std::printf("\n%s\n%-22s %-10s %6s %10s %10s %10s %14s %7s %9s\n", title, "scene", "method", "levels", "cost ms",
+                "optim ms", "total ms", "energy", "cuts", "bad>1px");
+  }
+  sim::RigParameters rig;
+  rig.width = o.frame_width;
+  rig.height = o.frame_height;
+  rig.fx = 500.0 * o.frame_width / 640.0;
+  const sim::StereoPairModel pair = sim::makeStereoPair(rig);
+  sim::RenderOptions render;
+  const sim::Lighting light = sim::Lighting::preset(sim::LightPreset::kTopCentre);
+  const sim::BackModel back(sim::BodyParameters::subject(0));
+  for (const char* name : {"back", "boxes"}) {
+    const sim::Renderer renderer(std::string(name) == "back" ? sim::makeBackScene(back, 1) : sim::makeBoxesScene(1));
+    const sim::StereoFrame frame = sim::renderStereoFrame(renderer, pair, light, render);
+    // Search range: frame_levels disparities centred on the scene's range.
+    double lo = 0, hi = 0;
+    cv::Mat finite = frame.left_disparity == frame.left_disparity;
+    cv::minMaxLoc(frame.left_disparity, &lo, &hi, nullptr, nullptr, finite);
+    const int centre = static_cast<int>(std::lround(0.5 * (lo + hi)));
+    stereo::StereoParams params = o.params;
+    params.cost.dmin = std::max(0, centre - o.frame_levels / 2);
+    params.cost.dmax = params.cost.dmin + o.frame_levels - 1;
+    for (const auto& method : o.frame_methods) {
+      // Median run by total time (same output every run: the methods are deterministic).
+      std::vector<stereo::MatchResult> runs;
+      for (int k = 0; k < o.repeat; ++k)
+        runs.push_back(stereo::match(frame.left.image, frame.right.image, stereo::parseMethod(method), params));
+      std::sort(runs.begin(), runs.end(), [](const auto& a, const auto& b) { return a.total_ms() < b.total_ms(); });
+      const stereo::MatchResult& r = runs[runs.size() / 2];
+      const double bad = stereo::badPixelPercent(r.disparity, frame.left_disparity, frame.left_visible, 1.0);
+      const Row row{std::string(name) + "/" + std::to_string(o.frame_width) + "x" + std::to_string(o.frame_height),
+                    method, o.frame_levels, r.total_ms(), r.energy.total()};
+      if (o.csv) {
+        printRow(o, row, &r);
+      } else {
+        std::printf("%-22s %-10s %6d %10.1f %10.1f %10.1f %14.2f %7d %8.2f%%\n", row.scene.c_str(), method.c_str(),
+                    row.levels, r.cost_ms, r.optimize_ms, r.total_ms(), r.energy.total(), r.cuts, bad);
+        std::fflush(stdout);
+      }
+    }
+  }
+}
+
 void run(const Options& o) {
   if (o.csv) std::printf("scene,method,levels,time_ms,energy\n");
   // Part 1: Middlebury.
@@ -162,6 +239,7 @@ void run(const Options& o) {
                   h.energy.total() / e.energy.total());
     }
   }
+  if (o.frame) runFrames(o);
   if (!o.sweep) return;
   // Part 2: level sweep on the simulator's efficiency sets.
   header(o, "Level sweep on the efficiency sets (simulator, thesis Fig. 2.9 / 2.10)");

@@ -15,6 +15,9 @@ inline const char* stereoParamsHelp() {
   --u-min U          smoothness weight across edges (default 0.01)
   --u-max U          smoothness weight in uniform regions (default 0.08)
   --truncation T     truncate |dp - dq| at T in the energy (default 0: none)
+  --polish W         hbds: then local alpha-expansion moves over labels within W levels
+                     of alpha, lowering the Eq. 2.2 energy (default 0: pure HBDS)
+  --polish-cycles N  cycles of that polish (default 1)
   --max-cycles N     expansion / swap cycles at most (default 20)
   --threads N        worker threads, 0 = all cores (default 0)
 )";
@@ -33,6 +36,8 @@ inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
   table.values["--u-max"] = number(p.smooth.u_max);
   table.values["--truncation"] = number(p.smooth.truncation);
   table.values["--max-cycles"] = integer(p.max_cycles);
+  table.values["--polish"] = integer(p.polish_window);
+  table.values["--polish-cycles"] = integer(p.polish_cycles);
   table.values["--threads"] = integer(p.threads);
 }
 
@@ -43,6 +48,8 @@ inline void checkStereoParams(const stereo::StereoParams& p) {
   require(p.smooth.tau > 0.0f, "--tau must be > 0");
   require(p.smooth.u_min >= 0.0f && p.smooth.u_max >= p.smooth.u_min, "need 0 <= --u-min <= --u-max");
   require(p.smooth.truncation >= 0.0f, "--truncation must be >= 0");
+  require(p.polish_window >= 0, "--polish must be >= 0");
+  require(p.polish_cycles >= 1, "--polish-cycles must be >= 1");
   require(p.max_cycles >= 1, "--max-cycles must be >= 1");
   require(p.threads >= 0, "--threads must be >= 0");
 }

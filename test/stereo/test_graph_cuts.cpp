@@ -657,3 +657,127 @@ TEST(MaxFlow, ResetReusesObject) {
   EXPECT_EQ(reused.solve(), 0.0);
   EXPECT_THROW(reused.reset(-1, 0), std::invalid_argument);
 }
+
+// ------------------------------------------------------- local expansion
+
+// With a window covering the whole range no pixel is left out of a move but
+// the ones already at alpha: the same moves as alpha-expansion, same result.
+TEST(LocalExpansion, WideWindowEqualsAlphaExpansion) {
+  const int w = 22, h = 17;
+  const ms::CostVolume v = randomVolume(w, h, 2, 9, 51);
+  const ms::PairwiseWeights pw = randomWeights(w, h, 0.05f, 0.4f, 52);
+  const cv::Mat init = randomLabels(w, h, 2, 9, 53);
+  for (float trunc : {0.0f, 3.0f}) {
+    ms::SmoothParams sp;
+    sp.truncation = trunc;
+    for (int cycles : {1, 20}) {
+      const ms::OptimizerResult e = ms::alphaExpansion(v, pw, sp, init, cycles);
+      const ms::OptimizerResult l = ms::localExpansion(v, pw, sp, init, 7, cycles);
+      EXPECT_EQ(countDiff(e.disparity, l.disparity), 0) << "truncation " << trunc << " cycles " << cycles;
+      EXPECT_NEAR(e.energy.total(), l.energy.total(), 1e-9);
+      EXPECT_EQ(e.cuts, l.cuts);
+    }
+  }
+}
+
+// Narrow windows: the energy never rises, a converged result is a local
+// minimum of its own moves, and the energy reported is Eq. 2.2's.
+TEST(LocalExpansion, DescendsToItsOwnLocalMinimum) {
+  const int w = 24, h = 18;
+  const ms::CostVolume v = randomVolume(w, h, 0, 11, 61);
+  const ms::PairwiseWeights pw = randomWeights(w, h, 0.05f, 0.4f, 62);
+  const cv::Mat init = randomLabels(w, h, 0, 11, 63);
+  for (float trunc : {0.0f, 2.0f}) {
+    ms::SmoothParams sp;
+    sp.truncation = trunc;
+    const double e0 = ms::labellingEnergy(v, pw, init, trunc).total();
+    for (int window : {1, 2, 4}) {
+      double prev = e0;
+      for (int cycles = 1; cycles <= 4; ++cycles) {
+        const ms::OptimizerResult r = ms::localExpansion(v, pw, sp, init, window, cycles);
+        EXPECT_LE(r.energy.total(), prev + 1e-9) << "window " << window << " cycles " << cycles;
+        prev = r.energy.total();
+      }
+      EXPECT_LT(prev, 0.9 * e0) << "window " << window;
+      const ms::OptimizerResult r = ms::localExpansion(v, pw, sp, init, window, 100);
+      ASSERT_LT(r.cycles, 100);
+      const ms::Energy recomputed = ms::labellingEnergy(v, pw, r.disparity, trunc);
+      EXPECT_NEAR(r.energy.total(), recomputed.total(), 1e-9);
+      const ms::OptimizerResult again = ms::localExpansion(v, pw, sp, r.disparity, window, 1);
+      EXPECT_EQ(countDiff(again.disparity, r.disparity), 0) << "window " << window;
+    }
+  }
+}
+
+// The window really restricts the moves: a block labelled 0 whose data only
+// favours level 7 (every other level costs the same) cannot reach it through
+// moves of one level, while alpha-expansion jumps there at once.
+TEST(LocalExpansion, WindowBlocksLongJumps) {
+  const int w = 12, h = 10;
+  ms::CostVolume v(w, h, 0, 7, 1.0f);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) v(x, y, 7) = 0.0f;
+  ms::PairwiseWeights pw;
+  pw.right = cv::Mat::zeros(h, w, CV_32F);
+  pw.down = cv::Mat::zeros(h, w, CV_32F);
+  const cv::Mat init(h, w, CV_32F, cv::Scalar(0));
+  const ms::SmoothParams sp;
+  const ms::OptimizerResult local = ms::localExpansion(v, pw, sp, init, 1, 20);
+  EXPECT_EQ(countDiff(local.disparity, init), 0);
+  const ms::OptimizerResult full = ms::alphaExpansion(v, pw, sp, init, 20);
+  EXPECT_EQ(cv::countNonZero(full.disparity != 7.0f), 0);
+  // Within reach (window 7) the block goes to 7 as well.
+  const ms::OptimizerResult wide = ms::localExpansion(v, pw, sp, init, 7, 20);
+  EXPECT_EQ(cv::countNonZero(wide.disparity != 7.0f), 0);
+}
+
+// Polishing an HBDS labelling never raises its energy.
+TEST(LocalExpansion, PolishesHbds) {
+  const LayerScene s = layerScene(17);
+  const ms::SmoothParams sp = layerSmooth(0.0f);
+  const ms::PairwiseWeights pw = ms::pairwiseWeights(s.image, sp);
+  const ms::OptimizerResult h = ms::hbds(s.volume, pw, sp, 1);
+  const ms::OptimizerResult p = ms::localExpansion(s.volume, pw, sp, h.disparity, 2, 3);
+  EXPECT_LE(p.energy.total(), h.energy.total() + 1e-9);
+  EXPECT_LE(countDiff(p.disparity, s.truth), countDiff(h.disparity, s.truth) + 2);
+}
+
+TEST(LocalExpansion, InvalidWindowThrows) {
+  const ms::CostVolume v = randomVolume(6, 5, 0, 4, 71);
+  const ms::PairwiseWeights pw = randomWeights(6, 5, 0.1f, 0.2f, 72);
+  const ms::SmoothParams sp;
+  EXPECT_THROW(ms::localExpansion(v, pw, sp, cv::Mat(), 0), std::invalid_argument);
+  EXPECT_THROW(ms::localExpansion(v, pw, sp, cv::Mat(), -3), std::invalid_argument);
+  EXPECT_THROW(ms::localExpansion(v, pw, sp, cv::Mat(6, 5, CV_32F, cv::Scalar(9)), 2), std::invalid_argument);
+}
+
+// After convergence no restricted move improves the energy: checked by brute
+// force over every subset of each move's eligible pixels on 3 x 3 problems.
+// (A wrong unary for neighbours outside the window would leave improving
+// moves that this search finds.)
+TEST(LocalExpansion, ConvergedResultHasNoImprovingMoveBruteForce) {
+  for (unsigned seed = 1; seed <= 60; ++seed) {
+    const ms::CostVolume v = randomVolume(3, 3, 0, 5, 500 + seed);
+    const ms::PairwiseWeights pw = randomWeights(3, 3, 0.05f, 0.5f, 600 + seed);
+    for (int window : {1, 2}) {
+      ms::SmoothParams sp;
+      const ms::OptimizerResult r = ms::localExpansion(v, pw, sp, randomLabels(3, 3, 0, 5, 700 + seed), window, 100);
+      ASSERT_LT(r.cycles, 100);
+      const double e = ms::labellingEnergy(v, pw, r.disparity, 0).total();
+      for (int alpha = 0; alpha <= 5; ++alpha) {
+        std::vector<int> eligible;
+        for (int p = 0; p < 9; ++p) {
+          const int d = static_cast<int>(r.disparity.at<float>(p / 3, p % 3));
+          if (d != alpha && std::abs(d - alpha) <= window) eligible.push_back(p);
+        }
+        for (unsigned mask = 1; mask < (1u << eligible.size()); ++mask) {
+          cv::Mat moved = r.disparity.clone();
+          for (std::size_t k = 0; k < eligible.size(); ++k)
+            if (mask & (1u << k)) moved.at<float>(eligible[k] / 3, eligible[k] % 3) = static_cast<float>(alpha);
+          EXPECT_GE(ms::labellingEnergy(v, pw, moved, 0).total(), e - 1e-9)
+              << "seed " << seed << " window " << window << " alpha " << alpha << " mask " << mask;
+        }
+      }
+    }
+  }
+}

@@ -79,6 +79,37 @@ TEST(StereoEval, MissingDataFailsWithAMessage) {
   expectFailure(kBench + " --plot /tmp/x.png", 2, "--plot needs --sweep");
 }
 
+TEST(StereoBench, CellFramesPrintTimesAndAccuracy) {
+  // The table holds both scenes for each method with a bad-pixel percentage
+  // against the simulator's exact GT; HBDS (polished or not) must beat the
+  // winner-takes-all map it starts from by a wide margin.
+  const auto r = runCommand(kBench + " --scenes '' --frame --frame-size 320x240 --frame-levels 32 --repeat 1"
+                                     " --frame-methods hbds,wta --polish 1",
+                            180);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("Cell scenes (simulator) at 320x240, 32 levels"), std::string::npos) << r.output;
+  auto badOf = [&](const std::string& row) {
+    const auto at = r.output.find(row);
+    if (at == std::string::npos) {
+      ADD_FAILURE() << row << " missing in:\n" << r.output;
+      return -1.0;
+    }
+    const std::string line = r.output.substr(at, r.output.find('\n', at) - at);
+    const auto pct = line.rfind('%');
+    return pct == std::string::npos ? -1.0 : std::stod(line.substr(line.rfind(' ', pct) + 1));
+  };
+  for (const char* scene : {"back/320x240          ", "boxes/320x240         "}) {
+    const double hbds = badOf(std::string(scene) + " hbds"), wta = badOf(std::string(scene) + " wta");
+    EXPECT_GE(hbds, 0.0) << scene;
+    EXPECT_LT(hbds, 20.0) << scene;
+    EXPECT_LT(hbds, 0.5 * wta) << scene;
+  }
+  expectFailure(kBench + " --frame --frame-levels 1", 2, "--frame-levels must be >= 2");
+  expectFailure(kBench + " --frame --frame-size 20x10", 2, "--frame-size must be between");
+  expectFailure(kBench + " --frame --repeat 0", 2, "--repeat must be in 1..100");
+  expectFailure(kMatch + " a.png b.png --dmax 8 --polish -1 -o x", 2, "--polish must be >= 0");
+}
+
 TEST(StereoEval, CsvOnMiddlebury) {
   const std::string root = massage_cell::stereo::middleburyRoot();
   if (!fs::exists(fs::path(root) / "tsukuba" / "left.png")) {

@@ -33,6 +33,13 @@ OptimizerResult hbds(const CostVolume& volume, const PairwiseWeights& weights, c
 OptimizerResult alphaExpansion(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
                                const cv::Mat& initial = cv::Mat(), int max_cycles = 20);
 
+/// alpha-expansion restricted to local moves: the move of alpha only
+/// involves the pixels whose current label lies within `window` (>= 1) levels
+/// of alpha; the other pixels keep their labels. Used to polish an HBDS
+/// labelling; same stopping rule (a cycle with no accepted move).
+OptimizerResult localExpansion(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                               const cv::Mat& initial, int window, int max_cycles = 20);
+
 /// alpha-beta swap, same stopping rule.
 OptimizerResult alphaBetaSwap(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
                               const cv::Mat& initial = cv::Mat(), int max_cycles = 20);

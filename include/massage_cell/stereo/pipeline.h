@@ -21,6 +21,11 @@ struct StereoParams {
   CostParams cost;
   SmoothParams smooth;
   int max_cycles = 20;  ///< expansion / swap
+  /// hbds only: after the hierarchy, local alpha-expansion moves (labels
+  /// within polish_window levels of alpha) lower the Eq. 2.2 energy of the
+  /// HBDS labelling; 0 = pure HBDS as in the thesis (default).
+  int polish_window = 0;
+  int polish_cycles = 1;  ///< cycles of the polish (it stops earlier when a cycle changes nothing)
   int threads = 0;      ///< 0 = all cores
 };
 
