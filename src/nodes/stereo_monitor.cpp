@@ -8,7 +8,9 @@
 //             ~start_timeout (s, 30.0): exit with an error if no pair comes;
 //             ~max_pairs (0 = unlimited); ~print_every (1): print every n-th pair;
 //             ~stereo_products (false): also count stereo_image_proc's
-//             `disparity` and `points2` and report the median depth of points2.
+//             `disparity` and `points2` and report the median depth of points2;
+//             ~products_from ("stereo_image_proc"): who publishes them (the
+//             summary's label; "hbds" for this package's dense-stereo node).
 // Exit code: 0 when pairs arrived and every check held, 1 otherwise.
 #include <cstdio>
 
@@ -47,6 +49,7 @@ class Monitor {
     if (print_every_ < 1) print_every_ = 1;
     bool products = false;
     pnh.param("stereo_products", products, products);
+    pnh.param("products_from", products_from_, products_from_);
     if (products) {
       disparity_sub_ = nh.subscribe<stereo_msgs::DisparityImage>(
           "disparity", 5, [this](const stereo_msgs::DisparityImageConstPtr&) { ++disparities_; });
@@ -85,7 +88,7 @@ class Monitor {
     std::printf("left/right stamps equal: %s; camera_info stamps equal image stamps: %s; one frame id: %s\n",
                 "yes (exact-time synchronised)", info_mismatch_ == 0 ? "yes" : "NO", frame_mismatch_ == 0 ? "yes" : "NO");
     if (disparity_sub_) {
-      std::printf("stereo_image_proc:      %lu disparity images, %lu point clouds", disparities_, clouds_);
+      std::printf("%-24s%lu disparity images, %lu point clouds", (products_from_ + ":").c_str(), disparities_, clouds_);
       if (clouds_ > 0) std::printf("; last cloud: %.1f%% valid points, median depth %.4f m", valid_percent_, median_z_);
       std::printf("\n");
     }
@@ -152,6 +155,7 @@ class Monitor {
   double min_dt_ = 0.0, max_dt_ = 0.0, baseline_ = 0.0;
   unsigned width_ = 0, height_ = 0;
   ros::Subscriber disparity_sub_, points_sub_;
+  std::string products_from_ = "stereo_image_proc";
   unsigned long disparities_ = 0, clouds_ = 0;
   double valid_percent_ = 0.0, median_z_ = 0.0;
   std::string encoding_, frame_id_;

@@ -1,0 +1,432 @@
+// rostest of the hbds dense-stereo node (test/ros/hbds.test).
+//
+// BagOutputs: rosbags/back_session.bag is replayed (sim time) into the node
+// in /stereo; its disparity, depth (+ camera_info) and points2 must carry
+// input stamps and the left optical frame, agree with the camera_info and
+// with each other, and show the subject's back at the ground-truth depth of
+// the acupoints (rosbags/back_session.ground_truth.yaml).
+// BadInput: a second node in /bad_input is fed by this test: pairs with
+// mismatched sizes, an uncalibrated camera_info, an unsupported encoding and
+// a range wider than the image are skipped (named in the diagnostics), and a
+// good pair afterwards is still processed.
+//
+// Parameters (private): bag, ground_truth (paths), tolerance (m, 0.02).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <ros/ros.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+#include <stereo_msgs/DisparityImage.h>
+#include <tf2_msgs/TFMessage.h>
+#include <yaml-cpp/yaml.h>
+
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return std::nan("");
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+template <typename Done>
+bool spinUntil(Done done, double timeout) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
+  while (ros::ok() && !done() && ros::WallTime::now() < end) {
+    ros::spinOnce();
+    ros::WallDuration(0.01).sleep();
+  }
+  return done();
+}
+
+const float* floats(const sensor_msgs::Image& image) { return reinterpret_cast<const float*>(image.data.data()); }
+
+/// Status values of one node's "dense stereo (hbds)" diagnostics.
+struct HbdsStatus {
+  bool seen = false;
+  std::map<std::string, std::string> values;
+  long count(const std::string& key) const {
+    const auto it = values.find(key);
+    return it == values.end() ? -1 : std::stol(it->second);
+  }
+  std::string text(const std::string& key) const {
+    const auto it = values.find(key);
+    return it == values.end() ? "" : it->second;
+  }
+};
+
+ros::Subscriber watchDiagnostics(ros::NodeHandle& nh, const std::string& node, HbdsStatus& status) {
+  return nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 50, [&status, node](const diagnostic_msgs::DiagnosticArrayConstPtr& msg) {
+        for (const auto& s : msg->status) {
+          if (s.name != node + ": dense stereo (hbds)") continue;
+          status.seen = true;
+          for (const auto& kv : s.values) status.values[kv.key] = kv.value;
+        }
+      });
+}
+
+class HbdsNode : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(pnh_.getParam("bag", bag_path_));
+    ASSERT_TRUE(pnh_.getParam("ground_truth", ground_truth_path_));
+    pnh_.param("tolerance", tolerance_, tolerance_);
+  }
+  ros::NodeHandle nh_, pnh_{"~"};
+  std::string bag_path_, ground_truth_path_;
+  double tolerance_ = 0.02;
+};
+
+// ------------------------------------------------------------------ bag --
+
+TEST_F(HbdsNode, BagOutputs) {
+  // Ground truth: acupoints per frame in the left optical frame; frame i is
+  // the bag's i-th pair (10 Hz from its first stamp).
+  const YAML::Node gt = YAML::LoadFile(ground_truth_path_);
+  const double gt_rate = gt["rate"].as<double>();
+  std::vector<std::vector<std::array<double, 3>>> acupoints;
+  for (const auto& frame : gt["frames"]) {
+    acupoints.emplace_back();
+    for (const auto& point : frame["acupoints"]) {
+      acupoints.back().push_back({point.second[0].as<double>(), point.second[1].as<double>(), point.second[2].as<double>()});
+    }
+  }
+  ASSERT_GT(acupoints.size(), 10u);
+  ros::Time first_stamp;
+  {
+    rosbag::Bag bag(bag_path_, rosbag::bagmode::Read);
+    rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{"/stereo/left/camera_info"}));
+    ASSERT_NE(view.begin(), view.end());
+    first_stamp = view.begin()->instantiate<sensor_msgs::CameraInfo>()->header.stamp;
+  }
+
+  // Outputs first: the node subscribes to its inputs only then, and the bag
+  // (--wait-for-subscribers) starts once every topic has a subscriber.
+  std::vector<stereo_msgs::DisparityImageConstPtr> disparities;
+  std::vector<sensor_msgs::ImageConstPtr> depths;
+  std::vector<sensor_msgs::CameraInfoConstPtr> depth_infos;
+  std::vector<sensor_msgs::PointCloud2ConstPtr> clouds;
+  sensor_msgs::CameraInfoConstPtr left_info, right_info;
+  std::set<ros::Time> input_stamps;
+  HbdsStatus status;
+  int tf_messages = 0;  // the bag waits for a subscriber on every topic, /tf_static too
+  std::vector<ros::Subscriber> subs;
+  subs.push_back(nh_.subscribe<stereo_msgs::DisparityImage>(
+      "/stereo/disparity", 100, [&](const stereo_msgs::DisparityImageConstPtr& m) { disparities.push_back(m); }));
+  subs.push_back(nh_.subscribe<sensor_msgs::Image>("/stereo/depth", 100,
+                                                   [&](const sensor_msgs::ImageConstPtr& m) { depths.push_back(m); }));
+  subs.push_back(nh_.subscribe<sensor_msgs::CameraInfo>(
+      "/stereo/depth/camera_info", 100, [&](const sensor_msgs::CameraInfoConstPtr& m) { depth_infos.push_back(m); }));
+  subs.push_back(nh_.subscribe<sensor_msgs::PointCloud2>(
+      "/stereo/points2", 100, [&](const sensor_msgs::PointCloud2ConstPtr& m) { clouds.push_back(m); }));
+  subs.push_back(nh_.subscribe<sensor_msgs::CameraInfo>("/stereo/left/camera_info", 100,
+                                                        [&](const sensor_msgs::CameraInfoConstPtr& m) {
+                                                          left_info = m;
+                                                          input_stamps.insert(m->header.stamp);
+                                                        }));
+  subs.push_back(nh_.subscribe<sensor_msgs::CameraInfo>(
+      "/stereo/right/camera_info", 100, [&](const sensor_msgs::CameraInfoConstPtr& m) { right_info = m; }));
+  subs.push_back(nh_.subscribe<tf2_msgs::TFMessage>("/tf_static", 10,
+                                                    [&](const tf2_msgs::TFMessageConstPtr&) { ++tf_messages; }));
+  subs.push_back(watchDiagnostics(nh_, "stereo/hbds", status));
+
+  // The bag: 50 pairs in 5 s; wait for all of them and the node's last output.
+  const std::size_t pairs = acupoints.size();
+  spinUntil([&] { return input_stamps.size() >= pairs; }, 40.0);
+  ASSERT_EQ(input_stamps.size(), pairs) << "the bag did not replay every pair";
+  spinUntil([&] { return disparities.size() && disparities.back()->header.stamp == *input_stamps.rbegin(); }, 5.0);
+  spinUntil([] { return false; }, 1.5);  // the last diagnostics and clouds
+  ASSERT_TRUE(left_info && right_info);
+
+  const std::string frame = left_info->header.frame_id;
+  EXPECT_EQ(frame, "stereo_left_optical_frame");
+  ASSERT_GE(disparities.size(), 5u) << "too few disparity images";
+  ASSERT_GE(depths.size(), 5u) << "too few depth images";
+  ASSERT_GE(clouds.size(), 5u) << "too few point clouds";
+  ASSERT_GE(depth_infos.size(), 5u) << "too few depth camera_infos";
+
+  // Stamps and frames of every output.
+  for (const auto& d : disparities) {
+    EXPECT_TRUE(input_stamps.count(d->header.stamp)) << "disparity stamp " << d->header.stamp << " is no input stamp";
+    EXPECT_EQ(d->header.frame_id, frame);
+    EXPECT_EQ(d->image.header.stamp, d->header.stamp);
+  }
+  for (const auto& d : depths) {
+    EXPECT_TRUE(input_stamps.count(d->header.stamp)) << "depth stamp " << d->header.stamp << " is no input stamp";
+    EXPECT_EQ(d->header.frame_id, frame);
+  }
+  for (const auto& c : clouds) {
+    EXPECT_TRUE(input_stamps.count(c->header.stamp)) << "cloud stamp " << c->header.stamp << " is no input stamp";
+    EXPECT_EQ(c->header.frame_id, frame);
+  }
+  for (const auto& i : depth_infos) {
+    EXPECT_TRUE(input_stamps.count(i->header.stamp));
+    EXPECT_EQ(i->header.frame_id, frame);
+    for (int k = 0; k < 9; ++k) EXPECT_DOUBLE_EQ(i->K[k], left_info->P[4 * (k / 3) + k % 3]) << "K[" << k << "]";
+    EXPECT_EQ(i->width, left_info->width);
+    EXPECT_EQ(i->height, left_info->height);
+  }
+
+  // Geometry from camera_info: f = fx, T = -Tx / fx of the right P.
+  const double fx = left_info->P[0], fy = left_info->P[5], cx = left_info->P[2], cy = left_info->P[6];
+  const double baseline = -right_info->P[3] / right_info->P[0];
+  EXPECT_DOUBLE_EQ(fx, 250.0);
+  EXPECT_NEAR(baseline, 0.10, 1e-9);
+  for (const auto& d : disparities) {
+    EXPECT_NEAR(d->f, fx, 1e-4);
+    EXPECT_NEAR(d->T, baseline, 1e-6);
+    EXPECT_EQ(d->image.encoding, "32FC1");
+    EXPECT_EQ(d->image.width, left_info->width);
+    EXPECT_EQ(d->image.height, left_info->height);
+    EXPECT_LT(d->min_disparity, d->max_disparity);
+  }
+
+  // depth = f T / d where the disparity is valid, NaN elsewhere; points2 has
+  // the same z and x = (u - cx) z / fx, y = (v - cy) z / fy.
+  std::map<ros::Time, stereo_msgs::DisparityImageConstPtr> disparity_at;
+  for (const auto& d : disparities) disparity_at[d->header.stamp] = d;
+  std::map<ros::Time, sensor_msgs::ImageConstPtr> depth_at;
+  for (const auto& d : depths) depth_at[d->header.stamp] = d;
+  int compared = 0;
+  for (const auto& depth : depths) {
+    const auto it = disparity_at.find(depth->header.stamp);
+    if (it == disparity_at.end()) continue;
+    const auto& disp = *it->second;
+    ASSERT_EQ(depth->encoding, "32FC1");
+    ASSERT_EQ(depth->width * depth->height, disp.image.width * disp.image.height);
+    const float* z = floats(*depth);
+    const float* d = floats(disp.image);
+    long valid = 0, mismatches = 0;
+    for (std::size_t i = 0; i < depth->width * depth->height; ++i) {
+      if (d[i] >= disp.min_disparity && d[i] > 0.0f) {
+        ++valid;
+        if (!(std::abs(z[i] - disp.f * disp.T / d[i]) <= 1e-5f * z[i])) ++mismatches;
+      } else if (!std::isnan(z[i])) {
+        ++mismatches;
+      }
+    }
+    EXPECT_EQ(mismatches, 0) << "depth != f T / d at " << mismatches << " pixels";
+    EXPECT_GT(valid, static_cast<long>(depth->width * depth->height) / 2) << "fewer than half the pixels are valid";
+    ++compared;
+  }
+  EXPECT_GE(compared, 5) << "too few depth images with their disparity image";
+  int clouds_compared = 0;
+  for (const auto& cloud : clouds) {
+    const auto it = depth_at.find(cloud->header.stamp);
+    if (it == depth_at.end()) continue;
+    ASSERT_EQ(cloud->width, it->second->width);
+    ASSERT_EQ(cloud->height, it->second->height);
+    const float* z = floats(*it->second);
+    sensor_msgs::PointCloud2ConstIterator<float> p(*cloud, "x");
+    sensor_msgs::PointCloud2ConstIterator<std::uint8_t> rgb(*cloud, "rgb");
+    long mismatches = 0, coloured = 0;
+    for (std::size_t i = 0; i < cloud->width * cloud->height; ++i, ++p, ++rgb) {
+      const double u = i % cloud->width, v = i / cloud->width;
+      if (std::isnan(z[i])) {
+        if (!std::isnan(p[0]) || !std::isnan(p[1]) || !std::isnan(p[2])) ++mismatches;
+        continue;
+      }
+      if (std::abs(p[2] - z[i]) > 1e-6 || std::abs(p[0] - (u - cx) * z[i] / fx) > 1e-5 ||
+          std::abs(p[1] - (v - cy) * z[i] / fy) > 1e-5) {
+        ++mismatches;
+      }
+      if (rgb[0] || rgb[1] || rgb[2]) ++coloured;
+    }
+    EXPECT_EQ(mismatches, 0) << "points2 disagrees with depth at " << mismatches << " points";
+    EXPECT_GT(coloured, 1000) << "points2 has no colour";
+    ++clouds_compared;
+  }
+  EXPECT_GE(clouds_compared, 5);
+
+  // The back at its ground-truth depth: every acupoint of the pair's frame,
+  // projected into the depth image, against the median depth of its 5x5
+  // neighbourhood (the back is what the central image region shows).
+  std::vector<double> errors, signed_errors;
+  for (const auto& depth : depths) {
+    const long index = std::lround((depth->header.stamp - first_stamp).toSec() * gt_rate);
+    ASSERT_GE(index, 0);
+    ASSERT_LT(index, static_cast<long>(acupoints.size()));
+    const float* z = floats(*depth);
+    std::vector<double> frame_errors;
+    for (const auto& a : acupoints[index]) {
+      const int u = static_cast<int>(std::lround(fx * a[0] / a[2] + cx));
+      const int v = static_cast<int>(std::lround(fy * a[1] / a[2] + cy));
+      std::vector<double> patch;
+      for (int dv = -2; dv <= 2; ++dv) {
+        for (int du = -2; du <= 2; ++du) {
+          const int x = u + du, y = v + dv;
+          if (x < 0 || y < 0 || x >= static_cast<int>(depth->width) || y >= static_cast<int>(depth->height)) continue;
+          const float value = z[y * depth->width + x];
+          if (std::isfinite(value)) patch.push_back(value);
+        }
+      }
+      frame_errors.push_back(patch.empty() ? 1.0 : std::abs(median(patch) - a[2]));  // no depth: 1 m off
+      if (!patch.empty()) signed_errors.push_back(median(patch) - a[2]);
+    }
+    EXPECT_LT(median(frame_errors), tolerance_) << "frame " << index << ": median acupoint depth error";
+    errors.insert(errors.end(), frame_errors.begin(), frame_errors.end());
+  }
+  // Integer disparities quantise depth in steps of Z^2 / (f T) = 23 mm at
+  // 0.76 m: most acupoints are within one step, the median within half one.
+  const long within = std::count_if(errors.begin(), errors.end(), [&](double e) { return e <= tolerance_; });
+  EXPECT_GE(within, static_cast<long>(0.75 * errors.size()))
+      << within << " of " << errors.size() << " acupoint depths within " << tolerance_ << " m";
+  EXPECT_LT(median(errors), tolerance_ / 2) << "median acupoint depth error";
+
+  // Diagnostics of the node on the bag.
+  ASSERT_TRUE(status.seen) << "no diagnostics from stereo/hbds";
+  EXPECT_EQ(status.count("bad pairs"), 0) << status.text("last error");
+  EXPECT_GE(status.count("pairs processed"), static_cast<long>(disparities.size()));
+  EXPECT_EQ(status.count("pairs received"), static_cast<long>(pairs));
+  ROS_INFO_STREAM("hbds on the bag: " << disparities.size() << " of " << pairs << " pairs processed, mean "
+                                      << status.text("mean processing time (ms)") << " ms a pair, "
+                                      << status.count("dropped pairs") << " dropped; acupoint depth errors: median "
+                                      << median(errors) * 1000 << " mm, " << within << "/" << errors.size()
+                                      << " within " << tolerance_ * 1000 << " mm, median signed error (measured - truth) "
+                                      << median(signed_errors) * 1000 << " mm");
+}
+
+// ------------------------------------------------------------ bad input --
+
+struct StereoPair {
+  sensor_msgs::Image left, right;
+  sensor_msgs::CameraInfo left_info, right_info;
+};
+
+TEST_F(HbdsNode, BadInputIsSkipped) {
+  // A good pair from the bag, to be altered.
+  StereoPair good;
+  {
+    rosbag::Bag bag(bag_path_, rosbag::bagmode::Read);
+    rosbag::View view(bag);
+    int found = 0;
+    for (const auto& m : view) {
+      if (found == 15) break;
+      const std::string& topic = m.getTopic();
+      if (topic == "/stereo/left/image_raw" && !(found & 1)) good.left = *m.instantiate<sensor_msgs::Image>(), found |= 1;
+      if (topic == "/stereo/right/image_raw" && !(found & 2)) good.right = *m.instantiate<sensor_msgs::Image>(), found |= 2;
+      if (topic == "/stereo/left/camera_info" && !(found & 4))
+        good.left_info = *m.instantiate<sensor_msgs::CameraInfo>(), found |= 4;
+      if (topic == "/stereo/right/camera_info" && !(found & 8))
+        good.right_info = *m.instantiate<sensor_msgs::CameraInfo>(), found |= 8;
+    }
+    ASSERT_EQ(found, 15) << "the bag lacks a stereo pair";
+  }
+
+  ros::NodeHandle ns("/bad_input");
+  ros::Publisher left_pub = ns.advertise<sensor_msgs::Image>("left/image_raw", 5);
+  ros::Publisher right_pub = ns.advertise<sensor_msgs::Image>("right/image_raw", 5);
+  ros::Publisher left_info_pub = ns.advertise<sensor_msgs::CameraInfo>("left/camera_info", 5);
+  ros::Publisher right_info_pub = ns.advertise<sensor_msgs::CameraInfo>("right/camera_info", 5);
+  std::vector<stereo_msgs::DisparityImageConstPtr> outputs;
+  ros::Subscriber sub = ns.subscribe<stereo_msgs::DisparityImage>(
+      "disparity", 10, [&](const stereo_msgs::DisparityImageConstPtr& m) { outputs.push_back(m); });
+  HbdsStatus status;
+  ros::Subscriber diag = watchDiagnostics(nh_, "bad_input/hbds", status);
+  ASSERT_TRUE(spinUntil(
+      [&] {
+        return left_pub.getNumSubscribers() && right_pub.getNumSubscribers() && left_info_pub.getNumSubscribers() &&
+               right_info_pub.getNumSubscribers() && status.seen;
+      },
+      15.0))
+      << "the node in /bad_input did not subscribe to its inputs (or sends no diagnostics)";
+  ros::WallDuration(0.5).sleep();  // connections of the synchronised subscribers settle
+
+  int stamp_seconds = 1000;
+  auto publish = [&](StereoPair pair) {
+    const ros::Time stamp(++stamp_seconds, 0);
+    for (auto* header : {&pair.left.header, &pair.right.header, &pair.left_info.header, &pair.right_info.header}) {
+      header->stamp = stamp;
+    }
+    left_pub.publish(pair.left);
+    left_info_pub.publish(pair.left_info);
+    right_pub.publish(pair.right);
+    right_info_pub.publish(pair.right_info);
+    return stamp;
+  };
+  auto outputFor = [&](const ros::Time& stamp) {
+    return std::any_of(outputs.begin(), outputs.end(), [&](const auto& m) { return m->header.stamp == stamp; });
+  };
+
+  // Each bad pair must be counted, named in the diagnostics and give no output.
+  auto expectSkipped = [&](const std::string& what, const StereoPair& pair, const std::string& message) {
+    const long before = std::max(0L, status.count("bad pairs"));
+    const ros::Time stamp = publish(pair);
+    EXPECT_TRUE(spinUntil([&] { return status.count("bad pairs") > before; }, 6.0)) << what << ": not counted as bad";
+    EXPECT_NE(status.text("last error").find(message), std::string::npos)
+        << what << ": last error '" << status.text("last error") << "' does not say '" << message << "'";
+    EXPECT_FALSE(outputFor(stamp)) << what << ": a disparity image was published";
+  };
+
+  StereoPair p = good;  // right image smaller than its camera_info
+  p.right.width /= 2;
+  p.right.height /= 2;
+  p.right.step /= 2;
+  p.right.data.resize(p.right.step * p.right.height);
+  expectSkipped("image smaller than camera_info", p, "but its camera_info says");
+
+  p = good;  // uncalibrated left camera
+  std::fill(p.left_info.K.begin(), p.left_info.K.end(), 0.0);
+  std::fill(p.left_info.P.begin(), p.left_info.P.end(), 0.0);
+  expectSkipped("uncalibrated camera_info", p, "uncalibrated");
+
+  p = good;  // both views consistent, but of different sizes
+  p.right.width /= 2;
+  p.right.height /= 2;
+  p.right.step /= 2;
+  p.right.data.resize(p.right.step * p.right.height);
+  p.right_info.width /= 2;
+  p.right_info.height /= 2;
+  expectSkipped("left/right sizes differ", p, "both views must have one size");
+
+  p = good;  // 16-bit images
+  for (auto* image : {&p.left, &p.right}) {
+    image->encoding = "mono16";
+    image->step = image->width * 2;
+    image->data.assign(image->step * image->height, 0x40);
+  }
+  expectSkipped("mono16", p, "encoding 'mono16' is not supported");
+
+  p = good;  // 40x30 images: the 16..47 range is wider than them
+  for (auto* image : {&p.left, &p.right}) {
+    image->width = 40;
+    image->height = 30;
+    image->step = 40 * 3;
+    image->data.assign(image->step * image->height, 0x80);
+  }
+  for (auto* info : {&p.left_info, &p.right_info}) {
+    info->width = 40;
+    info->height = 30;
+    for (int k : {0, 2, 4, 5}) info->K[k] /= 8.0;
+    for (int k : {0, 2, 3, 5, 6}) info->P[k] /= 8.0;
+  }
+  expectSkipped("range wider than the image", p, "wider than the image");
+
+  // The node is alive and still processes a good pair.
+  const ros::Time stamp = publish(good);
+  EXPECT_TRUE(spinUntil([&] { return outputFor(stamp); }, 15.0)) << "no disparity for the good pair after the bad ones";
+  EXPECT_TRUE(spinUntil([&] { return status.count("pairs processed") == 1; }, 3.0)) << "diagnostics: processed pairs";
+  EXPECT_EQ(status.count("bad pairs"), 5);
+  EXPECT_TRUE(ros::service::exists("/bad_input/hbds/set_parameters", false)) << "the node is gone";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_hbds_node");
+  ros::NodeHandle nh;
+  return RUN_ALL_TESTS();
+}
