@@ -32,23 +32,13 @@
 #include <tf2_msgs/TFMessage.h>
 #include <yaml-cpp/yaml.h>
 
+#include "spin_util.h"
+#include "test_util.h"
+
 namespace {
 
-double median(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
-
-template <typename Done>
-bool spinUntil(Done done, double timeout) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
-  while (ros::ok() && !done() && ros::WallTime::now() < end) {
-    ros::spinOnce();
-    ros::WallDuration(0.01).sleep();
-  }
-  return done();
-}
+using massage_cell::test::median;
+using massage_cell::test::spinUntil;
 
 const float* floats(const sensor_msgs::Image& image) { return reinterpret_cast<const float*>(image.data.data()); }
 

@@ -13,22 +13,13 @@
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <stereo_msgs/DisparityImage.h>
 
+#include "spin_util.h"
+#include "test_util.h"
+
 namespace {
 
-double median(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
-
-template <typename Done>
-void spinUntil(Done done, double timeout) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
-  while (ros::ok() && !done() && ros::WallTime::now() < end) {
-    ros::spinOnce();
-    ros::WallDuration(0.01).sleep();
-  }
-}
+using massage_cell::test::median;
+using massage_cell::test::spinUntil;
 
 class StereoImageProc : public ::testing::Test {
  protected:

@@ -7,7 +7,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <random>
@@ -17,6 +19,13 @@
 namespace massage_cell::test {
 
 namespace fs = std::filesystem;
+
+/// Median of the values (the upper one for an even count); NaN when empty.
+inline double median(std::vector<double> v) {
+  if (v.empty()) return std::nan("");
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
 
 /// A fresh folder under the system temp dir, removed on destruction.
 class TempDir {
