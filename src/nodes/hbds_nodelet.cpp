@@ -193,6 +193,7 @@ HbdsNodelet::~HbdsNodelet() {
 }
 
 void HbdsNodelet::onInit() {
+  stereo::retainFreedMemory();  // every pair allocates and frees its cost volume and graphs
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& pnh = getPrivateNodeHandle();
   it_ = std::make_unique<image_transport::ImageTransport>(nh);

@@ -8,6 +8,10 @@
 #include <map>
 #include <stdexcept>
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -91,6 +95,13 @@ std::string toString(Method method) {
     case Method::kSgbm: return "sgbm";
   }
   return "?";
+}
+
+void retainFreedMemory() {
+#if defined(__GLIBC__)
+  mallopt(M_MMAP_THRESHOLD, 512 << 20);  // blocks below 512 MB come from the heap...
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);    // ...which is not trimmed below 1 GB of free space
+#endif
 }
 
 MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, const StereoParams& params) {

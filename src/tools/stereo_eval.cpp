@@ -90,6 +90,7 @@ void run(const Options& o) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  massage_cell::stereo::retainFreedMemory();
   Options options;
   return runTool("stereo_eval", [&] { return parse(argc, argv, options); }, [&] { run(options); });
 }
