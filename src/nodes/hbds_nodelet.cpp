@@ -268,6 +268,7 @@ void HbdsNodelet::checkStartParameters() {
                                   {"tau", min.tau, max.tau, false},
                                   {"u_min", min.u_min, max.u_min, false},
                                   {"u_max", min.u_max, max.u_max, false},
+                                  {"polish_window", double(min.polish_window), double(max.polish_window), true},
                                   {"threads", double(min.threads), double(max.threads), true},
                                   {"downsample", double(min.downsample), double(max.downsample), true}};
   for (const Range& r : ranges) {
@@ -320,7 +321,7 @@ void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
                                 << config.min_disparity + config.disparity_range - 1 << ", eta " << config.eta
                                 << ", ncc_window " << config.ncc_window << ", gradient_saturation "
                                 << config.gradient_saturation << ", tau " << config.tau << ", u " << config.u_min
-                                << ".." << config.u_max << ", threads " << config.threads << ", downsample "
+                                << ".." << config.u_max << ", polish_window " << config.polish_window << ", threads " << config.threads << ", downsample "
                                 << config.downsample);
 }
 
