@@ -77,6 +77,16 @@
 //    within-set WTA as fallback (4.90 .. 5.22 depending on the box, no
 //    consistent winner, energy 1.036 .. 1.037, +20 ms); the thesis's literal
 //    split B = [lo, psi - 1], F = [psi, hi] (valley level to F): 5.24, 1.038.
+//  * Evaluated, not kept (2026-11): a smooth term from the jump the two
+//    subset argmins imply (the Eq. 2.2 cost of the labels Eq. 2.4 assumes):
+//    a pair cut with p in B and q in F pays u_pq (f_q - b_p), b / f the
+//    argmins of S over B / F (asymmetric arcs, always submodular). Pure HBDS
+//    energy / alpha-expansion's fell from 1.048 / 1.050 to 1.022 / 1.022
+//    (Teddy / Cones); clamped at |D*| / 2: 1.020 / 1.019; but bad>1px moved
+//    3.38 / 1.67 / 9.92 / 5.38 -> 3.42 / 2.34 / 9.38 / 5.68 (clamped 3.23 /
+//    2.45 / 9.35 / 5.63): Venus's texture-poor slanted planes get noisy
+//    argmins and too weak a coupling. Eq. 2.5 stays; the energy gap is
+//    closed instead by the optional local-expansion polish (pipeline.h).
 //  * The Eq. 2.5 penalty is not truncated by SmoothParams::truncation (the
 //    thesis' V has no truncation); truncation only enters the reported
 //    energy, which is Eq. 2.2 via labellingEnergy() so it is comparable with
