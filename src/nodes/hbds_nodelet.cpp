@@ -269,6 +269,7 @@ void HbdsNodelet::checkStartParameters() {
                                   {"u_min", min.u_min, max.u_min, false},
                                   {"u_max", min.u_max, max.u_max, false},
                                   {"polish_window", double(min.polish_window), double(max.polish_window), true},
+                                  {"refine_window", double(min.refine_window), double(max.refine_window), true},
                                   {"threads", double(min.threads), double(max.threads), true},
                                   {"downsample", double(min.downsample), double(max.downsample), true}};
   for (const Range& r : ranges) {
@@ -298,6 +299,15 @@ void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
     reject("method '" + config.method + "' (hbds, sgbm or wta): keeping '" + config_.method + "'");
     config.method = config_.method;
   }
+  if (config.refine != "none" && config.refine != "mdc" && config.refine != "ffd_mdc") {
+    reject("refine '" + config.refine + "' (none, mdc or ffd_mdc): keeping '" + config_.refine + "'");
+    config.refine = config_.refine;
+  }
+  if (config.refine_window % 2 == 0) {
+    reject("refine_window = " + std::to_string(config.refine_window) + ": it must be odd; keeping " +
+           std::to_string(config_.refine_window));
+    config.refine_window = config_.refine_window;
+  }
   if (config.ncc_window % 2 == 0) {
     reject("ncc_window = " + std::to_string(config.ncc_window) + ": it must be odd; keeping " +
            std::to_string(config_.ncc_window));
@@ -321,7 +331,7 @@ void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
                                 << config.min_disparity + config.disparity_range - 1 << ", eta " << config.eta
                                 << ", ncc_window " << config.ncc_window << ", gradient_saturation "
                                 << config.gradient_saturation << ", tau " << config.tau << ", u " << config.u_min
-                                << ".." << config.u_max << ", polish_window " << config.polish_window << ", threads " << config.threads << ", downsample "
+                                << ".." << config.u_max << ", polish_window " << config.polish_window << ", refine " << config.refine << ", threads " << config.threads << ", downsample "
                                 << config.downsample);
 }
 
@@ -515,6 +525,9 @@ void HbdsNodelet::process(const Pair& pair, const Config& config, const Outputs&
   params.smooth.u_max = static_cast<float>(config.u_max);
   params.threads = config.threads;
   params.polish_window = config.polish_window;
+  params.refine = stereo::parseRefinement(config.refine == "ffd_mdc" ? "ffd-mdc" : config.refine);
+  params.refine_params.window = config.refine_window;
+  params.refine_params.threads = config.threads;
   const stereo::Method method = stereo::parseMethod(config.method);
   const stereo::MatchResult result = stereo::match(views[0], views[1], method, params);
 

@@ -86,6 +86,22 @@ Method parseMethod(const std::string& name) {
   return it->second;
 }
 
+Refinement parseRefinement(const std::string& name) {
+  if (name == "none") return Refinement::kNone;
+  if (name == "mdc") return Refinement::kMdc;
+  if (name == "ffd-mdc") return Refinement::kFfdMdc;
+  throw std::invalid_argument("unknown refinement '" + name + "' (none, mdc, ffd-mdc)");
+}
+
+std::string toString(Refinement refinement) {
+  switch (refinement) {
+    case Refinement::kNone: return "none";
+    case Refinement::kMdc: return "mdc";
+    case Refinement::kFfdMdc: return "ffd-mdc";
+  }
+  return "?";
+}
+
 std::string toString(Method method) {
   switch (method) {
     case Method::kHbds: return "hbds";
@@ -143,6 +159,13 @@ MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, cons
       result.optimize_ms = msSince(start);
       result.cost_ms = 0.0;  // SGBM computes its own cost
       break;
+  }
+  if (params.refine != Refinement::kNone) {
+    start = Clock::now();
+    RefineParams rp = params.refine_params;
+    rp.detect_fattening = params.refine == Refinement::kFfdMdc;
+    result.disparity = refineDisparity(left, result.disparity, rp, &result.fattening);
+    result.refine_ms = msSince(start);
   }
   result.energy = labellingEnergy(volume, weights, toLabelling(result.disparity, volume.dmin(), volume.dmax()),
                                   params.smooth.truncation);

@@ -55,7 +55,7 @@ void run(const Options& o) {
     std::printf("scene,method,mask,threshold,bad_percent,time_ms\n");
   } else {
     std::printf("Middlebury bad pixels (%%), data %s\n", o.data.c_str());
-    std::printf("%-8s %-10s | %-20s | %-20s | %-20s | %9s\n", "scene", "method", "nonocc >0.5 >1 >2", "all >0.5 >1 >2",
+    std::printf("%-8s %-13s | %-20s | %-20s | %-20s | %9s\n", "scene", "method", "nonocc >0.5 >1 >2", "all >0.5 >1 >2",
                 "disc >0.5 >1 >2", "time ms");
   }
   for (const auto& name : o.scenes) {
@@ -65,6 +65,8 @@ void run(const Options& o) {
     params.cost.dmax = scene.dmax;
     for (const auto& method : o.methods) {
       const stereo::MatchResult r = stereo::match(scene.left, scene.right, stereo::parseMethod(method), params);
+      const std::string label =
+          params.refine == stereo::Refinement::kNone ? method : method + "+" + stereo::toString(params.refine);
       const std::pair<const char*, const cv::Mat*> masks[3] = {{"nonocc", &scene.nonocc}, {"all", &scene.all}, {"disc", &scene.disc}};
       double bad[3][3];
       for (int m = 0; m < 3; ++m) {
@@ -73,13 +75,13 @@ void run(const Options& o) {
       if (o.csv) {
         for (int m = 0; m < 3; ++m) {
           for (int t = 0; t < 3; ++t) {
-            std::printf("%s,%s,%s,%.1f,%.3f,%.1f\n", name.c_str(), method.c_str(), masks[m].first, thresholds[t], bad[m][t],
+            std::printf("%s,%s,%s,%.1f,%.3f,%.1f\n", name.c_str(), label.c_str(), masks[m].first, thresholds[t], bad[m][t],
                         r.total_ms());
           }
         }
       } else {
-        std::printf("%-8s %-10s | %6.2f %6.2f %6.2f | %6.2f %6.2f %6.2f | %6.2f %6.2f %6.2f | %9.1f\n", name.c_str(),
-                    method.c_str(), bad[0][0], bad[0][1], bad[0][2], bad[1][0], bad[1][1], bad[1][2], bad[2][0], bad[2][1],
+        std::printf("%-8s %-13s | %6.2f %6.2f %6.2f | %6.2f %6.2f %6.2f | %6.2f %6.2f %6.2f | %9.1f\n", name.c_str(),
+                    label.c_str(), bad[0][0], bad[0][1], bad[0][2], bad[1][0], bad[1][1], bad[1][2], bad[2][0], bad[2][1],
                     bad[2][2], r.total_ms());
       }
       std::fflush(stdout);

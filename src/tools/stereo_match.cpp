@@ -90,9 +90,15 @@ void run(const Options& o) {
   if (!cv::imwrite(png.string(), stereo::colourise(r.disparity, o.dmin, o.dmax))) {
     throw std::runtime_error("cannot write '" + png.string() + "'");
   }
-  std::printf("stereo_match: %s %dx%d, disparities %d..%d: cost %.1f ms + %s %.1f ms = %.1f ms, energy %.2f "
+  char refine[96] = "";
+  if (o.params.refine != stereo::Refinement::kNone) {
+    std::snprintf(refine, sizeof refine, " + %s %.1f ms (%d fattening pixels)",
+                  stereo::toString(o.params.refine).c_str(), r.refine_ms,
+                  r.fattening.empty() ? 0 : cv::countNonZero(r.fattening));
+  }
+  std::printf("stereo_match: %s %dx%d, disparities %d..%d: cost %.1f ms + %s %.1f ms%s = %.1f ms, energy %.2f "
               "(data %.2f + smooth %.2f), %d cuts -> %s, %s\n",
-              o.method.c_str(), left.cols, left.rows, o.dmin, o.dmax, r.cost_ms, o.method.c_str(), r.optimize_ms,
+              o.method.c_str(), left.cols, left.rows, o.dmin, o.dmax, r.cost_ms, o.method.c_str(), r.optimize_ms, refine,
               r.total_ms(), r.energy.total(), r.energy.data, r.energy.smooth, r.cuts, pfm.string().c_str(),
               png.string().c_str());
 }

@@ -18,6 +18,10 @@ inline const char* stereoParamsHelp() {
   --polish W         hbds: then local alpha-expansion moves over labels within W levels
                      of alpha, lowering the Eq. 2.2 energy (default 0: pure HBDS)
   --polish-cycles N  cycles of that polish (default 1)
+  --refine R         after the method: none (default), mdc (Gu's disparity calibration,
+                     thesis Eq. 2.11-2.13 without FFD) or ffd-mdc (the thesis's refinement:
+                     fattening foreground detection, then MDC)
+  --refine-window N  MDC support window side, odd (default 21)
   --max-cycles N     expansion / swap cycles at most (default 20)
   --threads N        worker threads, 0 = all cores (default 0)
 )";
@@ -38,6 +42,14 @@ inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
   table.values["--max-cycles"] = integer(p.max_cycles);
   table.values["--polish"] = integer(p.polish_window);
   table.values["--polish-cycles"] = integer(p.polish_cycles);
+  table.values["--refine"] = [&p](const std::string&, const std::string& v) {
+    try {
+      p.refine = stereo::parseRefinement(v);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+  };
+  table.values["--refine-window"] = integer(p.refine_params.window);
   table.values["--threads"] = integer(p.threads);
 }
 
@@ -50,6 +62,11 @@ inline void checkStereoParams(const stereo::StereoParams& p) {
   require(p.smooth.truncation >= 0.0f, "--truncation must be >= 0");
   require(p.polish_window >= 0, "--polish must be >= 0");
   require(p.polish_cycles >= 1, "--polish-cycles must be >= 1");
+  try {
+    stereo::validate(p.refine_params);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--refine-window: ") + e.what());
+  }
   require(p.max_cycles >= 1, "--max-cycles must be >= 1");
   require(p.threads >= 0, "--threads must be >= 0");
 }

@@ -10,10 +10,16 @@
 
 #include "massage_cell/stereo/cost_volume.h"
 #include "massage_cell/stereo/energy.h"
+#include "massage_cell/stereo/refine.h"
 
 namespace massage_cell::stereo {
 
 enum class Method { kHbds, kExpansion, kSwap, kWta, kSgbm };
+/// Refinement after the method (thesis Sec. 2.3, refine.h): none; Gu's
+/// disparity calibration (MDC without fattening detection); FFD + MDC.
+enum class Refinement { kNone, kMdc, kFfdMdc };
+Refinement parseRefinement(const std::string& name);  ///< "none" | "mdc" | "ffd-mdc"
+std::string toString(Refinement refinement);
 Method parseMethod(const std::string& name);  ///< "hbds" | "expansion" | "swap" | "wta" | "sgbm"
 std::string toString(Method method);
 
@@ -26,6 +32,8 @@ struct StereoParams {
   /// HBDS labelling; 0 = pure HBDS as in the thesis (default).
   int polish_window = 0;
   int polish_cycles = 1;  ///< cycles of the polish (it stops earlier when a cycle changes nothing)
+  Refinement refine = Refinement::kNone;  ///< after any method (none: the method's own output)
+  RefineParams refine_params;             ///< detect_fattening is set from `refine`
   int threads = 0;      ///< 0 = all cores
 };
 
@@ -33,8 +41,10 @@ struct MatchResult {
   cv::Mat disparity;         ///< CV_32F, NaN where the method gives none (SGBM)
   double cost_ms = 0.0;      ///< matching cost volume (0 for SGBM)
   double optimize_ms = 0.0;  ///< the method itself
-  double total_ms() const { return cost_ms + optimize_ms; }
-  Energy energy;             ///< Eq. 2.2 of the (rounded, clamped) result on this pair's cost volume
+  double refine_ms = 0.0;    ///< the refinement (0 without)
+  double total_ms() const { return cost_ms + optimize_ms + refine_ms; }
+  Energy energy;             ///< Eq. 2.2 of the (rounded, clamped) final result on this pair's cost volume
+  cv::Mat fattening;         ///< FFD's mask (CV_8U, 255 = fattening) with Refinement::kFfdMdc, else empty
   int cuts = 0;
 };
 
