@@ -16,4 +16,15 @@ cp "$work/s21/preview.png" "$root/docs/back_subject21_top_left.png"
 cp "$work/s5/preview.png" "$root/docs/back_subject5_raw_shift14.png"
 "$tool" --preset boxes $small --out "$work/boxes"
 cp "$work/boxes/left.png" "$root/docs/boxes_left.png"
+# Dense stereo on Middlebury Teddy (third-party data, read from ../shared; the
+# pictures are skipped when it is absent): disparity | errors > 1 px in nonocc
+# (| FFD's fattening mask).
+eval_tool="$root/_build/devel/lib/massage_cell/stereo_eval"
+if "$eval_tool" --scenes teddy --methods hbds --pictures "$work/pics" > /dev/null &&
+   "$eval_tool" --scenes teddy --methods hbds --refine ffd-mdc --pictures "$work/pics" > /dev/null; then
+  cp "$work/pics/teddy_hbds.png" "$root/docs/teddy_hbds.png"
+  cp "$work/pics/teddy_hbds+ffd-mdc.png" "$root/docs/teddy_hbds_ffd_mdc.png"
+else
+  echo "make_doc_pictures: Middlebury data not found: the stereo pictures were not redone" >&2
+fi
 ls -la "$root/docs"

@@ -6,6 +6,7 @@
 #include <sstream>
 #include <random>
 
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "../ros/test_util.h"
@@ -126,6 +127,31 @@ TEST(StereoEval, CsvOnMiddlebury) {
     if (line.rfind("tsukuba,wta,", 0) == 0) ++rows;
   }
   EXPECT_EQ(rows, 9) << r.output;
+}
+
+TEST(StereoEval, PicturesOnMiddlebury) {
+  const std::string root = massage_cell::stereo::middleburyRoot();
+  if (!fs::exists(fs::path(root) / "tsukuba" / "left.png")) {
+    GTEST_SKIP() << "Middlebury data not found at " << root << " (set MASSAGE_CELL_MIDDLEBURY)";
+  }
+  TempDir dir;
+  const std::string pics = (dir.path() / "pics").string();
+  const auto plain = runCommand(kEval + " --scenes tsukuba --methods wta --pictures " + pics, 120);
+  ASSERT_EQ(plain.exit_code, 0) << plain.output;
+  const auto refined = runCommand(kEval + " --scenes tsukuba --methods wta --refine ffd-mdc --pictures " + pics, 120);
+  ASSERT_EQ(refined.exit_code, 0) << refined.output;
+  EXPECT_NE(refined.output.find("wta+ffd-mdc"), std::string::npos) << refined.output;
+  const cv::Mat a = cv::imread(pics + "/tsukuba_wta.png"), b = cv::imread(pics + "/tsukuba_wta+ffd-mdc.png");
+  ASSERT_FALSE(a.empty());
+  ASSERT_FALSE(b.empty());
+  EXPECT_EQ(a.cols, 2 * 384);  // disparity | errors
+  EXPECT_EQ(b.cols, 3 * 384);  // ... | fattening mask
+  EXPECT_EQ(a.rows, 288);
+  // WTA is wrong in many nonocc pixels: the error panel shows red ones.
+  cv::Mat red;
+  cv::inRange(a(cv::Rect(384, 0, 384, 288)), cv::Scalar(0, 0, 250), cv::Scalar(10, 10, 255), red);
+  EXPECT_GT(cv::countNonZero(red), 384 * 288 / 20);
+  expectFailure(kEval + " --refine magic", 2, "unknown refinement 'magic'");
 }
 
 }  // namespace
