@@ -268,6 +268,7 @@ void HbdsNodelet::checkStartParameters() {
                                   {"tau", min.tau, max.tau, false},
                                   {"u_min", min.u_min, max.u_min, false},
                                   {"u_max", min.u_max, max.u_max, false},
+                                  {"overlap", double(min.overlap), double(max.overlap), true},
                                   {"polish_window", double(min.polish_window), double(max.polish_window), true},
                                   {"refine_window", double(min.refine_window), double(max.refine_window), true},
                                   {"threads", double(min.threads), double(max.threads), true},
@@ -331,7 +332,7 @@ void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
                                 << config.min_disparity + config.disparity_range - 1 << ", eta " << config.eta
                                 << ", ncc_window " << config.ncc_window << ", gradient_saturation "
                                 << config.gradient_saturation << ", tau " << config.tau << ", u " << config.u_min
-                                << ".." << config.u_max << ", polish_window " << config.polish_window << ", refine " << config.refine << ", threads " << config.threads << ", downsample "
+                                << ".." << config.u_max << ", overlap " << config.overlap << ", polish_window " << config.polish_window << ", refine " << config.refine << ", threads " << config.threads << ", downsample "
                                 << config.downsample);
 }
 
@@ -525,6 +526,7 @@ void HbdsNodelet::process(const Pair& pair, const Config& config, const Outputs&
   params.smooth.u_max = static_cast<float>(config.u_max);
   params.threads = config.threads;
   params.polish_window = config.polish_window;
+  params.hbds_overlap = config.overlap;
   params.refine = stereo::parseRefinement(config.refine == "ffd_mdc" ? "ffd-mdc" : config.refine);
   params.refine_params.window = config.refine_window;
   params.refine_params.threads = config.threads;

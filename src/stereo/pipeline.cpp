@@ -129,7 +129,7 @@ MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, cons
   start = Clock::now();
   switch (method) {
     case Method::kHbds: {
-      OptimizerResult r = hbds(volume, weights, params.smooth, params.threads);
+      OptimizerResult r = hbds(volume, weights, params.smooth, params.threads, params.hbds_overlap);
       if (params.polish_window > 0) {
         const int hbds_cuts = r.cuts;
         r = localExpansion(volume, weights, params.smooth, r.disparity, params.polish_window, params.polish_cycles);

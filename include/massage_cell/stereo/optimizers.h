@@ -24,9 +24,14 @@ struct OptimizerResult {
 /// the layer) with data term Eq. 2.4 (min cost in each subset) and smooth term
 /// Eq. 2.5 (u_{p,q} |D*| / 2 when labels differ) assigns each pixel to B or F;
 /// recursion until every set holds one level. `threads` parallelises
-/// independent sub-problems (0 = all cores).
+/// independent sub-problems (0 = all cores). `overlap` (our addition; 0 =
+/// the thesis's disjoint split B = [lo, psi], F = [psi + 1, hi]): both
+/// children's sets reach `overlap` levels across the break point, B = [lo,
+/// psi + overlap], F = [psi + 1 - overlap, hi], so a pixel whose disparity
+/// is near psi (a slanted surface crossing the split) can still reach it from
+/// the side the cut sent it to. Results do not depend on `threads`.
 OptimizerResult hbds(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
-                     int threads = 0);
+                     int threads = 0, int overlap = 0);
 
 /// alpha-expansion from `initial` (empty: WTA), cycles over all labels until a
 /// cycle brings no improvement (or max_cycles).
