@@ -1,0 +1,98 @@
+// CECT step 5: the acupoint model. Landmarks of the prone back found in the
+// (rectified) left view from the segmentation and its contour, the cun scale
+// from the body's own proportions, and every acupoint of
+// shared/reference/back_acupoints.md placed as (vertebral level, lateral cun)
+// -> left-image pixel. The pixels then go through CECT to 3D. ROS-free.
+//
+// Configuration: config/acupoints.yaml (loadAcupointModel). Image frame of
+// the cell's camera: head toward the image top, the subject's left on the
+// image left (camera looking down at a prone subject); `head_up: false` in
+// the YAML flips the vertical direction.
+#pragma once
+
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "massage_cell/cect/segmentation.h"
+
+namespace massage_cell::cect {
+
+struct AcupointSpec {
+  std::string name;      ///< frame-friendly name: "GV14", "BL23_L", "EX_B2_T5_R", "GB21_L"
+  std::string level;     ///< vertebral level "C7", "T1".."T12", "L1".."L5"
+  double lateral_cun = 0.0;  ///< toward the subject's left (+) or right (-)
+  std::string region;    ///< "upper_back", "lower_back", "midline", "shoulder": the arm's press limits key on it
+};
+
+struct AcupointModel {
+  /// Position of each vertebral level (lower border of its spinous process)
+  /// along the midline as a fraction of the C7 -> L4 distance (C7 = 0,
+  /// L4 = 1; L5 > 1). Every level an acupoint uses must be listed.
+  std::map<std::string, double> level_fraction;
+  /// Midline to the medial scapular border = 3 cun; this ratio ties the cun
+  /// to a width measurable in the image: cun = cun_per_shoulder_width * shoulder width.
+  double cun_per_shoulder_width = 0.0;
+  /// C7 lies this fraction of the C7 -> L4 distance below the top of the back's contour at the midline.
+  double c7_below_top = 0.0;
+  /// The waist (narrowest row between shoulders and hips) lies this fraction
+  /// of the C7 -> L4 distance below C7 in the image: with c7_below_top it
+  /// fixes C7 and L4 from the top of the back and the waist (see acupoint_model.cpp).
+  double waist_fraction = 0.0;
+  bool head_up = true;  ///< head toward the image top
+  std::vector<AcupointSpec> points;
+
+  /// Names of every point, in file order.
+  std::vector<std::string> names() const;
+  const AcupointSpec* find(const std::string& name) const;
+  /// Throws std::invalid_argument naming the first problem (unknown level, duplicate name, ...).
+  void validate() const;
+};
+
+/// Reads config/acupoints.yaml (yaml-cpp). Throws std::runtime_error naming
+/// the file and the problem.
+AcupointModel loadAcupointModel(const std::string& path);
+
+/// Landmarks in the rectified left image (pixels).
+struct BackLandmarks {
+  bool valid = false;
+  std::string reason;
+  /// The spine's midline, one point per image row from the top of the back
+  /// to its bottom (x = middle of the back's extent on that row, smoothed).
+  std::vector<cv::Point2f> midline;
+  cv::Point2f c7, l4;          ///< on the midline
+  double shoulder_row = 0.0;   ///< the shoulder line (widest row of the upper back)
+  double shoulder_width = 0.0; ///< pixels, across the back at the shoulder line
+  double waist_row = 0.0;      ///< narrowest row between shoulders and hips
+  double iliac_row = 0.0;      ///< iliac-crest line (~L4)
+  /// Unit image direction toward the subject's left, perpendicular to the midline (per midline row).
+  std::vector<cv::Point2f> lateral;
+};
+
+/// Finds the landmarks from the left view's segmentation. Never throws for
+/// image content (valid = false with a reason).
+BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model);
+
+/// Metres per pixel at a rectified left pixel (depth / fx), NaN if unknown.
+using PixelScale = std::function<double(const cv::Point2f& rect_pixel)>;
+
+struct AcupointPixel {
+  std::string name;
+  cv::Point2f pixel;  ///< rectified left image
+  bool valid = false;
+  std::string reason;
+};
+
+/// Midline pixel of `level` (interpolated along the midline with level_fraction).
+cv::Point2f levelPixel(const BackLandmarks& landmarks, const AcupointModel& model, const std::string& level);
+/// cun in metres from the shoulder width (scale gives metres per pixel on the shoulder line).
+double cunMetres(const BackLandmarks& landmarks, const AcupointModel& model, const PixelScale& scale);
+/// Every acupoint of the model as a left-image pixel (lateral offsets in
+/// metres converted with `scale` at the midline point of its level).
+std::vector<AcupointPixel> placeAcupoints(const BackLandmarks& landmarks, const AcupointModel& model,
+                                          const PixelScale& scale);
+
+}  // namespace massage_cell::cect

@@ -1,0 +1,156 @@
+// CECT: Correspondences from Epipolar geometry and Contours via Triangle
+// barycentric coordinates (thesis Ch. 3; the extract holds only its abstract
+// and captions, so the details below are our design). ROS-free.
+//
+// Per stereo pair (CectFrame::analyse):
+//  1. rectify both views (StereoGeometry), segment the back in each
+//     (segmentation.h);
+//  2. foundational correspondences: left contour samples; each one's
+//     epipolar line (its rectified row) crosses the right view's back border
+//     at sub-pixel positions (score zero crossings); of several crossings the
+//     one on the same side of the back (entering / leaving along the row) in
+//     the same order along the row is taken;
+//  3. interior: Delaunay triangulation of the foundational left points; a
+//     point's barycentric coordinates in its triangle and in the triangles
+//     next to it give candidate right positions; three geometric constraints
+//     decide (see CectParams and cect.cpp); interior seeds on a grid are
+//     refined along their epipolar line by normalised cross-correlation
+//     around the barycentric prediction and, once they pass the constraints,
+//     join the triangulation (so the transfer follows the back's curvature);
+//  4. triangulation to 3D in the left camera's optical frame with a
+//     covariance from the candidates' spread and the matching precision.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "massage_cell/cect/segmentation.h"
+#include "massage_cell/cect/stereo_geometry.h"
+
+namespace massage_cell::cect {
+
+struct CectParams {
+  SegmentationParams segmentation;
+  double min_disparity = 1.0;   ///< rectified pixels; crossings outside [min, max] are not correspondences
+  double max_disparity = 0.0;   ///< 0: half the image width
+  double sample_spacing = 4.0;  ///< rows between foundational samples, pixels
+  /// A border crossing whose border runs within this angle of the epipolar
+  /// line (degrees) is ill-conditioned (its position along the row is
+  /// uncertain) and not used.
+  double min_crossing_angle = 20.0;
+  int seed_step = 16;           ///< interior seeds every N pixels (0: contour only, the plain thesis method)
+  int ncc_radius = 7;           ///< matching window half-width r for the refinement along the epipolar line
+  /// Window half-height (0: = ncc_radius). Taller than wide suits the back:
+  /// its few structures (spine groove, paraspinal ridges, scapulae) run
+  /// along the body, across the epipolar lines, and depth changes slowly
+  /// along them.
+  int ncc_half_height = 0;
+  /// Band-pass of the matching images: difference of Gaussians with these
+  /// sigmas, pixels (bandpass_high <= 0: plain grey).
+  double bandpass_low = 1.0;
+  double bandpass_high = 6.0;
+  double seed_search = 10.0;    ///< pixels searched either side of a seed's barycentric prediction
+  /// How far the back may rise above its contour, metres: the first seeds,
+  /// predicted from the contour alone, are searched that far nearer.
+  double max_relief = 0.3;
+  /// Seeds are smoothed by a local quadratic over this many seed steps (0: off).
+  double smooth_radius = 3.0;
+  double query_search = 0.0;    ///< pixels searched either side of a query's prediction (0: transfer only, the default: single windows on skin are noisier than the smoothed seeds)
+  double min_ncc = 0.6;         ///< weakest accepted correlation peak
+  /// Constraint 1 (candidate agreement): the candidates from the triangle
+  /// and its neighbours must agree within this many pixels.
+  double max_candidate_spread = 4.0;
+  /// Constraint 2 (continuity / order): a refined disparity may leave the
+  /// range of its triangle's vertices by at most this many pixels.
+  double continuity_margin = 3.0;
+  /// Constraint 3 (left-right consistency): matching back from the right
+  /// view must land within this many pixels of the left point.
+  double lr_tolerance = 1.0;
+  double pixel_sigma = 0.3;     ///< pixels: localisation noise of a matched point (covariance)
+};
+
+/// One correspondence in rectified coordinates (same row in both views).
+struct Correspondence {
+  cv::Point2f left;
+  float disparity = 0.0f;  ///< left.x - right.x
+  float sigma = 0.0f;      ///< standard deviation of the disparity, pixels
+  bool foundational = true;
+};
+
+struct LocalizedPoint {
+  bool valid = false;
+  std::string reason;               ///< why not valid
+  cv::Point2f pixel;                ///< the query, raw left image
+  cv::Point2f rectified;            ///< the query, rectified left image
+  double disparity = 0.0;           ///< rectified pixels
+  double disparity_sigma = 0.0;     ///< pixels
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();      ///< left optical frame, metres
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();    ///< metres^2
+  double spread = 0.0;              ///< spread of the candidates, pixels (constraint 1)
+  int candidates = 0;
+};
+
+struct CectTimings {
+  double rectify_ms = 0, segment_ms = 0, foundational_ms = 0, interior_ms = 0, total_ms = 0;
+};
+
+/// The analysis of one stereo pair; answers point queries afterwards.
+class CectFrame {
+ public:
+  CectFrame() = default;
+  /// Analyses a pair (BGR CV_8UC3, raw or rectified as `geometry` says).
+  /// Throws std::invalid_argument for images that do not match the geometry
+  /// (size, type, empty); problems of content leave valid() false with a reason.
+  static CectFrame analyse(const cv::Mat& left, const cv::Mat& right, const StereoGeometry& geometry,
+                           const CectParams& params);
+
+  bool valid() const { return valid_; }
+  const std::string& reason() const { return reason_; }
+  const Segmentation& left() const { return left_seg_; }    ///< rectified left view
+  const Segmentation& right() const { return right_seg_; }  ///< rectified right view
+  const cv::Mat& leftRectified() const { return left_rect_; }
+  const cv::Mat& rightRectified() const { return right_rect_; }
+  const std::vector<Correspondence>& vertices() const { return vertices_; }
+  std::size_t foundationalCount() const;
+  /// Delaunay triangles over vertices() (indices).
+  const std::vector<cv::Vec3i>& triangles() const { return triangles_; }
+  const CectTimings& timings() const { return timings_; }
+  const StereoGeometry& geometry() const { return geometry_; }
+  const CectParams& params() const { return params_; }
+
+  /// A raw left-image pixel -> its 3D point (valid = false with a reason
+  /// outside the back, outside the triangulation, or when the constraints
+  /// reject it).
+  LocalizedPoint localize(const cv::Point2f& left_raw_pixel) const;
+  /// Same, for a rectified left pixel.
+  LocalizedPoint localizeRectified(const cv::Point2f& left_rect_pixel) const;
+
+  /// Debug picture: the rectified left view with the contour, triangles and vertices.
+  cv::Mat drawDebug() const;
+
+ private:
+  bool valid_ = false;
+  std::string reason_;
+  StereoGeometry geometry_;
+  CectParams params_;
+  Segmentation left_seg_, right_seg_;
+  cv::Mat left_rect_, right_rect_;          ///< BGR
+  cv::Mat left_grey_, right_grey_;          ///< CV_32F
+  std::vector<Correspondence> vertices_;
+  std::vector<cv::Vec3i> triangles_;
+  std::vector<std::vector<int>> vertex_triangles_;  ///< triangles around each vertex
+  cv::Mat triangle_index_;                  ///< CV_32S, rectified left: containing triangle, -1 outside
+  CectTimings timings_;
+
+  /// Barycentric transfer of a rectified left pixel: the median disparity of
+  /// the candidates from its triangle and the triangles sharing an edge with
+  /// it; NaN outside the triangulation. `spread` = max - min candidate.
+  double transfer(const cv::Point2f& q, double* spread, int* count) const;
+
+  friend class CectFrameBuilder;
+};
+
+}  // namespace massage_cell::cect

@@ -1,0 +1,694 @@
+// CECT step 5: the acupoint model (see acupoint_model.h).
+//
+// Landmarks from the left view's silhouette only (mask + contour):
+//   rows      per image row, the back's left and right edges: the outermost
+//             crossings of the contour with the row (cv::findContours
+//             convention: the contour runs through the boundary pixels'
+//             centres, so the edges are half a pixel further out), or the
+//             first / last mask pixel when there is no contour;
+//   midline   the middle of each row's extent, fitted by a robust (Huber
+//             IRLS) quadratic x(y) over the torso rows (shoulder line .. just
+//             above the bottom), so the neck / shoulder corners and the
+//             tapering end of the back do not pull it; continued linearly
+//             beyond the fitted rows;
+//   top       where the midline leaves the silhouette at the head end: the
+//             neck base seen from above;
+//   shoulder  the widest (smoothed) row in the upper 35 % of the back;
+//   waist     the narrowest row between the shoulders and the hips (middle of
+//             the run of rows within 3 % of the waist-to-hip range of the
+//             minimum: the minimum of a waist is broad and flat);
+//   C7, L4    from the top and the waist with two calibrated fractions of
+//             the C7 -> L4 distance L (c = c7_below_top, q = waist_fraction):
+//               C7 = top + c L,  waist = C7 + q L
+//             =>  L = (waist - top) / (c + q).
+//             Cues tried for the iliac line over the simulator's 28 subjects
+//             (each with one constant from the mean subject; |L4 row error|
+//             mean / max, 320x240 and 640x480): the waist 1.6 / 3.6 and
+//             3.5 / 7.2 px (~5 mm mean at both sizes; the others measured with
+//             an exploratory version on the mask's rows): the widest row below the
+//             waist 1.9 / 4.0 and 4.3 / 10 px; the bottom of the silhouette
+//             2.3 / 10 and 4.5 / 19 px; rows where the width has climbed 25..90 %
+//             of the way from the waist to the hips 1.8..6.2 / 4.5..14 and
+//             4.7..13 / 14..32 px. The waist generalises best: the hips' maximum
+//             is broad and flat, and the bottom of a real silhouette is wherever
+//             the clothing starts. The hips are still required (a widening
+//             below the waist), so that the narrowest row is a waist and not a
+//             cut-off bottom edge.
+//   lateral   perpendicular to the midline, toward the subject's left (the
+//             image left with the head up); cun from the shoulder width and
+//             the metres per pixel there, converted back to pixels with the
+//             metres per pixel on the midline at each level.
+// Known limits (see the tests): the flanks' silhouette lies near table level
+// while the spine is ~0.2 m higher, so with the camera off the midline (the
+// left camera of a stereo pair is half a baseline off) the silhouette's centre
+// line is shifted from the skin's midline by the parallax (~5.5 px at 640x480,
+// ~8 mm in the cell); levels are interpolated in image rows, which ignores
+// perspective along the back (~3 px around T10 at 640x480).
+// All rows are handled with the head at the image top; head_up = false turns
+// the segmentation by 180 degrees first and the results back afterwards.
+#include "massage_cell/cect/acupoint_model.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+#include <yaml-cpp/yaml.h>
+
+namespace massage_cell::cect {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// --- Tunables of the landmark search (lengths as fractions of the back's rows,
+// widths as fractions of widths).
+constexpr double kSmoothFraction = 0.01;  // half-window of the width smoothing
+constexpr double kShoulderSearch = 0.35;  // shoulder line within the upper 35 %
+constexpr double kBottomMargin = 0.06;    // the midline fit ends this far above the bottom
+constexpr double kHipDrop = 0.03;         // above the hips the width drops by at least this fraction
+constexpr double kWaistPlateau = 0.03;    // waist run: within 3 % of (hips - waist) of the minimum
+constexpr double kNeckNarrower = 0.85;    // something above the shoulder line narrower than this x shoulders
+constexpr double kWaistNarrower = 0.95;   // waist narrower than this x shoulders
+constexpr double kHipWider = 0.015;       // hips wider than the waist by this fraction (+ 0.5 px)
+constexpr int kMinRows = 24;              // fewer rows: too small to find anything
+constexpr double kScaleWindow = 0.03;     // metres-per-pixel median over +-3 % of C7->L4 along the midline
+
+const std::vector<std::string>& standardLevels() {
+  static const std::vector<std::string> levels = {"C7", "T1",  "T2",  "T3",  "T4", "T5", "T6", "T7", "T8",
+                                                  "T9", "T10", "T11", "T12", "L1", "L2", "L3", "L4", "L5"};
+  return levels;
+}
+
+int levelIndex(const std::string& level) {
+  const auto& levels = standardLevels();
+  const auto it = std::find(levels.begin(), levels.end(), level);
+  return it == levels.end() ? -1 : static_cast<int>(it - levels.begin());
+}
+
+const std::set<std::string>& regions() {
+  static const std::set<std::string> r = {"upper_back", "lower_back", "midline", "shoulder"};
+  return r;
+}
+
+std::string num(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+double median(std::vector<double> v) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !(std::isfinite(x) && x > 0.0); }), v.end());
+  if (v.empty()) return kNaN;
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  double m = v[mid];
+  if (v.size() % 2 == 0) m = 0.5 * (m + *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid)));
+  return m;
+}
+
+// ---------------------------------------------------------------------------
+// The back's silhouette row by row (head at the image top).
+
+struct Rows {
+  int y0 = 0;                       // first image row
+  std::vector<double> left, right;  // edges (pixel borders), NaN where the row has none
+  int size() const { return static_cast<int>(left.size()); }
+  double width(int i) const { return right[static_cast<std::size_t>(i)] - left[static_cast<std::size_t>(i)]; }
+};
+
+bool usableContour(const std::vector<cv::Point2f>& contour) { return contour.size() >= 8; }
+
+Rows rowsFromContour(const std::vector<cv::Point2f>& contour) {
+  float lo = contour[0].y, hi = contour[0].y;
+  for (const auto& p : contour) {
+    lo = std::min(lo, p.y);
+    hi = std::max(hi, p.y);
+  }
+  Rows rows;
+  rows.y0 = static_cast<int>(std::ceil(lo));
+  const int y1 = static_cast<int>(std::floor(hi));
+  const int n = std::max(0, y1 - rows.y0 + 1);
+  rows.left.assign(static_cast<std::size_t>(n), kNaN);
+  rows.right.assign(static_cast<std::size_t>(n), kNaN);
+  const std::size_t m = contour.size();
+  for (std::size_t k = 0; k < m; ++k) {
+    const cv::Point2f a = contour[k], b = contour[(k + 1) % m];
+    // Rows y with a.y <= y < b.y or b.y <= y < a.y (half-open: each crossing counted once).
+    const double ylo = std::min(a.y, b.y), yhi = std::max(a.y, b.y);
+    if (!(yhi > ylo)) continue;
+    for (int y = static_cast<int>(std::ceil(ylo)); y < yhi && y <= y1; ++y) {
+      if (y < rows.y0) continue;
+      const double x = a.x + (y - a.y) * (b.x - a.x) / (b.y - a.y);
+      auto& l = rows.left[static_cast<std::size_t>(y - rows.y0)];
+      auto& r = rows.right[static_cast<std::size_t>(y - rows.y0)];
+      if (!(x - 0.5 >= l)) l = x - 0.5;  // NaN-safe min
+      if (!(x + 0.5 <= r)) r = x + 0.5;
+    }
+  }
+  return rows;
+}
+
+Rows rowsFromMask(const cv::Mat& mask) {
+  Rows rows;
+  int first = -1, last = -1;
+  std::vector<double> l(static_cast<std::size_t>(mask.rows), kNaN), r(static_cast<std::size_t>(mask.rows), kNaN);
+  for (int y = 0; y < mask.rows; ++y) {
+    const unsigned char* p = mask.ptr<unsigned char>(y);
+    int a = -1, b = -1;
+    for (int x = 0; x < mask.cols; ++x) {
+      if (p[x]) {
+        if (a < 0) a = x;
+        b = x;
+      }
+    }
+    if (a < 0) continue;
+    l[static_cast<std::size_t>(y)] = a - 0.5;
+    r[static_cast<std::size_t>(y)] = b + 0.5;
+    if (first < 0) first = y;
+    last = y;
+  }
+  if (first < 0) return rows;
+  rows.y0 = first;
+  rows.left.assign(l.begin() + first, l.begin() + last + 1);
+  rows.right.assign(r.begin() + first, r.begin() + last + 1);
+  return rows;
+}
+
+/// Drops rows without edges at both ends (the contour's extreme rows can have
+/// none under the half-open crossing rule) and fills gaps from their neighbours.
+void tidyRows(Rows& rows) {
+  int a = 0, b = rows.size() - 1;
+  while (a <= b && !std::isfinite(rows.left[static_cast<std::size_t>(a)])) ++a;
+  while (b >= a && !std::isfinite(rows.left[static_cast<std::size_t>(b)])) --b;
+  rows.left = std::vector<double>(rows.left.begin() + a, rows.left.begin() + b + 1);
+  rows.right = std::vector<double>(rows.right.begin() + a, rows.right.begin() + b + 1);
+  rows.y0 += a;
+  const int n = rows.size();
+  int prev = -1;
+  for (int i = 0; i < n; ++i) {
+    if (!std::isfinite(rows.left[static_cast<std::size_t>(i)])) continue;
+    if (prev >= 0 && i - prev > 1) {
+      for (int j = prev + 1; j < i; ++j) {
+        const double t = double(j - prev) / (i - prev);
+        auto lerp = [&](const std::vector<double>& v) {
+          return (1 - t) * v[static_cast<std::size_t>(prev)] + t * v[static_cast<std::size_t>(i)];
+        };
+        rows.left[static_cast<std::size_t>(j)] = lerp(rows.left);
+        rows.right[static_cast<std::size_t>(j)] = lerp(rows.right);
+      }
+    }
+    prev = i;
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Midline: x(y) = quadratic over the fitted rows, linear beyond them.
+
+struct Midline {
+  double ya = 0.0, yb = 1.0;  // fitted rows
+  double yc = 0.0, h = 1.0;   // normalisation u = (y - yc) / h
+  std::array<double, 3> c{};  // x = c0 + c1 u + c2 u^2
+
+  double fit(double y) const {
+    const double u = (y - yc) / h;
+    return c[0] + u * (c[1] + u * c[2]);
+  }
+  double fitSlope(double y) const {  // dx/dy
+    const double u = (y - yc) / h;
+    return (c[1] + 2.0 * c[2] * u) / h;
+  }
+  double x(double y) const {
+    if (y < ya) return fit(ya) + fitSlope(ya) * (y - ya);
+    if (y > yb) return fit(yb) + fitSlope(yb) * (y - yb);
+    return fit(y);
+  }
+  double slope(double y) const { return fitSlope(std::clamp(y, ya, yb)); }
+};
+
+/// Weighted least-squares quadratic; false if singular.
+bool solveQuadratic(const std::vector<double>& u, const std::vector<double>& x, const std::vector<double>& w,
+                    std::array<double, 3>& c) {
+  double a[3][4] = {};
+  for (std::size_t i = 0; i < u.size(); ++i) {
+    const double b[3] = {1.0, u[i], u[i] * u[i]};
+    for (int r = 0; r < 3; ++r) {
+      for (int k = 0; k < 3; ++k) a[r][k] += w[i] * b[r] * b[k];
+      a[r][3] += w[i] * b[r] * x[i];
+    }
+  }
+  for (int r = 0; r < 3; ++r) {  // Gauss-Jordan with partial pivoting
+    int p = r;
+    for (int q = r + 1; q < 3; ++q) {
+      if (std::abs(a[q][r]) > std::abs(a[p][r])) p = q;
+    }
+    if (!(std::abs(a[p][r]) > 1e-12)) return false;
+    for (int k = 0; k < 4; ++k) std::swap(a[r][k], a[p][k]);
+    for (int q = 0; q < 3; ++q) {
+      if (q == r) continue;
+      const double f = a[q][r] / a[r][r];
+      for (int k = 0; k < 4; ++k) a[q][k] -= f * a[r][k];
+    }
+  }
+  for (int r = 0; r < 3; ++r) c[static_cast<std::size_t>(r)] = a[r][3] / a[r][r];
+  return true;
+}
+
+/// Robust fit of the row centres over rows [ia, ib] (indices into rows).
+bool fitMidline(const Rows& rows, int ia, int ib, Midline& m) {
+  m.ya = rows.y0 + ia;
+  m.yb = rows.y0 + ib;
+  m.yc = 0.5 * (m.ya + m.yb);
+  m.h = std::max(1.0, 0.5 * (m.yb - m.ya));
+  std::vector<double> u, x, w;
+  for (int i = ia; i <= ib; ++i) {
+    u.push_back((rows.y0 + i - m.yc) / m.h);
+    x.push_back(0.5 * (rows.left[static_cast<std::size_t>(i)] + rows.right[static_cast<std::size_t>(i)]));
+  }
+  w.assign(u.size(), 1.0);
+  if (!solveQuadratic(u, x, w, m.c)) return false;
+  // Huber IRLS: rows where the sides are not mirror images (an arm, a
+  // shoulder raised) get less weight.
+  for (int it = 0; it < 10; ++it) {
+    std::vector<double> r(u.size()), ar(u.size());
+    for (std::size_t i = 0; i < u.size(); ++i) {
+      r[i] = x[i] - (m.c[0] + u[i] * (m.c[1] + u[i] * m.c[2]));
+      ar[i] = std::abs(r[i]);
+    }
+    std::vector<double> tmp = ar;
+    std::nth_element(tmp.begin(), tmp.begin() + static_cast<std::ptrdiff_t>(tmp.size() / 2), tmp.end());
+    const double s = std::max(0.5, 1.4826 * tmp[tmp.size() / 2]);
+    for (std::size_t i = 0; i < u.size(); ++i) w[i] = ar[i] <= 1.5 * s ? 1.0 : 1.5 * s / ar[i];
+    if (!solveQuadratic(u, x, w, m.c)) return false;
+  }
+  return true;
+}
+
+/// Rows (sub-pixel, pixel-centre coordinates) where the midline crosses the
+/// back's outline: the first and last ones give the top and the bottom.
+bool midlineCrossings(const Segmentation& seg, const Midline& m, double* top, double* bottom) {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  if (usableContour(seg.contour)) {
+    const auto& c = seg.contour;
+    const std::size_t n = c.size();
+    for (std::size_t k = 0; k < n; ++k) {
+      const cv::Point2f a = c[k], b = c[(k + 1) % n];
+      const double ga = a.x - m.x(a.y), gb = b.x - m.x(b.y);
+      if ((ga < 0.0) == (gb < 0.0)) continue;
+      const double t = ga / (ga - gb);
+      const double y = a.y + t * (b.y - a.y);
+      lo = std::min(lo, y);
+      hi = std::max(hi, y);
+    }
+  } else {
+    for (int y = 0; y < seg.mask.rows; ++y) {
+      const int x = static_cast<int>(std::lround(m.x(y)));
+      if (x < 0 || x >= seg.mask.cols || !seg.mask.at<unsigned char>(y, x)) continue;
+      lo = std::min(lo, double(y));
+      hi = std::max(hi, double(y));
+    }
+  }
+  if (!(hi >= lo)) return false;
+  *top = lo;
+  *bottom = hi;
+  return true;
+}
+
+// ---------------------------------------------------------------------------
+// findLandmarks with the head at the image top.
+
+BackLandmarks invalid(const std::string& reason) {
+  BackLandmarks l;
+  l.valid = false;
+  l.reason = reason;
+  return l;
+}
+
+BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& model) {
+  Rows rows = usableContour(seg.contour) ? rowsFromContour(seg.contour) : rowsFromMask(seg.mask);
+  tidyRows(rows);
+  const int n = rows.size();
+  if (n < kMinRows) {
+    return invalid("back too small: " + std::to_string(n) + " rows (need at least " + std::to_string(kMinRows) + ")");
+  }
+  // Smoothed widths.
+  const int half = std::max(1, static_cast<int>(std::lround(kSmoothFraction * n)));
+  std::vector<double> w(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    double acc = 0.0;
+    int cnt = 0;
+    for (int j = std::max(0, i - half); j <= std::min(n - 1, i + half); ++j, ++cnt) acc += rows.width(j);
+    w[static_cast<std::size_t>(i)] = acc / cnt;
+  }
+  auto W = [&](int i) { return w[static_cast<std::size_t>(i)]; };
+
+  // Shoulder line: widest row of the upper part; the neck above it must be narrower.
+  const int shoulder_end = std::max(1, static_cast<int>(kShoulderSearch * n));
+  int ish = 0;
+  for (int i = 0; i <= shoulder_end; ++i) {
+    if (W(i) > W(ish)) ish = i;
+  }
+  double above = W(ish);
+  for (int i = 0; i < ish; ++i) above = std::min(above, W(i));
+  if (ish == 0 || above > kNeckNarrower * W(ish)) {
+    return invalid("not a back: no widening from the neck to the shoulders");
+  }
+  // Hips: walking up from the bottom, the widest row before the width has
+  // dropped kHipDrop below the widest so far (past the tapering end, the first
+  // clear maximum); waist: narrowest row between the shoulders and the hips.
+  int ih = n - 1;
+  int up = n - 1;
+  for (; up > ish; --up) {
+    if (W(up) > W(ih)) ih = up;
+    if (W(up) < (1.0 - kHipDrop) * W(ih)) break;
+  }
+  if (up == ish) return invalid("not a back: no waist (no narrowing between the shoulders and the bottom)");
+  int iw = ish;
+  for (int k = ish; k <= ih; ++k) {
+    if (W(k) < W(iw)) iw = k;
+  }
+  if (W(iw) > kWaistNarrower * W(ish)) return invalid("not a back: no narrowing at the waist");
+  if (W(ih) < (1.0 + kHipWider) * W(iw) + 0.5) {
+    return invalid("not a back: no widening below the waist (hips out of view?)");
+  }
+  const int iend = n - 1 - std::max(1, static_cast<int>(kBottomMargin * n));  // end of the midline fit
+  if (iend < ish + 3) return invalid("not a back: too short below the shoulders");
+  const double threshold = W(iw) + kWaistPlateau * (W(ih) - W(iw));
+  int wa = iw, wb = iw;
+  while (wa > ish && W(wa - 1) <= threshold) --wa;
+  while (wb < ih && W(wb + 1) <= threshold) ++wb;
+  const double waist_row = rows.y0 + 0.5 * (wa + wb);
+
+  // Midline over the torso rows, then the top and bottom where it meets the outline.
+  Midline mid;
+  if (!fitMidline(rows, ish, iend, mid)) return invalid("midline fit failed");
+  double top = 0.0, bottom = 0.0;
+  if (!midlineCrossings(seg, mid, &top, &bottom)) return invalid("the midline does not cross the back's outline");
+  top -= 0.5;  // pixel centre of the boundary -> its outer edge
+  bottom += 0.5;
+
+  // C7 and L4 from the top and the waist.
+  const double c = model.c7_below_top, q = model.waist_fraction;
+  const double length = (waist_row - top) / (c + q);
+  if (!(length > 0.0)) return invalid("the waist is not below the top of the back");
+  const double c7_row = top + c * length, l4_row = c7_row + length;
+  if (!(l4_row < bottom)) {
+    return invalid("the iliac-crest line (row " + num(l4_row) + ") is below the back's bottom (row " + num(bottom) +
+                   ")");
+  }
+
+  BackLandmarks l;
+  l.valid = true;
+  for (int y = static_cast<int>(std::ceil(top)); y <= static_cast<int>(std::floor(bottom)); ++y) {
+    l.midline.emplace_back(static_cast<float>(mid.x(y)), static_cast<float>(y));
+    const double s = mid.slope(y), norm = std::hypot(1.0, s);
+    // Caudal tangent (s, 1); the subject's left is the tangent turned by +90 deg in image coordinates.
+    l.lateral.emplace_back(static_cast<float>(-1.0 / norm), static_cast<float>(s / norm));
+  }
+  l.c7 = cv::Point2f(static_cast<float>(mid.x(c7_row)), static_cast<float>(c7_row));
+  l.l4 = cv::Point2f(static_cast<float>(mid.x(l4_row)), static_cast<float>(l4_row));
+  l.shoulder_row = rows.y0 + ish;
+  l.shoulder_width = W(ish);
+  l.waist_row = waist_row;
+  l.iliac_row = l4_row;
+  return l;
+}
+
+/// 180-degree turn of a segmentation (only what findLandmarks uses).
+Segmentation turned(const Segmentation& seg) {
+  Segmentation t;
+  t.valid = seg.valid;
+  t.reason = seg.reason;
+  cv::flip(seg.mask, t.mask, -1);
+  const float w1 = static_cast<float>(seg.mask.cols - 1), h1 = static_cast<float>(seg.mask.rows - 1);
+  t.contour.reserve(seg.contour.size());
+  for (const auto& p : seg.contour) t.contour.emplace_back(w1 - p.x, h1 - p.y);
+  return t;
+}
+
+BackLandmarks turnedBack(BackLandmarks l, int cols, int rows) {
+  const float w1 = static_cast<float>(cols - 1), h1 = static_cast<float>(rows - 1);
+  auto turn = [&](cv::Point2f p) { return cv::Point2f(w1 - p.x, h1 - p.y); };
+  for (auto& p : l.midline) p = turn(p);
+  for (auto& v : l.lateral) v = -v;
+  std::reverse(l.midline.begin(), l.midline.end());  // keep increasing rows
+  std::reverse(l.lateral.begin(), l.lateral.end());
+  l.c7 = turn(l.c7);
+  l.l4 = turn(l.l4);
+  l.shoulder_row = h1 - l.shoulder_row;
+  l.waist_row = h1 - l.waist_row;
+  l.iliac_row = h1 - l.iliac_row;
+  return l;
+}
+
+// ---------------------------------------------------------------------------
+// Along the midline.
+
+/// The midline's point at row y (linear between its rows, extrapolated beyond its ends).
+cv::Point2f midlineAt(const BackLandmarks& l, double y) {
+  const auto& m = l.midline;
+  if (m.size() == 1) return {m[0].x, static_cast<float>(y)};
+  const double t = y - m.front().y;
+  const std::size_t i = static_cast<std::size_t>(std::clamp(std::floor(t), 0.0, double(m.size() - 2)));
+  const double f = t - double(i);  // may be < 0 or > 1 beyond the ends: linear extrapolation
+  return {static_cast<float>(m[i].x + f * (m[i + 1].x - m[i].x)), static_cast<float>(y)};
+}
+
+cv::Point2f lateralAt(const BackLandmarks& l, double y) {
+  const auto& v = l.lateral;
+  const double t = std::clamp(y - l.midline.front().y, 0.0, double(v.size() - 1));
+  return v[static_cast<std::size_t>(std::lround(t))];
+}
+
+/// Median metres-per-pixel along the midline within +-kScaleWindow of C7->L4 around row y.
+double midlineScale(const BackLandmarks& l, double y, const PixelScale& scale) {
+  const double step = std::max(1.0, kScaleWindow / 3.0 * std::abs(l.l4.y - l.c7.y));
+  std::vector<double> s;
+  for (int k = -3; k <= 3; ++k) s.push_back(scale(midlineAt(l, y + k * step)));
+  return median(s);
+}
+
+// --- YAML helpers: errors name the key.
+
+template <typename T>
+T get(const YAML::Node& node, const std::string& key, const std::string& where) {
+  const YAML::Node v = node[key];
+  if (!v) throw std::runtime_error(where + ": missing key '" + key + "'");
+  try {
+    return v.as<T>();
+  } catch (const YAML::Exception&) {
+    throw std::runtime_error(where + ": key '" + key + "' has the wrong type");
+  }
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// AcupointModel
+
+std::vector<std::string> AcupointModel::names() const {
+  std::vector<std::string> out;
+  out.reserve(points.size());
+  for (const auto& p : points) out.push_back(p.name);
+  return out;
+}
+
+const AcupointSpec* AcupointModel::find(const std::string& name) const {
+  for (const auto& p : points) {
+    if (p.name == name) return &p;
+  }
+  return nullptr;
+}
+
+void AcupointModel::validate() const {
+  auto fail = [](const std::string& what) { throw std::invalid_argument("acupoint model: " + what); };
+  if (level_fraction.empty()) fail("level_fraction is empty");
+  for (const auto& [level, f] : level_fraction) {
+    if (levelIndex(level) < 0) {
+      fail("unknown vertebral level '" + level + "' in level_fraction (expected C7, T1..T12, L1..L5)");
+    }
+    if (!std::isfinite(f)) fail("level_fraction of " + level + " is not finite");
+  }
+  const auto c7 = level_fraction.find("C7"), l4 = level_fraction.find("L4");
+  if (c7 == level_fraction.end() || c7->second != 0.0) fail("level_fraction must list C7 = 0");
+  if (l4 == level_fraction.end() || l4->second != 1.0) fail("level_fraction must list L4 = 1");
+  // Increasing in the spine's order.
+  std::string prev;
+  double prev_f = -std::numeric_limits<double>::infinity();
+  for (const auto& level : standardLevels()) {
+    const auto it = level_fraction.find(level);
+    if (it == level_fraction.end()) continue;
+    if (!(it->second > prev_f)) {
+      fail("level_fraction must increase from C7 to L5: " + level + " = " + num(it->second) + " is not below " + prev +
+           " = " + num(prev_f));
+    }
+    prev = level;
+    prev_f = it->second;
+  }
+  if (!(cun_per_shoulder_width > 0.0 && cun_per_shoulder_width < 0.5)) {
+    fail("cun_per_shoulder_width = " + num(cun_per_shoulder_width) + " is not in (0, 0.5)");
+  }
+  if (!(c7_below_top >= 0.0 && c7_below_top < 0.5)) fail("c7_below_top = " + num(c7_below_top) + " is not in [0, 0.5)");
+  if (!(waist_fraction > 0.0 && waist_fraction < 1.5)) {
+    fail("waist_fraction = " + num(waist_fraction) + " is not in (0, 1.5)");
+  }
+  if (points.empty()) fail("no points");
+  std::set<std::string> seen;
+  for (const auto& p : points) {
+    if (p.name.empty()) fail("a point has an empty name");
+    if (!seen.insert(p.name).second) fail("duplicate point name '" + p.name + "'");
+    if (!level_fraction.count(p.level)) {
+      fail("point '" + p.name + "': unknown level '" + p.level + "' (not in level_fraction)");
+    }
+    if (!(std::abs(p.lateral_cun) <= 10.0)) {
+      fail("point '" + p.name + "': lateral_cun = " + num(p.lateral_cun) + " is not in -10 .. 10");
+    }
+    if (!regions().count(p.region)) {
+      fail("point '" + p.name + "': unknown region '" + p.region +
+           "' (expected upper_back, lower_back, midline or shoulder)");
+    }
+  }
+}
+
+AcupointModel loadAcupointModel(const std::string& path) {
+  const std::string where = "acupoint model '" + path + "'";
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw std::runtime_error(where + ": cannot open the file");
+  } catch (const YAML::Exception& e) {
+    throw std::runtime_error(where + ": not valid YAML: " + e.what());
+  }
+  if (!root.IsMap()) throw std::runtime_error(where + ": expected a mapping at the top level");
+  AcupointModel m;
+  m.head_up = root["head_up"] ? get<bool>(root, "head_up", where) : true;
+  m.cun_per_shoulder_width = get<double>(root, "cun_per_shoulder_width", where);
+  m.c7_below_top = get<double>(root, "c7_below_top", where);
+  m.waist_fraction = get<double>(root, "waist_fraction", where);
+  const YAML::Node levels = root["level_fraction"];
+  if (!levels || !levels.IsMap()) throw std::runtime_error(where + ": missing mapping 'level_fraction'");
+  for (const auto& kv : levels) {
+    const std::string level = kv.first.as<std::string>();
+    if (m.level_fraction.count(level)) throw std::runtime_error(where + ": level '" + level + "' listed twice");
+    try {
+      m.level_fraction[level] = kv.second.as<double>();
+    } catch (const YAML::Exception&) {
+      throw std::runtime_error(where + ": level_fraction of '" + level + "' is not a number");
+    }
+  }
+  const YAML::Node points = root["points"];
+  if (!points || !points.IsSequence()) throw std::runtime_error(where + ": missing sequence 'points'");
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const YAML::Node p = points[i];
+    const std::string at = where + ", points[" + std::to_string(i) + "]";
+    if (!p.IsMap()) throw std::runtime_error(at + ": expected a mapping");
+    AcupointSpec s;
+    s.name = get<std::string>(p, "name", at);
+    s.level = get<std::string>(p, "level", at);
+    s.lateral_cun = get<double>(p, "lateral_cun", at);
+    s.region = get<std::string>(p, "region", at);
+    m.points.push_back(s);
+  }
+  try {
+    m.validate();
+  } catch (const std::invalid_argument& e) {
+    std::string what = e.what();
+    const std::string prefix = "acupoint model: ";
+    if (what.rfind(prefix, 0) == 0) what = what.substr(prefix.size());
+    throw std::runtime_error(where + ": " + what);
+  }
+  return m;
+}
+
+// ---------------------------------------------------------------------------
+// Landmarks and points
+
+BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model) {
+  if (!left.valid) return invalid("segmentation not valid: " + left.reason);
+  if (left.mask.empty()) return invalid("mask is empty");
+  if (left.mask.type() != CV_8UC1) return invalid("mask is not CV_8UC1");
+  if (cv::countNonZero(left.mask) == 0) return invalid("mask is empty (no back)");
+  if (!(model.c7_below_top + model.waist_fraction > 0.0)) return invalid("model constants not set");
+  if (model.head_up) return findLandmarksHeadUp(left, model);
+  BackLandmarks l = findLandmarksHeadUp(turned(left), model);
+  return l.valid ? turnedBack(std::move(l), left.mask.cols, left.mask.rows) : l;
+}
+
+cv::Point2f levelPixel(const BackLandmarks& landmarks, const AcupointModel& model, const std::string& level) {
+  const auto it = model.level_fraction.find(level);
+  if (it == model.level_fraction.end()) throw std::invalid_argument("levelPixel: unknown level '" + level + "'");
+  if (!landmarks.valid || landmarks.midline.empty()) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    return {nan, nan};
+  }
+  const double y = landmarks.c7.y + it->second * (landmarks.l4.y - landmarks.c7.y);
+  return midlineAt(landmarks, y);
+}
+
+double cunMetres(const BackLandmarks& landmarks, const AcupointModel& model, const PixelScale& scale) {
+  if (!landmarks.valid || landmarks.midline.empty() || !scale) return kNaN;
+  // Metres per pixel on the shoulder line: median over its central half (the
+  // skin there; robust to holes and outliers of a measured depth).
+  const cv::Point2f centre = midlineAt(landmarks, landmarks.shoulder_row);
+  const cv::Point2f lat = lateralAt(landmarks, landmarks.shoulder_row);
+  std::vector<double> s;
+  for (int k = -4; k <= 4; ++k) {
+    const double t = 0.25 * landmarks.shoulder_width * k / 4.0;
+    s.push_back(scale(centre + static_cast<float>(t) * lat));
+  }
+  const double mpp = median(s);
+  return model.cun_per_shoulder_width * landmarks.shoulder_width * mpp;
+}
+
+std::vector<AcupointPixel> placeAcupoints(const BackLandmarks& landmarks, const AcupointModel& model,
+                                          const PixelScale& scale) {
+  std::vector<AcupointPixel> out;
+  out.reserve(model.points.size());
+  const double cun = landmarks.valid ? cunMetres(landmarks, model, scale) : kNaN;
+  for (const auto& spec : model.points) {
+    AcupointPixel a;
+    a.name = spec.name;
+    if (!landmarks.valid) {
+      a.reason = "no landmarks: " + landmarks.reason;
+      out.push_back(a);
+      continue;
+    }
+    const auto level = model.level_fraction.find(spec.level);
+    if (level == model.level_fraction.end()) {
+      a.reason = "unknown level '" + spec.level + "'";
+      out.push_back(a);
+      continue;
+    }
+    const cv::Point2f p0 = levelPixel(landmarks, model, spec.level);
+    if (spec.lateral_cun == 0.0) {
+      a.pixel = p0;
+      a.valid = true;
+      out.push_back(a);
+      continue;
+    }
+    if (!std::isfinite(cun)) {
+      a.reason = "cun unknown (no metres per pixel on the shoulder line)";
+      out.push_back(a);
+      continue;
+    }
+    const double mpp = midlineScale(landmarks, p0.y, scale);
+    if (!std::isfinite(mpp)) {
+      a.reason = "no metres per pixel on the midline at " + spec.level;
+      out.push_back(a);
+      continue;
+    }
+    const double offset = spec.lateral_cun * cun / mpp;  // pixels toward the subject's left
+    a.pixel = p0 + static_cast<float>(offset) * lateralAt(landmarks, p0.y);
+    a.valid = true;
+    out.push_back(a);
+  }
+  return out;
+}
+
+}  // namespace massage_cell::cect

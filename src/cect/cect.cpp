@@ -1,0 +1,705 @@
+// CECT: foundational correspondences on the back's contour, barycentric
+// transfer inside it, three geometric constraints, triangulation
+// (see cect.h). Our design where the thesis extract is silent:
+//
+// * Epipolar lines are rows of the rectified pair (StereoGeometry). A left
+//   contour sample's own crossing and the right view's crossings of that row
+//   are zero crossings of each view's continuous skin score, interpolated
+//   between pixels, so foundational correspondences are sub-pixel.
+// * Several right crossings on a row: only those of the same kind (entering
+//   or leaving the back walking right) with a disparity in range are
+//   candidates; the k-th such left crossing of the row takes the k-th right
+//   one when both rows hold the same number, otherwise the candidate closest
+//   to the disparity of the unambiguous samples along the contour nearby.
+//   Samples where the border runs nearly along the row are dropped: there
+//   the crossing's x is ill-conditioned.
+// * The contour alone cannot carry the back's relief inward (the spine lies
+//   ~5 cm above the flanks: ~9 px of disparity at 0.8 m), so interior seeds on
+//   a grid are matched along their epipolar line by normalised cross
+//   correlation, searching only around their barycentric prediction, and
+//   join the triangulation once accepted; two passes (coarse grid, wide
+//   search; then the grid of `seed_step`, narrow search around the denser
+//   triangulation's prediction).
+// * The three geometric constraints:
+//   1. candidate agreement: the transfers through the containing triangle and
+//      its edge neighbours must agree within max_candidate_spread pixels;
+//   2. continuity: a seed's disparity may differ from the median of its grid
+//      neighbours by at most continuity_margin (the back is smooth), and a
+//      query's refinement may move its prediction by at most that much;
+//   3. left-right consistency: matching the right point back into the left
+//      view must return within lr_tolerance pixels.
+//   Epipolar consistency itself holds by construction (every vertex has
+//   y_left = y_right, and barycentric combinations keep it).
+#include "massage_cell/cect/cect.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <stdexcept>
+#include <string>
+
+#include <Eigen/Dense>
+#include <opencv2/imgproc.hpp>
+
+namespace massage_cell::cect {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const std::size_t m = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(m), v.end());
+  double hi = v[m];
+  if (v.size() % 2 == 1) return hi;
+  const double lo = *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(m));
+  return 0.5 * (lo + hi);
+}
+
+/// Bilinear sample of a CV_32F image (clamped at the border).
+float sample(const cv::Mat& img, float x, float y) {
+  x = std::clamp(x, 0.0f, static_cast<float>(img.cols - 1));
+  y = std::clamp(y, 0.0f, static_cast<float>(img.rows - 1));
+  const int x0 = std::min(static_cast<int>(x), img.cols - 2 < 0 ? 0 : img.cols - 2);
+  const int y0 = std::min(static_cast<int>(y), img.rows - 2 < 0 ? 0 : img.rows - 2);
+  const int x1 = std::min(x0 + 1, img.cols - 1), y1 = std::min(y0 + 1, img.rows - 1);
+  const float fx = x - static_cast<float>(x0), fy = y - static_cast<float>(y0);
+  const float* r0 = img.ptr<float>(y0);
+  const float* r1 = img.ptr<float>(y1);
+  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
+}
+
+/// Matching window of one point: (2r+1)^2 bilinear samples, mean removed,
+/// normalised to unit length. false when the window is flat.
+bool windowAt(const cv::Mat& img, float x, float y, int r, int ry, std::vector<float>* out) {
+  const int n = (2 * r + 1) * (2 * ry + 1);
+  out->resize(static_cast<std::size_t>(n));
+  double sum = 0.0;
+  int k = 0;
+  for (int dy = -ry; dy <= ry; ++dy)
+    for (int dx = -r; dx <= r; ++dx) {
+      const float v = sample(img, x + static_cast<float>(dx), y + static_cast<float>(dy));
+      (*out)[static_cast<std::size_t>(k++)] = v;
+      sum += v;
+    }
+  const float mean = static_cast<float>(sum / n);
+  double ss = 0.0;
+  for (float& v : *out) {
+    v -= mean;
+    ss += static_cast<double>(v) * v;
+  }
+  if (ss < 1e-6 * n) return false;
+  const float inv = static_cast<float>(1.0 / std::sqrt(ss));
+  for (float& v : *out) v *= inv;
+  return true;
+}
+
+struct MatchResult {
+  bool ok = false;
+  double disparity = 0.0;
+  double ncc = -1.0;
+  std::string why;
+};
+
+/// Best disparity in [d_lo, d_hi] (integer steps, then a parabola through the
+/// peak) for the left point (x, y): NCC of (2r+1)^2 windows along the row.
+/// `to_left` searches the other way: the point is in `from` (the right view)
+/// and candidates in `to` lie at x + d.
+MatchResult matchAlongRow(const cv::Mat& from, const cv::Mat& to, float x, float y, double d_lo, double d_hi, int r,
+                          int ry, bool to_left) {
+  MatchResult res;
+  std::vector<float> ref, cand;
+  if (!windowAt(from, x, y, r, ry, &ref)) {
+    res.why = "no texture in the matching window";
+    return res;
+  }
+  const int lo = static_cast<int>(std::floor(d_lo)), hi = static_cast<int>(std::ceil(d_hi));
+  if (hi - lo < 2) {
+    res.why = "search range too small";
+    return res;
+  }
+  std::vector<double> score(static_cast<std::size_t>(hi - lo + 1), -2.0);
+  for (int d = lo; d <= hi; ++d) {
+    const float xc = to_left ? x + static_cast<float>(d) : x - static_cast<float>(d);
+    if (xc < r || xc > to.cols - 1 - r) continue;
+    if (!windowAt(to, xc, y, r, ry, &cand)) continue;
+    double s = 0.0;
+    for (std::size_t i = 0; i < ref.size(); ++i) s += static_cast<double>(ref[i]) * cand[i];
+    score[static_cast<std::size_t>(d - lo)] = s;
+  }
+  const auto best = std::max_element(score.begin(), score.end());
+  const int k = static_cast<int>(best - score.begin());
+  res.ncc = *best;
+  if (k == 0 || k == static_cast<int>(score.size()) - 1) {
+    res.why = "correlation peak at the edge of the search range";
+    return res;
+  }
+  const double a = score[static_cast<std::size_t>(k - 1)], b = *best, c = score[static_cast<std::size_t>(k + 1)];
+  if (a < -1.5 || c < -1.5) {
+    res.why = "matching window leaves the image";
+    return res;
+  }
+  const double denom = a - 2 * b + c;
+  const double off = denom < 0 ? std::clamp(0.5 * (a - c) / denom, -0.5, 0.5) : 0.0;
+  res.disparity = lo + k + off;
+  res.ok = true;
+  return res;
+}
+
+/// Barycentric coordinates of p in triangle (a, b, c); false if degenerate.
+bool barycentric(const cv::Point2f& p, const cv::Point2f& a, const cv::Point2f& b, const cv::Point2f& c,
+                 double* l0, double* l1, double* l2) {
+  const double det = (b.y - c.y) * (a.x - c.x) + (c.x - b.x) * (a.y - c.y);
+  if (std::abs(det) < 1e-9) return false;
+  *l0 = ((b.y - c.y) * (p.x - c.x) + (c.x - b.x) * (p.y - c.y)) / det;
+  *l1 = ((c.y - a.y) * (p.x - c.x) + (a.x - c.x) * (p.y - c.y)) / det;
+  *l2 = 1.0 - *l0 - *l1;
+  return true;
+}
+
+}  // namespace
+
+/// Builds a CectFrame step by step (friend of CectFrame).
+class CectFrameBuilder {
+ public:
+  CectFrameBuilder(CectFrame& f) : f_(f) {}
+
+  void run(const cv::Mat& left, const cv::Mat& right) {
+    const auto t0 = Clock::now();
+    f_.geometry_.rectify(left, right, &f_.left_rect_, &f_.right_rect_);
+    f_.left_grey_ = matchingImage(f_.left_rect_);
+    f_.right_grey_ = matchingImage(f_.right_rect_);
+    f_.timings_.rectify_ms = msSince(t0);
+
+    auto t = Clock::now();
+    f_.left_seg_ = segmentBack(f_.left_rect_, f_.params_.segmentation);
+    f_.right_seg_ = segmentBack(f_.right_rect_, f_.params_.segmentation);
+    f_.timings_.segment_ms = msSince(t);
+    if (!f_.left_seg_.valid) return fail("left view: " + f_.left_seg_.reason, t0);
+    if (!f_.right_seg_.valid) return fail("right view: " + f_.right_seg_.reason, t0);
+
+    t = Clock::now();
+    foundational();
+    f_.timings_.foundational_ms = msSince(t);
+    if (f_.vertices_.size() < 8)
+      return fail("only " + std::to_string(f_.vertices_.size()) +
+                      " foundational correspondences (the contours' epipolar lines found no consistent crossings)",
+                  t0);
+
+    t = Clock::now();
+    triangulate();
+    if (f_.params_.seed_step > 0) {
+      seeds(2 * f_.params_.seed_step, f_.params_.seed_search);
+      triangulate();
+      seeds(f_.params_.seed_step, std::max(2.0, 0.5 * f_.params_.seed_search));
+      if (f_.params_.smooth_radius > 0) smoothSeeds(f_.params_.smooth_radius * f_.params_.seed_step);
+      triangulate();
+    }
+    f_.timings_.interior_ms = msSince(t);
+    if (f_.triangles_.empty()) return fail("no triangles over the foundational correspondences", t0);
+    f_.valid_ = true;
+    f_.timings_.total_ms = msSince(t0);
+  }
+
+ private:
+  void fail(const std::string& why, Clock::time_point t0) {
+    f_.valid_ = false;
+    f_.reason_ = why;
+    f_.timings_.total_ms = msSince(t0);
+  }
+
+  /// Grey image band-passed for matching: a difference of Gaussians keeps
+  /// the skin's mottling and the relief's edges and drops the broad shading
+  /// and the specular sheen, which move with the viewpoint.
+  cv::Mat matchingImage(const cv::Mat& bgr) const {
+    cv::Mat g, f, lo, hi;
+    cv::cvtColor(bgr, g, cv::COLOR_BGR2GRAY);
+    g.convertTo(f, CV_32F);
+    const CectParams& p = f_.params_;
+    if (p.bandpass_high <= 0) return f;
+    if (p.bandpass_low > 0) cv::GaussianBlur(f, lo, cv::Size(0, 0), p.bandpass_low);
+    else lo = f;
+    cv::GaussianBlur(f, hi, cv::Size(0, 0), p.bandpass_high);
+    return lo - hi;
+  }
+
+  double maxDisparity() const {
+    return f_.params_.max_disparity > 0 ? f_.params_.max_disparity : 0.5 * f_.left_rect_.cols;
+  }
+
+  /// Step 2: contour samples -> row crossings in the right view.
+  void foundational() {
+    const CectParams& p = f_.params_;
+    const auto& contour = f_.left_seg_.contour;
+    const int n = static_cast<int>(contour.size());
+    const double min_sin = std::sin(p.min_crossing_angle * M_PI / 180.0);
+    struct Sample {
+      cv::Point2f left;
+      std::vector<double> cands;  ///< candidate disparities
+      int unique = -1;            ///< index into cands chosen by the order rule, -1 none
+    };
+    std::vector<Sample> samples;
+    samples.reserve(static_cast<std::size_t>(n));
+    double last_y = -1e9;
+    for (int i = 0; i < n; ++i) {
+      const cv::Point2f& a = contour[static_cast<std::size_t>((i + n - 1) % n)];
+      const cv::Point2f& b = contour[static_cast<std::size_t>((i + 1) % n)];
+      const cv::Point2f tan = b - a;
+      const double len = std::hypot(tan.x, tan.y);
+      if (len < 1e-6 || std::abs(tan.y) / len < min_sin) continue;
+      const cv::Point2f& c = contour[static_cast<std::size_t>(i)];
+      (void)last_y;
+      const double y = c.y;
+      std::vector<bool> lr, rr;
+      const std::vector<double> lx = rowCrossings(f_.left_seg_.score, y, &lr);
+      const std::vector<double> rx = rowCrossings(f_.right_seg_.score, y, &rr);
+      // The left crossing this sample stands for: the nearest one.
+      int li = -1;
+      double best = 3.0;
+      for (std::size_t k = 0; k < lx.size(); ++k)
+        if (std::abs(lx[k] - c.x) < best) {
+          best = std::abs(lx[k] - c.x);
+          li = static_cast<int>(k);
+        }
+      if (li < 0) continue;
+      const bool rising = lr[static_cast<std::size_t>(li)];
+      Sample s;
+      s.left = cv::Point2f(static_cast<float>(lx[static_cast<std::size_t>(li)]), static_cast<float>(y));
+      // Order among the crossings of the same kind on both rows.
+      int rank = 0, left_same = 0, right_same = 0;
+      for (std::size_t k = 0; k < lx.size(); ++k)
+        if (lr[k] == rising) {
+          if (static_cast<int>(k) < li) ++rank;
+          ++left_same;
+        }
+      int r_rank = 0;
+      for (std::size_t k = 0; k < rx.size(); ++k) {
+        if (rr[k] != rising) continue;
+        ++right_same;
+        const double d = s.left.x - rx[k];
+        if (d >= p.min_disparity && d <= maxDisparity()) {
+          if (r_rank == rank) s.unique = static_cast<int>(s.cands.size());
+          s.cands.push_back(d);
+        }
+        ++r_rank;
+      }
+      if (left_same != right_same) s.unique = -1;
+      if (s.cands.size() == 1 && left_same == right_same) s.unique = 0;
+      if (!s.cands.empty()) samples.push_back(std::move(s));
+    }
+    // Resolve ambiguous samples by continuity along the contour with the
+    // unambiguous ones (order in `samples` follows the contour).
+    const int m = static_cast<int>(samples.size());
+    const int reach = 8;
+    for (int i = 0; i < m; ++i) {
+      Sample& s = samples[static_cast<std::size_t>(i)];
+      std::vector<double> near;
+      for (int k = -reach; k <= reach; ++k) {
+        if (k == 0) continue;
+        const Sample& o = samples[static_cast<std::size_t>((i + k + m) % m)];
+        if (o.unique >= 0) near.push_back(o.cands[static_cast<std::size_t>(o.unique)]);
+      }
+      double d = std::numeric_limits<double>::quiet_NaN();
+      if (near.size() >= 3) {
+        const double ref = median(near);
+        double bestd = std::numeric_limits<double>::infinity();
+        for (double c : s.cands)
+          if (std::abs(c - ref) < bestd) {
+            bestd = std::abs(c - ref);
+            d = c;
+          }
+        // A sample disagreeing with its neighbours is more likely a wrong
+        // crossing (or a rim seen differently) than a real jump.
+        if (bestd > 3.0 * f_.params_.continuity_margin) d = std::numeric_limits<double>::quiet_NaN();
+      } else if (s.unique >= 0) {
+        d = s.cands[static_cast<std::size_t>(s.unique)];
+      }
+      if (!std::isfinite(d)) continue;
+      Correspondence c;
+      c.left = s.left;
+      c.disparity = static_cast<float>(d);
+      c.sigma = static_cast<float>(p.pixel_sigma * std::sqrt(2.0));
+      c.foundational = true;
+      f_.vertices_.push_back(c);
+    }
+  }
+
+  /// Delaunay triangulation of the vertices, the triangle index map and the
+  /// triangles around each vertex.
+  void triangulate() {
+    auto& V = f_.vertices_;
+    f_.triangles_.clear();
+    const cv::Rect rect(-1, -1, f_.left_rect_.cols + 2, f_.left_rect_.rows + 2);
+    cv::Subdiv2D subdiv(rect);
+    std::map<int, int> vertex_of;  // subdiv vertex id -> our index
+    for (std::size_t i = 0; i < V.size(); ++i) {
+      const int id = subdiv.insert(V[i].left);
+      vertex_of[id] = static_cast<int>(i);
+    }
+    std::vector<cv::Vec6f> tris;
+    subdiv.getTriangleList(tris);
+    auto indexOf = [&](float x, float y) -> int {
+      const int id = subdiv.findNearest(cv::Point2f(x, y));
+      const auto it = vertex_of.find(id);
+      if (it == vertex_of.end()) return -1;
+      const cv::Point2f q = V[static_cast<std::size_t>(it->second)].left;
+      return std::hypot(q.x - x, q.y - y) < 1e-3 ? it->second : -1;
+    };
+    const cv::Mat& mask = f_.left_seg_.mask;
+    for (const auto& t : tris) {
+      const int a = indexOf(t[0], t[1]), b = indexOf(t[2], t[3]), c = indexOf(t[4], t[5]);
+      if (a < 0 || b < 0 || c < 0) continue;
+      // Only triangles inside the back: the centroid and the edge midpoints
+      // must lie on the mask (the contour is concave at the neck and waist).
+      const cv::Point2f pa = V[static_cast<std::size_t>(a)].left, pb = V[static_cast<std::size_t>(b)].left,
+                        pc = V[static_cast<std::size_t>(c)].left;
+      bool inside = true;
+      for (const cv::Point2f& q : {(pa + pb + pc) / 3.0f, (pa + pb) * 0.5f, (pb + pc) * 0.5f, (pa + pc) * 0.5f}) {
+        const int x = cvRound(q.x), y = cvRound(q.y);
+        const bool on_mask = x >= 0 && y >= 0 && x < mask.cols && y < mask.rows && mask.at<std::uint8_t>(y, x);
+        // Edge midpoints of border triangles sit on the border itself.
+        if (!on_mask && cv::pointPolygonTest(f_.left_seg_.contour, q, true) < -1.5) {
+          inside = false;
+          break;
+        }
+      }
+      const double area = std::abs((pb.x - pa.x) * (pc.y - pa.y) - (pc.x - pa.x) * (pb.y - pa.y)) * 0.5;
+      if (inside && area > 0.5) f_.triangles_.emplace_back(a, b, c);
+    }
+    f_.vertex_triangles_.assign(V.size(), {});
+    f_.triangle_index_.create(f_.left_rect_.size(), CV_32S);
+    f_.triangle_index_.setTo(-1);
+    for (std::size_t k = 0; k < f_.triangles_.size(); ++k) {
+      const cv::Vec3i& t = f_.triangles_[k];
+      for (int j = 0; j < 3; ++j) f_.vertex_triangles_[static_cast<std::size_t>(t[j])].push_back(static_cast<int>(k));
+      // Rasterise with a small margin so that points on shared edges find a triangle.
+      const cv::Point pts[3] = {cv::Point(cvRound(V[t[0]].left.x * 16), cvRound(V[t[0]].left.y * 16)),
+                                cv::Point(cvRound(V[t[1]].left.x * 16), cvRound(V[t[1]].left.y * 16)),
+                                cv::Point(cvRound(V[t[2]].left.x * 16), cvRound(V[t[2]].left.y * 16))};
+      cv::fillConvexPoly(f_.triangle_index_, pts, 3, cv::Scalar(static_cast<int>(k)), cv::LINE_8, 4);
+    }
+  }
+
+  /// Each interior seed's disparity becomes the value at the seed of a
+  /// weighted quadratic fitted to the seeds within `radius` pixels (Gaussian
+  /// weights, sigma = radius / 2; one refit without the residuals beyond
+  /// 3 MAD): single matches on skin are noisy (~0.6 px), the back is smooth.
+  /// A seed farther than continuity_margin from its fit is dropped
+  /// (constraint 2).
+  void smoothSeeds(double radius) {
+    auto& V = f_.vertices_;
+    std::vector<int> idx;
+    for (std::size_t i = 0; i < V.size(); ++i)
+      if (!V[i].foundational) idx.push_back(static_cast<int>(i));
+    const double s2 = 2.0 * (radius / 2.0) * (radius / 2.0);
+    std::vector<float> smoothed(V.size(), std::numeric_limits<float>::quiet_NaN());
+    std::vector<int> nb;
+    std::vector<double> wt;
+    for (int i : idx) {
+      const cv::Point2f c = V[static_cast<std::size_t>(i)].left;
+      nb.clear();
+      wt.clear();
+      for (int j : idx) {
+        const cv::Point2f q = V[static_cast<std::size_t>(j)].left - c;
+        const double r2 = q.x * q.x + q.y * q.y;
+        if (r2 <= radius * radius) {
+          nb.push_back(j);
+          wt.push_back(std::exp(-r2 / s2));
+        }
+      }
+      if (nb.size() < 8) continue;  // too few to fit: the seed stays as matched
+      std::vector<bool> use(nb.size(), true);
+      double fit = 0.0;
+      for (int pass = 0; pass < 2; ++pass) {
+        Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+        Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+        for (std::size_t k = 0; k < nb.size(); ++k) {
+          if (!use[k]) continue;
+          const Correspondence& v = V[static_cast<std::size_t>(nb[k])];
+          const double x = (v.left.x - c.x) / radius, y = (v.left.y - c.y) / radius;
+          Eigen::Matrix<double, 6, 1> phi;
+          phi << 1.0, x, y, x * x, x * y, y * y;
+          A += wt[k] * phi * phi.transpose();
+          b += wt[k] * v.disparity * phi;
+        }
+        const Eigen::Matrix<double, 6, 1> coef = A.ldlt().solve(b);
+        if (!coef.allFinite()) break;
+        fit = coef(0);
+        if (pass == 1) break;
+        std::vector<double> res(nb.size());
+        for (std::size_t k = 0; k < nb.size(); ++k) {
+          const Correspondence& v = V[static_cast<std::size_t>(nb[k])];
+          const double x = (v.left.x - c.x) / radius, y = (v.left.y - c.y) / radius;
+          res[k] = std::abs(v.disparity - (coef(0) + coef(1) * x + coef(2) * y + coef(3) * x * x + coef(4) * x * y +
+                                           coef(5) * y * y));
+        }
+        const double mad = std::max(0.3, median(res));
+        for (std::size_t k = 0; k < nb.size(); ++k) use[k] = res[k] <= 3.0 * mad;
+      }
+      smoothed[static_cast<std::size_t>(i)] = static_cast<float>(fit);
+    }
+    std::vector<Correspondence> kept;
+    kept.reserve(V.size());
+    for (std::size_t i = 0; i < V.size(); ++i) {
+      Correspondence v = V[i];
+      if (!v.foundational && std::isfinite(smoothed[i])) {
+        if (std::abs(v.disparity - smoothed[i]) > f_.params_.continuity_margin) continue;
+        v.disparity = smoothed[i];
+      }
+      kept.push_back(v);
+    }
+    V.swap(kept);
+  }
+
+  /// Interior seeds on a grid of `step` pixels, matched within `search` of
+  /// their barycentric prediction, kept when they pass the constraints.
+  void seeds(int step, double search) {
+    const CectParams& p = f_.params_;
+    const int r = p.ncc_radius;
+    const int ry = p.ncc_half_height > 0 ? p.ncc_half_height : r;
+    cv::Mat inner;
+    cv::erode(f_.left_seg_.mask, inner,
+              cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * (r + 2) + 1, 2 * (r + 2) + 1)));
+    struct Seed {
+      cv::Point2f left;
+      double d;
+      int gx, gy;
+    };
+    std::vector<Seed> found;
+    const bool contour_only = f_.foundationalCount() == f_.vertices_.size();
+    const double fxb = f_.geometry_.fx() * f_.geometry_.baseline();
+    const int w = f_.left_rect_.cols, h = f_.left_rect_.rows;
+    // Skip grid points already close to a vertex.
+    cv::Mat taken = cv::Mat::zeros(h, w, CV_8U);
+    for (const auto& v : f_.vertices_)
+      cv::circle(taken, cv::Point(cvRound(v.left.x), cvRound(v.left.y)), std::max(2, step / 3), cv::Scalar(255), -1);
+    for (int y = step / 2; y < h; y += step)
+      for (int x = step / 2; x < w; x += step) {
+        if (!inner.at<std::uint8_t>(y, x) || taken.at<std::uint8_t>(y, x)) continue;
+        const cv::Point2f q(static_cast<float>(x), static_cast<float>(y));
+        double spread = 0;
+        int count = 0;
+        const double d0 = f_.transfer(q, &spread, &count);
+        if (!std::isfinite(d0)) continue;
+        const double reach = search + 0.5 * spread;
+        // The back rises above its contour (it rests on the table there), so
+        // while the triangulation holds only the contour the search reaches
+        // up to max_relief metres nearer than the prediction.
+        double hi = d0 + reach;
+        if (contour_only) {
+          const double z0 = fxb / std::max(d0, 1e-3);
+          hi = z0 > p.max_relief ? fxb / (z0 - p.max_relief) + reach : maxDisparity();
+        }
+        const MatchResult m = matchAlongRow(f_.left_grey_, f_.right_grey_, q.x, q.y, std::max(p.min_disparity, d0 - reach),
+                                            std::min(maxDisparity(), hi), r, ry, false);
+        if (!m.ok || m.ncc < p.min_ncc) continue;
+        // Constraint 3: back from the right view.
+        const float xr = static_cast<float>(q.x - m.disparity);
+        const MatchResult back =
+            matchAlongRow(f_.right_grey_, f_.left_grey_, xr, q.y, m.disparity - 2.0 - p.lr_tolerance,
+                          m.disparity + 2.0 + p.lr_tolerance, r, ry, true);
+        if (!back.ok || std::abs(back.disparity - m.disparity) > p.lr_tolerance) continue;
+        found.push_back({q, m.disparity, x / step, y / step});
+      }
+    // Constraint 2: continuity with the grid neighbours.
+    std::map<std::pair<int, int>, double> grid;
+    for (const auto& s : found) grid[{s.gx, s.gy}] = s.d;
+    for (const auto& s : found) {
+      std::vector<double> nb;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (!dx && !dy) continue;
+          const auto it = grid.find({s.gx + dx, s.gy + dy});
+          if (it != grid.end()) nb.push_back(it->second);
+        }
+      if (nb.size() >= 2 && std::abs(s.d - median(nb)) > p.continuity_margin) continue;
+      if (nb.size() < 2 && step > p.seed_step) continue;  // isolated coarse seeds are not trusted
+      Correspondence c;
+      c.left = s.left;
+      c.disparity = static_cast<float>(s.d);
+      c.sigma = static_cast<float>(p.pixel_sigma);
+      c.foundational = false;
+      f_.vertices_.push_back(c);
+    }
+  }
+
+  CectFrame& f_;
+};
+
+CectFrame CectFrame::analyse(const cv::Mat& left, const cv::Mat& right, const StereoGeometry& geometry,
+                             const CectParams& params) {
+  if (geometry.empty()) throw std::invalid_argument("CECT: no stereo geometry (calibration) given");
+  if (left.empty() || right.empty()) throw std::invalid_argument("CECT: empty image");
+  if (left.type() != CV_8UC3 || right.type() != CV_8UC3)
+    throw std::invalid_argument("CECT: images must be 8-bit BGR (CV_8UC3)");
+  if (params.ncc_radius < 1) throw std::invalid_argument("CECT: ncc_radius must be >= 1");
+  if (params.seed_step < 0) throw std::invalid_argument("CECT: seed_step must be >= 0");
+  if (!(params.sample_spacing > 0)) throw std::invalid_argument("CECT: sample_spacing must be > 0");
+  CectFrame f;
+  f.geometry_ = geometry;
+  f.params_ = params;
+  f.params_.segmentation.contour_spacing = params.sample_spacing;
+  CectFrameBuilder(f).run(left, right);
+  return f;
+}
+
+std::size_t CectFrame::foundationalCount() const {
+  return static_cast<std::size_t>(std::count_if(vertices_.begin(), vertices_.end(),
+                                                [](const Correspondence& c) { return c.foundational; }));
+}
+
+double CectFrame::transfer(const cv::Point2f& q, double* spread, int* count) const {
+  *spread = 0.0;
+  *count = 0;
+  const int x = cvRound(q.x), y = cvRound(q.y);
+  if (x < 0 || y < 0 || x >= triangle_index_.cols || y >= triangle_index_.rows)
+    return std::numeric_limits<double>::quiet_NaN();
+  const int t = triangle_index_.at<int>(y, x);
+  if (t < 0) return std::numeric_limits<double>::quiet_NaN();
+  // The containing triangle and every triangle sharing an edge with it.
+  std::vector<int> tris{t};
+  const cv::Vec3i& T = triangles_[static_cast<std::size_t>(t)];
+  for (int j = 0; j < 3; ++j)
+    for (int o : vertex_triangles_[static_cast<std::size_t>(T[j])]) {
+      if (o == t || std::find(tris.begin(), tris.end(), o) != tris.end()) continue;
+      const cv::Vec3i& O = triangles_[static_cast<std::size_t>(o)];
+      int shared = 0;
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) shared += T[a] == O[b];
+      if (shared == 2) tris.push_back(o);
+    }
+  double own = std::numeric_limits<double>::quiet_NaN();
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  std::vector<double> cands;
+  for (int k : tris) {
+    const cv::Vec3i& K = triangles_[static_cast<std::size_t>(k)];
+    const Correspondence &a = vertices_[static_cast<std::size_t>(K[0])], &b = vertices_[static_cast<std::size_t>(K[1])],
+                         &c = vertices_[static_cast<std::size_t>(K[2])];
+    double l0, l1, l2;
+    if (!barycentric(q, a.left, b.left, c.left, &l0, &l1, &l2)) continue;
+    // The right point is the same barycentric combination of the right
+    // vertices; on a common row its x gives the disparity directly.
+    const double d = l0 * a.disparity + l1 * b.disparity + l2 * c.disparity;
+    if (k == t) own = d;
+    cands.push_back(d);
+    lo = std::min(lo, d);
+    hi = std::max(hi, d);
+  }
+  if (cands.empty()) return std::numeric_limits<double>::quiet_NaN();
+  *spread = hi - lo;
+  *count = static_cast<int>(cands.size());
+  // The containing triangle interpolates; its neighbours extrapolate: the
+  // median of all keeps one bad neighbour from dragging the estimate.
+  return cands.size() >= 3 ? median(cands) : (std::isfinite(own) ? own : cands.front());
+}
+
+LocalizedPoint CectFrame::localize(const cv::Point2f& left_raw_pixel) const {
+  LocalizedPoint out;
+  out.pixel = left_raw_pixel;
+  if (!valid_) {
+    out.reason = "no valid frame: " + reason_;
+    return out;
+  }
+  if (!(left_raw_pixel.x >= 0 && left_raw_pixel.y >= 0 && left_raw_pixel.x <= geometry_.size().width - 1 &&
+        left_raw_pixel.y <= geometry_.size().height - 1)) {
+    out.reason = "pixel outside the image";
+    return out;
+  }
+  out = localizeRectified(geometry_.toRectified(left_raw_pixel));
+  out.pixel = left_raw_pixel;
+  return out;
+}
+
+LocalizedPoint CectFrame::localizeRectified(const cv::Point2f& q) const {
+  LocalizedPoint out;
+  out.rectified = q;
+  out.pixel = valid_ ? geometry_.toRaw(q) : q;
+  if (!valid_) {
+    out.reason = "no valid frame: " + reason_;
+    return out;
+  }
+  const int x = cvRound(q.x), y = cvRound(q.y);
+  if (!(q.x >= 0 && q.y >= 0) || x >= left_seg_.mask.cols || y >= left_seg_.mask.rows) {
+    out.reason = "pixel outside the image";
+    return out;
+  }
+  if (!left_seg_.mask.at<std::uint8_t>(y, x)) {
+    out.reason = "pixel is not on the back";
+    return out;
+  }
+  double spread = 0;
+  int count = 0;
+  const double d0 = transfer(q, &spread, &count);
+  if (!std::isfinite(d0)) {
+    out.reason = "pixel outside the triangulated back (too close to its border)";
+    return out;
+  }
+  out.spread = spread;
+  out.candidates = count;
+  // Constraint 1.
+  if (spread > params_.max_candidate_spread) {
+    out.reason = "candidate triangles disagree by " + std::to_string(spread) + " px";
+    return out;
+  }
+  double d = d0;
+  double sigma = std::sqrt(params_.pixel_sigma * params_.pixel_sigma + 0.0625 * spread * spread);
+  if (params_.query_search > 0) {
+    const int ry = params_.ncc_half_height > 0 ? params_.ncc_half_height : params_.ncc_radius;
+    const double reach = std::min(params_.query_search, params_.continuity_margin);  // constraint 2
+    const MatchResult m = matchAlongRow(left_grey_, right_grey_, q.x, q.y, d0 - reach - 1.0, d0 + reach + 1.0,
+                                        params_.ncc_radius, ry, false);
+    if (m.ok && m.ncc >= params_.min_ncc && std::abs(m.disparity - d0) <= reach) {
+      const MatchResult back =
+          matchAlongRow(right_grey_, left_grey_, static_cast<float>(q.x - m.disparity), q.y,
+                        m.disparity - 2.0 - params_.lr_tolerance, m.disparity + 2.0 + params_.lr_tolerance,
+                        params_.ncc_radius, ry, true);
+      if (back.ok && std::abs(back.disparity - m.disparity) <= params_.lr_tolerance) {  // constraint 3
+        d = m.disparity;
+        sigma = params_.pixel_sigma;
+      }
+    }
+  }
+  Eigen::Matrix3d J;
+  out.position = geometry_.triangulate(q.x, q.y, d, &J);
+  if (!(out.position.z() > 0.0) || !out.position.allFinite()) {
+    out.reason = "point behind the camera";
+    return out;
+  }
+  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+  S(0, 0) = S(1, 1) = params_.pixel_sigma * params_.pixel_sigma;
+  S(2, 2) = sigma * sigma;
+  out.covariance = J * S * J.transpose();
+  out.disparity = d;
+  out.disparity_sigma = sigma;
+  out.valid = true;
+  return out;
+}
+
+cv::Mat CectFrame::drawDebug() const {
+  cv::Mat img = left_rect_.empty() ? cv::Mat() : left_rect_.clone();
+  if (img.empty()) return img;
+  for (const auto& t : triangles_) {
+    const cv::Point pts[3] = {vertices_[static_cast<std::size_t>(t[0])].left, vertices_[static_cast<std::size_t>(t[1])].left,
+                              vertices_[static_cast<std::size_t>(t[2])].left};
+    for (int j = 0; j < 3; ++j) cv::line(img, pts[j], pts[(j + 1) % 3], cv::Scalar(200, 200, 0), 1, cv::LINE_AA);
+  }
+  if (!left_seg_.contour.empty()) {
+    std::vector<cv::Point> c;
+    for (const auto& p : left_seg_.contour) c.emplace_back(cvRound(p.x), cvRound(p.y));
+    cv::polylines(img, c, true, cv::Scalar(255, 0, 255), 1, cv::LINE_AA);
+  }
+  for (const auto& v : vertices_)
+    cv::circle(img, cv::Point(cvRound(v.left.x), cvRound(v.left.y)), 2,
+               v.foundational ? cv::Scalar(0, 0, 255) : cv::Scalar(0, 255, 0), -1, cv::LINE_AA);
+  if (!valid_)
+    cv::putText(img, reason_, cv::Point(10, 20), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 255), 1, cv::LINE_AA);
+  return img;
+}
+
+}  // namespace massage_cell::cect

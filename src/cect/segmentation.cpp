@@ -1,0 +1,557 @@
+// CECT step 1: the back in one view (see segmentation.h).
+//
+// Design (ours; the thesis extract only names the step):
+//
+// * Chroma: log-chromaticity of the encoded 8-bit values,
+//     u = ln(R + k) - ln(G + k),  v = ln(G + k) - ln(B + k)   (k = kLogOffset).
+//   Scaling R, G, B together (brighter or dimmer light, shading, a cast
+//   shadow: with a gamma-encoded image this is still a common factor) leaves
+//   u and v unchanged, so brightness plays no part. Skin of every tone is
+//   reddish-orange: R > G > B, u > 0 and v > 0; darker skin is more
+//   saturated, not a different hue. The small offset k pulls very dark
+//   (noisy) pixels toward neutral. Chroma is blurred by blur_sigma.
+//
+// * Detection (stage A, on a copy reduced to ~kDetectionRows rows for
+//   speed): a skin-likelihood l = u + v (= ln(R/B)), lowered where the hue
+//   leaves the skin sector (u < 0: yellow-green, v < 0: magenta). The
+//   threshold is chosen per image by Otsu on the histogram of l, then Otsu
+//   again inside the upper class for as long as that class is itself clearly
+//   bimodal (Otsu separability >= kBimodal): skin is the most chromatic
+//   distinct class. (A single Otsu fails on pale skin: a neutral sheet, a
+//   warm grey floor and pale skin are three classes and the floor goes with
+//   the skin.) The largest region above the threshold is the detection.
+//   Priors reject images without skin: the region must be at least
+//   kMinSkinChroma red (median ln(R/B)) and about uniform in chroma (skin
+//   is; a multi-coloured texture is not), and cover min_area_fraction.
+//
+// * Score (stage B, full size): a two-class linear fit of the back against
+//   its own surroundings. mu_s = median chroma of the detection's core,
+//   mu_b = median chroma of a ring just outside it (sheet, cast shadow);
+//     score = (c - (mu_s + mu_b) / 2) . (mu_s - mu_b) / |mu_s - mu_b|^2,
+//   +0.5 on the back's skin, -0.5 on its surroundings, 0 half way. The
+//   score is linear in the chroma, so it is computed per pixel from three
+//   look-up tables and then blurred (= blurring the chroma). A blurred step
+//   between the two sides crosses its mid-value exactly at the step: the
+//   zero crossing is an unbiased, sub-pixel border (a global threshold would
+//   not be: for pale skin the mid-value between skin and sheet is a warm
+//   grey, the floor's colour).
+//
+// * Mask: score > 0, opened and closed (elliptical kernels); of the
+//   resulting regions (outer contours, drawn filled: holes filled) the one
+//   holding most of the detection. The score is then made to agree with the
+//   mask in sign (see segmentation.h), so zero crossings are exactly the
+//   back's border.
+//
+// * Contour: that region's outer contour (one sample per boundary pixel),
+//   smoothed circularly with a Gaussian, resampled uniformly by arc length,
+//   oriented counter-clockwise as seen on the image, each sample moved along
+//   its normal onto the score's zero crossing (the pixel contour runs through
+//   the centres of the boundary pixels, ~0.5 px inside the border).
+#include "massage_cell/cect/segmentation.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <limits>
+#include <stdexcept>
+#include <utility>
+
+#include <opencv2/imgproc.hpp>
+
+namespace massage_cell::cect {
+
+namespace {
+
+/// Grey levels added before taking logarithms: keeps ln finite at 0 and
+/// pulls the chroma of very dark, noisy pixels toward neutral.
+constexpr double kLogOffset = 2.0;
+/// Weight of the hue-sector penalty in the detection likelihood.
+constexpr double kHuePenalty = 2.0;
+/// Histogram of the detection likelihood: range and bins.
+constexpr double kHistLow = -0.5, kHistHigh = 1.0;
+constexpr int kHistBins = 300;
+/// Otsu separability (between-class / total variance) above which a class
+/// counts as two (a single Gaussian gives 0.64, a uniform spread 0.75).
+constexpr double kBimodal = 0.8;
+/// Weakest skin: median ln(R/B) of the detected class (encoded values). The
+/// palest rendered subjects are ~0.18, the warm grey floor ~0.08, neutral 0.
+constexpr double kMinSkinChroma = 0.12;
+/// Weakest accepted chroma difference between the back and its surroundings.
+constexpr double kMinContrast = 0.06;
+/// Most chroma spread inside the detected region (robust sigma of its score,
+/// in units of the back/surroundings difference) for it to count as skin.
+constexpr double kMaxSkinSpread = 0.2;
+/// Detection runs on a copy with about this many rows (or the full image if smaller).
+constexpr int kDetectionRows = 240;
+/// Contour samples move onto the score's zero crossing along their normal,
+/// searched this far either side (pixels) in steps of kSnapStep.
+constexpr double kSnapReach = 2.0;
+constexpr double kSnapStep = 0.25;
+/// Score given to pixels whose sign had to be forced to agree with the mask.
+constexpr float kForcedScore = 0.5f;
+
+/// Median of `v` (reorders it); 0 for an empty vector.
+double median(std::vector<float>& v) {
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+struct OtsuSplit {
+  int bin = -1;             ///< first bin of the upper class; -1 when the range cannot be split
+  double separability = 0;  ///< between-class / total variance
+  double upper_mass = 0;    ///< pixels in the upper class
+};
+
+/// Otsu's split of the histogram bins [begin, end).
+OtsuSplit otsu(const std::vector<double>& hist, int begin, int end) {
+  double n = 0, sum = 0, sum2 = 0;
+  for (int i = begin; i < end; ++i) {
+    n += hist[i];
+    sum += i * hist[i];
+    sum2 += double(i) * i * hist[i];
+  }
+  OtsuSplit best;
+  if (n <= 0) return best;
+  const double total_var = sum2 / n - (sum / n) * (sum / n);
+  double n0 = 0, s0 = 0, best_between = -1;
+  for (int k = begin + 1; k < end; ++k) {
+    n0 += hist[k - 1];
+    s0 += (k - 1) * hist[k - 1];
+    const double n1 = n - n0;
+    if (n0 <= 0 || n1 <= 0) continue;
+    const double d = s0 / n0 - (sum - s0) / n1;
+    const double between = n0 * n1 * d * d / (n * n);
+    if (between > best_between) {
+      best_between = between;
+      best.bin = k;
+      best.upper_mass = n1;
+    }
+  }
+  if (best.bin >= 0 && total_var > 0) best.separability = best_between / total_var;
+  return best;
+}
+
+/// Bilinear sample of a CV_32F image; false outside [0, cols-1] x [0, rows-1].
+bool sampleBilinear(const cv::Mat& img, double x, double y, double* value) {
+  if (!(x >= 0.0 && y >= 0.0 && x <= img.cols - 1 && y <= img.rows - 1)) return false;
+  const int x0 = std::min(static_cast<int>(x), img.cols - 1), y0 = std::min(static_cast<int>(y), img.rows - 1);
+  const int x1 = std::min(x0 + 1, img.cols - 1), y1 = std::min(y0 + 1, img.rows - 1);
+  const double fx = x - x0, fy = y - y0;
+  const float* r0 = img.ptr<float>(y0);
+  const float* r1 = img.ptr<float>(y1);
+  *value = (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
+  return true;
+}
+
+/// Gaussian smoothing of a closed polyline along its samples (circular).
+std::vector<cv::Point2d> smoothClosed(const std::vector<cv::Point>& pts, double sigma) {
+  const int n = static_cast<int>(pts.size());
+  std::vector<cv::Point2d> out(pts.begin(), pts.end());
+  if (sigma <= 0.0 || n < 3) return out;
+  const int radius = std::max(1, static_cast<int>(std::ceil(3.0 * sigma)));
+  std::vector<double> w(static_cast<std::size_t>(2 * radius + 1));
+  double wsum = 0;
+  for (int k = -radius; k <= radius; ++k)
+    wsum += w[static_cast<std::size_t>(k + radius)] = std::exp(-0.5 * k * k / (sigma * sigma));
+  for (double& x : w) x /= wsum;
+  for (int i = 0; i < n; ++i) {
+    cv::Point2d acc(0, 0);
+    for (int k = -radius; k <= radius; ++k) {
+      const int j = ((i + k) % n + n) % n;
+      acc += w[static_cast<std::size_t>(k + radius)] * cv::Point2d(pts[static_cast<std::size_t>(j)]);
+    }
+    out[static_cast<std::size_t>(i)] = acc;
+  }
+  return out;
+}
+
+/// Uniform resampling of a closed polyline by arc length: round(L / spacing)
+/// samples (at least 3), the first at pts[0].
+std::vector<cv::Point2f> resampleClosed(const std::vector<cv::Point2d>& pts, double spacing) {
+  const std::size_t n = pts.size();
+  std::vector<double> cum(n + 1, 0.0);
+  for (std::size_t i = 0; i < n; ++i) cum[i + 1] = cum[i] + cv::norm(pts[(i + 1) % n] - pts[i]);
+  const double length = cum[n];
+  std::vector<cv::Point2f> out;
+  if (n == 0 || length <= 0.0) return out;
+  const int count = std::max(3, static_cast<int>(std::lround(length / spacing)));
+  const double step = length / count;
+  out.reserve(static_cast<std::size_t>(count));
+  std::size_t seg = 0;
+  for (int j = 0; j < count; ++j) {
+    const double s = j * step;
+    while (seg + 1 < n && cum[seg + 1] <= s) ++seg;
+    const double len = cum[seg + 1] - cum[seg];
+    const double t = len > 0 ? (s - cum[seg]) / len : 0.0;
+    const cv::Point2d p = pts[seg] + t * (pts[(seg + 1) % n] - pts[seg]);
+    out.emplace_back(static_cast<float>(p.x), static_cast<float>(p.y));
+  }
+  return out;
+}
+
+/// Moves each contour sample along its normal onto the score's zero
+/// crossing nearest to it (within kSnapReach pixels); samples with no
+/// crossing there (on the image border) stay. Expects the contour
+/// counter-clockwise as seen on the image (interior on the left).
+void snapToCrossings(const cv::Mat& score, std::vector<cv::Point2f>* contour) {
+  const std::size_t n = contour->size();
+  if (n < 3) return;
+  const std::vector<cv::Point2f> in = *contour;
+  constexpr int kSteps = static_cast<int>(2 * kSnapReach / kSnapStep);
+  for (std::size_t i = 0; i < n; ++i) {
+    const cv::Point2f t = in[(i + 1) % n] - in[(i + n - 1) % n];
+    const double len = std::hypot(t.x, t.y);
+    if (len <= 0) continue;
+    const double nx = -t.y / len, ny = t.x / len;  // outward: the interior is on (t.y, -t.x)
+    double best = std::numeric_limits<double>::infinity(), prev_s = 0, prev_t = 0;
+    bool have_prev = false;
+    for (int k = 0; k <= kSteps; ++k) {
+      const double tt = -kSnapReach + k * kSnapStep;
+      double s;
+      if (!sampleBilinear(score, in[i].x + tt * nx, in[i].y + tt * ny, &s)) {
+        have_prev = false;
+        continue;
+      }
+      if (have_prev && prev_s > 0 && s <= 0) {  // leaving the back walking outward
+        const double at = prev_t + (tt - prev_t) * prev_s / (prev_s - s);
+        if (std::abs(at) < std::abs(best)) best = at;
+      }
+      prev_s = s;
+      prev_t = tt;
+      have_prev = true;
+    }
+    if (std::isfinite(best)) {
+      (*contour)[i] = cv::Point2f(static_cast<float>(in[i].x + best * nx), static_cast<float>(in[i].y + best * ny));
+    }
+  }
+}
+
+/// Shoelace area in image coordinates (negative: counter-clockwise as seen on the image).
+double signedArea(const std::vector<cv::Point2f>& c) {
+  double a = 0;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    const cv::Point2f& p = c[i];
+    const cv::Point2f& q = c[(i + 1) % c.size()];
+    a += static_cast<double>(p.x) * q.y - static_cast<double>(q.x) * p.y;
+  }
+  return 0.5 * a;
+}
+
+std::string percent(double fraction) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.1f%%", 100.0 * fraction);
+  return buf;
+}
+
+Segmentation invalid(const cv::Size& size, const std::string& reason) {
+  Segmentation s;
+  s.valid = false;
+  s.reason = reason;
+  s.score = cv::Mat(size, CV_32F, cv::Scalar(-kForcedScore));
+  s.mask = cv::Mat::zeros(size, CV_8U);
+  return s;
+}
+
+/// Opening or closing of a binary mask with a disk of `radius` (0: none), as
+/// if the image continued beyond its edges by replicating them: a region
+/// that touches the edge keeps its extent there, and the gap between a
+/// region and the edge is not closed (what lies beyond is unknown).
+void morphology(cv::Mat* mask, cv::MorphTypes op, int radius) {
+  if (radius <= 0) return;
+  const cv::Mat disk = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1));
+  cv::Mat padded;
+  cv::copyMakeBorder(*mask, padded, radius, radius, radius, radius, cv::BORDER_REPLICATE);
+  cv::morphologyEx(padded, padded, op, disk);
+  padded(cv::Rect(radius, radius, mask->cols, mask->rows)).copyTo(*mask);
+}
+
+}  // namespace
+
+Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params) {
+  if (bgr.empty()) throw std::invalid_argument("segmentBack: empty image");
+  if (bgr.type() != CV_8UC3) throw std::invalid_argument("segmentBack: expected a CV_8UC3 (BGR) image");
+  const cv::Size size = bgr.size();
+  std::array<float, 256> log_table;
+  for (int i = 0; i < 256; ++i) log_table[static_cast<std::size_t>(i)] = static_cast<float>(std::log(i + kLogOffset));
+
+  // --- stage A: detection on a reduced copy -------------------------------
+  // Chroma of the reduced image, blurred by blur_sigma (in full-size pixels).
+  const int factor = std::max(1, size.height / kDetectionRows);
+  cv::Mat bgr_small;
+  if (factor > 1) {
+    cv::resize(bgr, bgr_small, cv::Size(size.width / factor, size.height / factor), 0, 0, cv::INTER_AREA);
+  } else {
+    bgr_small = bgr;
+  }
+  const cv::Size small = bgr_small.size();
+  cv::Mat uv(small, CV_32FC2);  // (u, v) = (ln R - ln G, ln G - ln B)
+  for (int y = 0; y < small.height; ++y) {
+    const cv::Vec3b* p = bgr_small.ptr<cv::Vec3b>(y);
+    cv::Vec2f* c = uv.ptr<cv::Vec2f>(y);
+    for (int x = 0; x < small.width; ++x) {
+      const float lb = log_table[p[x][0]], lg = log_table[p[x][1]], lr = log_table[p[x][2]];
+      c[x] = cv::Vec2f(lr - lg, lg - lb);
+    }
+  }
+  const double sigma_small = params.blur_sigma / factor;
+  if (sigma_small > 0.0) cv::GaussianBlur(uv, uv, cv::Size(), sigma_small, sigma_small, cv::BORDER_REPLICATE);
+
+  // Detection likelihood and its histogram.
+  cv::Mat like(small, CV_32F);
+  std::vector<double> hist(kHistBins, 0.0);
+  const double bin_scale = kHistBins / (kHistHigh - kHistLow);
+  for (int y = 0; y < small.height; ++y) {
+    const cv::Vec2f* c = uv.ptr<cv::Vec2f>(y);
+    float* l = like.ptr<float>(y);
+    for (int x = 0; x < small.width; ++x) {
+      const float u = c[x][0], v = c[x][1];
+      l[x] = u + v + static_cast<float>(kHuePenalty) * (std::min(u, 0.f) + std::min(v, 0.f));
+      const int b = std::clamp(static_cast<int>((l[x] - kHistLow) * bin_scale), 0, kHistBins - 1);
+      hist[static_cast<std::size_t>(b)] += 1.0;
+    }
+  }
+  // Otsu, then Otsu inside the upper class while it is clearly two classes.
+  const double min_pixels = params.min_area_fraction * small.area();
+  OtsuSplit split = otsu(hist, 0, kHistBins);
+  if (split.bin < 0) return invalid(size, "no back in view: the image has a single colour");
+  for (;;) {
+    const OtsuSplit up = otsu(hist, split.bin, kHistBins);
+    if (up.bin < 0 || up.separability < kBimodal || up.upper_mass < min_pixels) break;
+    split = up;
+  }
+  const float threshold = static_cast<float>(kHistLow + split.bin / bin_scale);
+
+  // The largest region above the threshold.
+  cv::Mat cc_labels, cc_stats, cc_centroids;
+  const int n_cc = cv::connectedComponentsWithStats(like > threshold, cc_labels, cc_stats, cc_centroids, 8, CV_32S);
+  int best = 0, best_area = 0;
+  for (int i = 1; i < n_cc; ++i) {
+    if (cc_stats.at<int>(i, cv::CC_STAT_AREA) > best_area) {
+      best_area = cc_stats.at<int>(i, cv::CC_STAT_AREA);
+      best = i;
+    }
+  }
+  if (best_area < min_pixels) {
+    return invalid(size, "no back in view: the largest skin-coloured region covers " +
+                             percent(double(best_area) / small.area()) + " of the image (at least " +
+                             percent(params.min_area_fraction) + " needed)");
+  }
+  const cv::Mat region = cc_labels == best;
+
+  // --- stage B: the back's skin against its own surroundings --------------
+  // Its core (beyond the blurred transition) and a ring just outside it.
+  // (Square neighbourhoods: rectangular erosion / dilation are cheap.)
+  const int transition = static_cast<int>(std::ceil((3.0 * params.blur_sigma + 1.0) / factor)) + 1;
+  const int ring_width = std::max(4, 2 * transition);
+  auto square = [](int r) { return cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * r + 1, 2 * r + 1)); };
+  cv::Mat core, near_region, ring_outer;
+  cv::erode(region, core, square(transition));
+  cv::dilate(region, near_region, square(transition));
+  cv::dilate(region, ring_outer, square(transition + ring_width));
+  // Every `stride`-th pixel is enough for the medians (a few thousand samples).
+  const int stride = std::max(1, static_cast<int>(std::sqrt(best_area / 4000.0)));
+  std::vector<float> sl, su, sv, bu, bv, ou, ov;  // region, its core, ring, all beyond the transition
+  for (int y = 0; y < small.height; y += stride) {
+    const cv::Vec2f* c = uv.ptr<cv::Vec2f>(y);
+    const unsigned char* in_region = region.ptr<unsigned char>(y);
+    const unsigned char* in_core = core.ptr<unsigned char>(y);
+    const unsigned char* in_near = near_region.ptr<unsigned char>(y);
+    const unsigned char* in_ring = ring_outer.ptr<unsigned char>(y);
+    for (int x = 0; x < small.width; x += stride) {
+      if (in_region[x]) sl.push_back(c[x][0] + c[x][1]);
+      if (in_core[x]) {
+        su.push_back(c[x][0]);
+        sv.push_back(c[x][1]);
+      } else if (!in_near[x]) {
+        if (in_ring[x]) {
+          bu.push_back(c[x][0]);
+          bv.push_back(c[x][1]);
+        }
+        ou.push_back(c[x][0]);
+        ov.push_back(c[x][1]);
+      }
+    }
+  }
+  const double skin_chroma = median(sl);
+  if (skin_chroma < kMinSkinChroma) {
+    char buf[160];
+    std::snprintf(buf, sizeof(buf),
+                  "no back in view: no skin-coloured region (the most chromatic region has ln(R/B) = %.3f, skin "
+                  "needs %.2f)",
+                  skin_chroma, kMinSkinChroma);
+    return invalid(size, buf);
+  }
+  if (su.size() < 10) return invalid(size, "no back in view: the skin-coloured region is too thin");
+  if (bu.size() < 10) {  // nothing around the region (it fills the view): use whatever is outside
+    bu = std::move(ou);
+    bv = std::move(ov);
+  }
+  if (bu.size() < 10) return invalid(size, "no back in view: skin colour everywhere, no surroundings to tell it from");
+  const cv::Vec2d mu_s(median(su), median(sv)), mu_b(median(bu), median(bv));
+  const cv::Vec2d d = mu_s - mu_b;
+  const double contrast = cv::norm(d);
+  if (contrast < kMinContrast) {
+    return invalid(size, "no back in view: the skin-coloured region hardly differs from its surroundings");
+  }
+  // score = w . (u, v) + bias: +0.5 at mu_s, -0.5 at mu_b.
+  const cv::Vec2d w = d / (contrast * contrast);
+  const double bias = -0.5 * (mu_s + mu_b).dot(w);
+
+  // Skin is uniform in chroma: robust spread (MAD) of the core's score.
+  {
+    std::vector<float> core_score(su.size());
+    for (std::size_t i = 0; i < su.size(); ++i) core_score[i] = static_cast<float>(w[0] * su[i] + w[1] * sv[i]);
+    const double med = median(core_score);
+    for (float& x : core_score) x = static_cast<float>(std::abs(x - med));
+    const double spread = 1.4826 * median(core_score);
+    if (spread > kMaxSkinSpread) {
+      char buf[160];
+      std::snprintf(buf, sizeof(buf),
+                    "no back in view: the skin-coloured region is multi-coloured (chroma spread %.2f of its "
+                    "contrast to the surroundings, skin has less than %.2f)",
+                    spread, kMaxSkinSpread);
+      return invalid(size, buf);
+    }
+  }
+
+  // Full-size score. It is linear in (u, v), so blurring the score is
+  // blurring the chroma: score = TR[R] + TG[G] + TB[B], then the Gaussian.
+  std::array<float, 256> tr, tg, tb;
+  for (std::size_t i = 0; i < 256; ++i) {
+    tr[i] = static_cast<float>(w[0] * log_table[i]);
+    tg[i] = static_cast<float>((w[1] - w[0]) * log_table[i]);
+    tb[i] = static_cast<float>(-w[1] * log_table[i] + bias);
+  }
+  Segmentation seg;
+  seg.score.create(size, CV_32F);
+  for (int y = 0; y < size.height; ++y) {
+    const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(y);
+    float* s = seg.score.ptr<float>(y);
+    for (int x = 0; x < size.width; ++x) s[x] = tb[p[x][0]] + tg[p[x][1]] + tr[p[x][2]];
+  }
+  if (params.blur_sigma > 0.0) {
+    cv::GaussianBlur(seg.score, seg.score, cv::Size(), params.blur_sigma, params.blur_sigma, cv::BORDER_REPLICATE);
+  }
+
+  // --- mask: threshold, clean, the region of the detection, holes filled --
+  cv::Mat m = seg.score > 0;
+  morphology(&m, cv::MORPH_OPEN, params.open_radius);
+  morphology(&m, cv::MORPH_CLOSE, params.close_radius);
+  // Outer contours of the cleaned regions (holes ignored, i.e. filled), each
+  // drawn filled with its own label; the back is the one holding most of
+  // the detection.
+  std::vector<std::vector<cv::Point>> outer;
+  cv::findContours(m, outer, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  std::vector<std::pair<double, int>> candidates;  // (area, index), largest first, at most 255
+  double largest = 0.0;
+  for (std::size_t i = 0; i < outer.size(); ++i) {
+    const double a = cv::contourArea(outer[i]);
+    largest = std::max(largest, a);
+    if (a >= params.min_area_fraction * size.area()) candidates.emplace_back(a, static_cast<int>(i));
+  }
+  if (candidates.empty()) {
+    return invalid(size, "no back in view: the largest skin region covers " + percent(largest / size.area()) +
+                             " of the image (at least " + percent(params.min_area_fraction) + " needed)");
+  }
+  std::sort(candidates.begin(), candidates.end(), std::greater<>());
+  if (candidates.size() > 255) candidates.resize(255);
+  // Label image: candidate k (0-based) drawn with value k + 1, or 255 when
+  // there is a single candidate (then the label image is the mask itself).
+  const bool single = candidates.size() == 1;
+  cv::Mat labels = single ? cv::Mat(size, CV_8U, cv::Scalar(0)) : m;
+  if (!single) labels.setTo(0);
+  for (std::size_t k = 0; k < candidates.size(); ++k) {
+    cv::drawContours(labels, outer, candidates[k].second, cv::Scalar(single ? 255.0 : double(k + 1)), cv::FILLED,
+                     cv::LINE_8);
+  }
+  std::array<int, 256> overlap{};
+  for (int y = 0; y < small.height; ++y) {
+    const unsigned char* r = region.ptr<unsigned char>(y);
+    const unsigned char* lab = labels.ptr<unsigned char>(std::min(y * factor + factor / 2, size.height - 1));
+    for (int x = 0; x < small.width; ++x) {
+      if (r[x]) ++overlap[lab[std::min(x * factor + factor / 2, size.width - 1)]];
+    }
+  }
+  overlap[0] = 0;
+  const auto label = std::max_element(overlap.begin(), overlap.end()) - overlap.begin();
+  if (overlap[static_cast<std::size_t>(label)] == 0) {
+    return invalid(size, "no back in view: the skin-coloured region does not survive the cleaning");
+  }
+  const std::size_t chosen = single ? 0 : static_cast<std::size_t>(label - 1);
+  const std::vector<cv::Point>& border = outer[static_cast<std::size_t>(candidates[chosen].second)];
+  seg.mask = single ? labels : (labels == static_cast<double>(label));
+
+  // The score agrees with the mask in sign: holes and pixels the closing
+  // added become positive; pixels the opening removed and skin elsewhere
+  // (other regions) negative. Untouched where the two already agree.
+  for (int y = 0; y < size.height; ++y) {
+    float* s = seg.score.ptr<float>(y);
+    const unsigned char* mk = seg.mask.ptr<unsigned char>(y);
+    for (int x = 0; x < size.width; ++x) {
+      if (mk[x]) {
+        if (!(s[x] > 0.f)) s[x] = kForcedScore;
+      } else if (!(s[x] < 0.f)) {
+        s[x] = -kForcedScore;
+      }
+    }
+  }
+
+  // --- contour: smoothed, resampled, counter-clockwise, on the crossing ---
+  seg.contour = resampleClosed(smoothClosed(border, params.contour_smoothing), std::max(params.contour_spacing, 0.1));
+  if (signedArea(seg.contour) > 0) {  // clockwise as seen on the image: reverse, keeping the first sample
+    std::reverse(seg.contour.begin() + 1, seg.contour.end());
+  }
+  snapToCrossings(seg.score, &seg.contour);
+  int on_border = 0;
+  const float margin = static_cast<float>(params.border_margin);
+  for (const cv::Point2f& p : seg.contour) {
+    const float to_border = std::min(std::min(p.x, p.y), std::min(size.width - 1 - p.x, size.height - 1 - p.y));
+    if (to_border < margin) ++on_border;
+  }
+  seg.border_fraction = seg.contour.empty() ? 0.0 : double(on_border) / seg.contour.size();
+  seg.valid = true;
+  return seg;
+}
+
+std::vector<double> rowCrossings(const cv::Mat& score, double y, std::vector<bool>* rising) {
+  if (rising) rising->clear();
+  std::vector<double> xs;
+  if (score.empty()) return xs;
+  if (score.type() != CV_32FC1) throw std::invalid_argument("rowCrossings: expected a CV_32F score");
+  if (!(y >= 0.0 && y <= score.rows - 1)) return xs;  // also rejects NaN
+  const int y0 = std::min(static_cast<int>(y), score.rows - 1);
+  const int y1 = std::min(y0 + 1, score.rows - 1);
+  const float f = static_cast<float>(y - y0);
+  const float* r0 = score.ptr<float>(y0);
+  const float* r1 = score.ptr<float>(y1);
+  auto value = [&](int x) { return f > 0.f ? (1.f - f) * r0[x] + f * r1[x] : r0[x]; };
+  auto sign = [](float s) { return s > 0.f ? 1 : (s < 0.f ? -1 : 0); };  // NaN: 0
+  // Walk right, remembering the last sample with a sign. A sign change
+  // between it and the next signed sample is one crossing: interpolated
+  // linearly between adjacent samples, at the middle of a run of exact zeros
+  // otherwise. Zeros that only touch (same sign both sides) or lie at the
+  // row's ends are no crossing.
+  int last = -1, last_sign = 0;
+  float last_value = 0.f;
+  for (int x = 0; x < score.cols; ++x) {
+    const float s = value(x);
+    const int sg = sign(s);
+    if (sg == 0) continue;
+    if (last_sign != 0 && sg != last_sign) {
+      const double at = (x == last + 1) ? last + static_cast<double>(last_value) / (static_cast<double>(last_value) - s)
+                                        : 0.5 * (last + x);
+      xs.push_back(at);
+      if (rising) rising->push_back(sg > 0);
+    }
+    last = x;
+    last_sign = sg;
+    last_value = s;
+  }
+  return xs;
+}
+
+}  // namespace massage_cell::cect

@@ -1,0 +1,863 @@
+#include "cect_nodelet.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include <boost/any.hpp>
+#include <cv_bridge/cv_bridge.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <opencv2/imgproc.hpp>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/package.h>
+#include <sensor_msgs/image_encodings.h>
+#include <tf2/exceptions.h>
+#include <tf2_geometry_msgs/tf2_geometry_msgs.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include "massage_cell/AcupointArray.h"
+#include "massage_cell/camera/calibration.h"
+
+namespace massage_cell::nodes {
+
+namespace {
+
+namespace enc = sensor_msgs::image_encodings;
+using Clock = std::chrono::steady_clock;
+
+constexpr double kLogPeriod = 5.0;       // s between two logs naming the same problem
+constexpr double kRateWindow = 10.0;     // s of completions the processing rate is taken over
+constexpr double kTfWait = 0.1;          // s (wall) ~get_acupoint waits for the transform at the estimate's stamp
+constexpr double kMarkerLifetime = 1.0;  // s
+constexpr int kDebugWidth = 960;         // px: ~debug_image is scaled up to at least this width
+const double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+/// A problem with one input pair: logged (throttled), counted, the pair skipped.
+struct BadInput : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+double msSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+std::string sizeText(unsigned width, unsigned height) { return std::to_string(width) + "x" + std::to_string(height); }
+
+camera::CameraCalibration toCalibration(const sensor_msgs::CameraInfo& info) {
+  camera::CameraCalibration c;
+  c.width = static_cast<int>(info.width);
+  c.height = static_cast<int>(info.height);
+  c.distortion_model = info.distortion_model;
+  c.D = info.D;
+  std::copy(info.K.begin(), info.K.end(), c.K.begin());
+  std::copy(info.R.begin(), info.R.end(), c.R.begin());
+  std::copy(info.P.begin(), info.P.end(), c.P.begin());
+  return c;
+}
+
+/// Everything a calibration change affects, to detect changes cheaply.
+void appendKey(std::vector<double>& key, const sensor_msgs::CameraInfo& info) {
+  key.push_back(info.width);
+  key.push_back(info.height);
+  key.push_back(static_cast<double>(std::hash<std::string>{}(info.distortion_model)));
+  key.push_back(static_cast<double>(info.D.size()));
+  key.insert(key.end(), info.D.begin(), info.D.end());
+  key.insert(key.end(), info.K.begin(), info.K.end());
+  key.insert(key.end(), info.R.begin(), info.R.end());
+  key.insert(key.end(), info.P.begin(), info.P.end());
+}
+
+/// Throws BadInput when the image does not have the size its camera_info
+/// declares or uses binning / a region of interest.
+void checkInfo(const sensor_msgs::CameraInfo& info, const sensor_msgs::Image& image, const std::string& which) {
+  if (info.width != image.width || info.height != image.height) {
+    throw BadInput(which + " image is " + sizeText(image.width, image.height) + " but its camera_info says " +
+                   sizeText(info.width, info.height));
+  }
+  if (info.binning_x > 1 || info.binning_y > 1 || (info.roi.width != 0 && info.roi.width != info.width) ||
+      (info.roi.height != 0 && info.roi.height != info.height)) {
+    throw BadInput(which + " camera_info uses binning or a region of interest, which this node does not support");
+  }
+}
+
+/// The image as 8-bit BGR (CECT finds the back by its colour).
+cv::Mat toBgr(const sensor_msgs::ImageConstPtr& msg, const std::string& which) {
+  const std::string& e = msg->encoding;
+  if (!enc::isColor(e) && !enc::isBayer(e)) {
+    throw BadInput(which + " image encoding '" + e +
+                   "' has no colour: CECT finds the back by its skin colour (bgr8, rgb8, bgra8, rgba8 or Bayer)");
+  }
+  cv_bridge::CvImageConstPtr cv_image;
+  try {
+    cv_image = cv_bridge::toCvShare(msg, enc::BGR8);
+  } catch (const cv_bridge::Exception& ex) {
+    throw BadInput(which + " image cannot be read: " + ex.what());
+  } catch (const cv::Exception& ex) {
+    throw BadInput(which + " image cannot be converted to bgr8: " + ex.what());
+  }
+  if (cv_image->image.empty()) throw BadInput(which + " image is empty");
+  return cv_image->image;
+}
+
+cect::CectParams cectParams(const CECTConfig& c) {
+  cect::CectParams p;
+  p.sample_spacing = c.sample_spacing;
+  p.min_disparity = c.min_disparity;
+  p.max_disparity = c.max_disparity;
+  p.min_crossing_angle = c.min_crossing_angle;
+  p.seed_step = c.seed_step;
+  p.ncc_radius = c.ncc_radius;
+  p.seed_search = c.seed_search;
+  p.query_search = c.query_search;
+  p.min_ncc = c.min_ncc;
+  p.max_candidate_spread = c.max_candidate_spread;
+  p.continuity_margin = c.continuity_margin;
+  p.lr_tolerance = c.lr_tolerance;
+  p.pixel_sigma = c.pixel_sigma;
+  return p;
+}
+
+cect::TemporalFilterParams filterParams(const CECTConfig& c) {
+  cect::TemporalFilterParams p;
+  p.alpha = c.alpha;
+  p.gate = c.gate;
+  p.reacquire_after = c.reacquire_after;
+  p.max_age = c.max_age;
+  return p;
+}
+
+/// Marker colour of a region (measured in this pair); held estimates are grey.
+std_msgs::ColorRGBA regionColour(const std::string& region, bool measured) {
+  std_msgs::ColorRGBA c;
+  c.a = 1.0f;
+  if (!measured) {
+    c.r = c.g = c.b = 0.6f;
+    c.a = 0.7f;
+  } else if (region == "upper_back") {
+    c.r = 1.0f, c.g = 0.55f, c.b = 0.0f;
+  } else if (region == "lower_back") {
+    c.r = 0.1f, c.g = 0.4f, c.b = 1.0f;
+  } else if (region == "midline") {
+    c.r = 0.1f, c.g = 0.85f, c.b = 0.2f;
+  } else if (region == "shoulder") {
+    c.r = 0.9f, c.g = 0.1f, c.b = 0.9f;
+  } else {
+    c.r = c.g = c.b = 1.0f;
+  }
+  return c;
+}
+
+void toArray(const Eigen::Matrix3d& m, double* out) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out[3 * r + c] = m(r, c);
+}
+
+std::string joined(const std::vector<std::string>& names) {
+  std::string out;
+  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out;
+}
+
+}  // namespace
+
+// ------------------------------------------------------------- set-up --
+
+CectNodelet::~CectNodelet() {
+  {
+    std::lock_guard<std::mutex> lock(slot_mutex_);
+    stopping_ = true;
+  }
+  slot_cv_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+void CectNodelet::onInit() {
+  ros::NodeHandle& nh = getNodeHandle();
+  ros::NodeHandle& pnh = getPrivateNodeHandle();
+  it_ = std::make_unique<image_transport::ImageTransport>(nh);
+
+  // The acupoint model: a configuration error ends the node (logged FATAL, rethrown).
+  loadModel();
+  pnh.param<std::string>("frame_prefix", frame_prefix_, frame_prefix_);
+  while (!frame_prefix_.empty() && frame_prefix_.front() == '/')
+    frame_prefix_.erase(0, 1);  // tf2 ids have no leading '/'
+
+  // Synchronised inputs, as stereo_image_proc: exact stamps by default.
+  int queue_size = 5;
+  bool approximate = false;
+  pnh.param("queue_size", queue_size, queue_size);
+  pnh.param("approximate_sync", approximate, approximate);
+  if (queue_size < 1) {
+    NODELET_ERROR_STREAM("parameter ~queue_size must be >= 1 (got " << queue_size << "): using 5");
+    queue_size = 5;
+  }
+  if (approximate) {
+    approximate_sync_ = std::make_unique<message_filters::Synchronizer<ApproximatePolicy>>(
+        ApproximatePolicy(queue_size), left_image_sub_, left_info_sub_, right_image_sub_, right_info_sub_);
+    approximate_sync_->registerCallback(&CectNodelet::pairCb, this);
+  } else {
+    exact_sync_ = std::make_unique<message_filters::Synchronizer<ExactPolicy>>(
+        ExactPolicy(queue_size), left_image_sub_, left_info_sub_, right_image_sub_, right_info_sub_);
+    exact_sync_->registerCallback(&CectNodelet::pairCb, this);
+  }
+
+  // Parameters: log what dynamic_reconfigure would clamp silently, then serve them.
+  config_ = Config::__getDefault__();
+  checkStartParameters();
+  reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<Config>>(config_mutex_, pnh);
+  reconfigure_server_->setCallback([this](Config& config, uint32_t level) { configCb(config, level); });
+  {
+    boost::recursive_mutex::scoped_lock lock(config_mutex_);
+    filter_.setParams(filterParams(config_));
+  }
+
+  // Diagnostics, once a second of wall time (Updater::update() goes by ROS
+  // time, which stalls when a looping bag sends the simulated clock back).
+  updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh, pnh.getNamespace());
+  updater_->setHardwareID("none");
+  updater_->add("acupoints (cect)", this, &CectNodelet::diagnose);
+  diagnostics_timer_ =
+      nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_->force_update(); });
+
+  // Outputs, tf, services.
+  acupoints_pub_ = nh.advertise<massage_cell::AcupointArray>("acupoints", 5);
+  markers_pub_ = pnh.advertise<visualization_msgs::MarkerArray>("markers", 1);
+  image_transport::ImageTransport private_it(pnh);
+  debug_image_pub_ = private_it.advertise("debug_image", 1);
+  tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
+  tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
+  tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);  // its own thread and queue
+  localize_service_ = pnh.advertiseService("localize_pixels", &CectNodelet::localizePixels, this);
+  acupoint_service_ = pnh.advertiseService("get_acupoint", &CectNodelet::getAcupoint, this);
+
+  // Inputs, subscribed from the start (tf frames and services have no
+  // subscriber count). Queue size 1: the synchroniser's queue is the one that matters.
+  worker_ = std::thread([this] { workLoop(); });
+  const image_transport::TransportHints hints("raw", ros::TransportHints(), pnh);
+  left_image_sub_.subscribe(*it_, "left/image_raw", 1, hints);
+  left_info_sub_.subscribe(nh, "left/camera_info", 1);
+  right_image_sub_.subscribe(*it_, "right/image_raw", 1, hints);
+  right_info_sub_.subscribe(nh, "right/camera_info", 1);
+  NODELET_INFO_STREAM("acupoints (" << model_.points.size() << " from " << model_path_ << ") on "
+                                    << nh.resolveName("left/image_raw") << " + " << nh.resolveName("right/image_raw")
+                                    << (approximate ? " (approximate sync)" : " (exact sync)") << "; tf frames "
+                                    << frame_prefix_ << "<name>");
+}
+
+void CectNodelet::loadModel() {
+  ros::NodeHandle& pnh = getPrivateNodeHandle();
+  pnh.param<std::string>("acupoints_file", model_path_, "");
+  if (model_path_.empty()) {
+    const std::string root = ros::package::getPath("massage_cell");
+    if (root.empty()) {
+      NODELET_FATAL("parameter ~acupoints_file is not set and package massage_cell is not found to take its default");
+      throw std::runtime_error("no acupoint model");
+    }
+    model_path_ = root + "/config/acupoints.yaml";
+  }
+  try {
+    model_ = cect::loadAcupointModel(model_path_);
+    model_.validate();
+  } catch (const std::exception& e) {
+    NODELET_FATAL_STREAM("acupoint model " << model_path_ << ": " << e.what());
+    throw;
+  }
+  if (model_.points.empty()) {
+    NODELET_FATAL_STREAM("acupoint model " << model_path_ << " has no acupoints");
+    throw std::runtime_error("empty acupoint model");
+  }
+  for (const auto& point : model_.points) estimates_[point.name].reason = "no stereo pair analysed yet";
+}
+
+void CectNodelet::checkStartParameters() {
+  // dynamic_reconfigure reads these from the parameter server and clamps them
+  // without a word; say so when a value of the parameter file is outside.
+  const ros::NodeHandle& pnh = getPrivateNodeHandle();
+  const Config min = Config::__getMin__(), max = Config::__getMax__();
+  for (const auto& description : Config::__getParamDescriptions__()) {
+    const bool integer = description->type == "int";
+    if (!integer && description->type != "double") continue;
+    XmlRpc::XmlRpcValue v;
+    if (!pnh.getParam(description->name, v)) continue;
+    const auto type = v.getType();
+    const bool is_int = type == XmlRpc::XmlRpcValue::TypeInt;
+    if (!is_int && (integer || type != XmlRpc::XmlRpcValue::TypeDouble)) {
+      NODELET_ERROR_STREAM("parameter ~" << description->name << " must be " << (integer ? "an integer" : "a number")
+                                         << ": ignored, using the default");
+      continue;
+    }
+    boost::any lo_any, hi_any;
+    description->getValue(min, lo_any);
+    description->getValue(max, hi_any);
+    const double lo = integer ? boost::any_cast<int>(lo_any) : boost::any_cast<double>(lo_any);
+    const double hi = integer ? boost::any_cast<int>(hi_any) : boost::any_cast<double>(hi_any);
+    const double value = is_int ? static_cast<int>(v) : static_cast<double>(v);
+    if (value < lo || value > hi) {
+      NODELET_ERROR_STREAM("parameter ~" << description->name << " = " << value << " is outside [" << lo << ", " << hi
+                                         << "]: clamped to " << std::min(std::max(value, lo), hi));
+    }
+  }
+}
+
+void CectNodelet::configCb(Config& config, uint32_t /*level*/) {
+  // Runs with config_mutex_ held (dynamic_reconfigure::Server locks it).
+  // Combinations the ranges of cfg/CECT.cfg cannot rule out are rejected
+  // here: the previous values stay, and the server publishes them back.
+  if (config.max_disparity != 0.0 && config.max_disparity <= config.min_disparity) {
+    NODELET_ERROR_STREAM("rejected max_disparity = " << config.max_disparity
+                                                     << " <= min_disparity = " << config.min_disparity
+                                                     << " (0 means half the image width): keeping "
+                                                     << config_.min_disparity << ".." << config_.max_disparity);
+    config.min_disparity = config_.min_disparity;
+    config.max_disparity = config_.max_disparity;
+  }
+  config_ = config;
+  std::ostringstream max_disparity;
+  if (config.max_disparity > 0)
+    max_disparity << config.max_disparity;
+  else
+    max_disparity << "width/2";
+  NODELET_INFO_STREAM("seed_step " << config.seed_step << ", ncc_radius " << config.ncc_radius << ", seed_search "
+                                   << config.seed_search << ", query_search " << config.query_search << ", min_ncc "
+                                   << config.min_ncc << ", disparities " << config.min_disparity << ".."
+                                   << max_disparity.str() << ", filter alpha " << config.alpha << " gate "
+                                   << config.gate << " m reacquire_after " << config.reacquire_after << " max_age "
+                                   << config.max_age << " s");
+}
+
+// ------------------------------------------------------------- inputs --
+
+void CectNodelet::pairCb(const sensor_msgs::ImageConstPtr& left_image, const sensor_msgs::CameraInfoConstPtr& left_info,
+                         const sensor_msgs::ImageConstPtr& right_image,
+                         const sensor_msgs::CameraInfoConstPtr& right_info) {
+  bool dropped = false;
+  {
+    std::lock_guard<std::mutex> lock(slot_mutex_);
+    dropped = slot_.has_value();  // the worker is busy and never took the previous pair
+    slot_ = Pair{left_image, right_image, left_info, right_info};
+  }
+  slot_cv_.notify_one();
+  std::lock_guard<std::mutex> lock(status_mutex_);
+  ++received_;
+  if (dropped) ++dropped_;
+}
+
+// ------------------------------------------------------------- worker --
+
+void CectNodelet::workLoop() {
+  while (true) {
+    Pair pair;
+    {
+      std::unique_lock<std::mutex> lock(slot_mutex_);
+      slot_cv_.wait(lock, [this] { return stopping_ || slot_.has_value(); });
+      if (stopping_) return;
+      pair = std::move(*slot_);
+      slot_.reset();
+    }
+    Config config;
+    {
+      boost::recursive_mutex::scoped_lock lock(config_mutex_);
+      config = config_;
+    }
+    try {
+      process(pair, config);
+    } catch (const BadInput& e) {
+      badPair(e.what());
+    } catch (const std::exception& e) {  // the library's std::invalid_argument, OpenCV, ...
+      badPair(e.what());
+    }
+  }
+}
+
+bool CectNodelet::logDue(const std::string& problem) {
+  // Throttled per problem, so a second kind of problem is not hidden by the first.
+  const ros::WallTime now = ros::WallTime::now();
+  if (last_logged_.size() > 100) last_logged_.clear();
+  ros::WallTime& last = last_logged_[problem];
+  if (!last.isZero() && (now - last).toSec() < kLogPeriod) return false;
+  last = now;
+  return true;
+}
+
+void CectNodelet::badPair(const std::string& problem) {
+  std::uint64_t bad = 0;
+  {
+    std::lock_guard<std::mutex> lock(status_mutex_);
+    bad = ++bad_;
+    last_pair_bad_ = true;
+    last_error_ = problem;
+    last_error_time_ = ros::WallTime::now();
+  }
+  if (logDue(problem))
+    NODELET_ERROR_STREAM("skipped a stereo pair: " << problem << " (" << bad << " bad pairs so far)");
+}
+
+void CectNodelet::updateGeometry(const CameraInfo& left, const CameraInfo& right) {
+  std::vector<double> key;
+  appendKey(key, left);
+  appendKey(key, right);
+  if (key != geometry_key_) {
+    geometry_key_ = key;
+    geometry_.reset();
+    geometry_error_.clear();
+    try {
+      geometry_ = std::make_shared<const cect::StereoGeometry>(toCalibration(left), toCalibration(right));
+    } catch (const std::invalid_argument& e) {  // uncalibrated, sizes differ, not a horizontal pair, ...
+      geometry_error_ = std::string("unusable calibration: ") + e.what();
+    }
+    if (geometry_) {
+      std::ostringstream summary;
+      summary << sizeText(left.width, left.height) << (geometry_->identity() ? ", rectified input" : ", rectified here")
+              << ", f " << geometry_->fx() << " px, baseline " << geometry_->baseline() << " m";
+      NODELET_INFO_STREAM("calibration: " << summary.str());
+      std::lock_guard<std::mutex> lock(status_mutex_);
+      geometry_summary_ = summary.str();
+    }
+  }
+  if (!geometry_) throw BadInput(geometry_error_);
+}
+
+void CectNodelet::process(const Pair& pair, const Config& config) {
+  const auto start = Clock::now();
+  const CameraInfo& li = *pair.left_info;
+  const CameraInfo& ri = *pair.right_info;
+
+  // 1. Inputs: every problem names itself and skips the pair.
+  checkInfo(li, *pair.left_image, "left");
+  checkInfo(ri, *pair.right_image, "right");
+  updateGeometry(li, ri);
+  const cv::Mat left = toBgr(pair.left_image, "left");
+  const cv::Mat right = toBgr(pair.right_image, "right");
+  const cect::StereoGeometry& geometry = *geometry_;
+
+  std_msgs::Header header;
+  header.stamp = pair.left_image->header.stamp;
+  header.frame_id = li.header.frame_id.empty() ? pair.left_image->header.frame_id : li.header.frame_id;
+  if (header.frame_id.empty())
+    throw BadInput("left camera_info and image have no frame_id: the acupoints need a frame");
+
+  // A replay starting over sends the clock back: the estimates belong to another time.
+  if (!last_stamp_.isZero() && header.stamp < last_stamp_) {
+    NODELET_INFO_STREAM("the stamps went back by " << (last_stamp_ - header.stamp).toSec()
+                                                   << " s (a replay started over?): acupoint estimates reset");
+    filter_.clear();
+  }
+  last_stamp_ = header.stamp;
+  try {
+    filter_.setParams(filterParams(config));
+  } catch (const std::invalid_argument& e) {  // the cfg ranges rule this out
+    NODELET_ERROR_STREAM_THROTTLE(kLogPeriod, e.what());
+  }
+
+  // 2. CECT on the pair (throws std::invalid_argument for images that do not
+  // fit the geometry: counted as a bad pair by workLoop).
+  const auto frame =
+      std::make_shared<const cect::CectFrame>(cect::CectFrame::analyse(left, right, geometry, cectParams(config)));
+  {
+    std::lock_guard<std::mutex> lock(latest_mutex_);
+    latest_ = Analysed{frame, header};
+  }
+
+  // 3. The model's acupoints in the left view, each to 3D, into the filter.
+  std::vector<PointResult> results(model_.points.size());
+  std::string frame_problem;  // non-empty: the pair gives no acupoint at all
+  const double stamp = header.stamp.toSec();
+  int measured = 0;
+  if (!frame->valid()) {
+    frame_problem = "no usable view of the back: " + frame->reason();
+  } else {
+    const cect::BackLandmarks landmarks = cect::findLandmarks(frame->left(), model_);
+    if (!landmarks.valid) {
+      frame_problem = "no landmarks of the back: " + landmarks.reason;
+    } else {
+      const double fx = geometry.fx();
+      const cect::PixelScale scale = [&frame, fx](const cv::Point2f& rect_pixel) {
+        const cect::LocalizedPoint p = frame->localizeRectified(rect_pixel);
+        return p.valid ? p.position.z() / fx : kNaN;
+      };
+      const std::vector<cect::AcupointPixel> placed = cect::placeAcupoints(landmarks, model_, scale);
+      std::map<std::string, const cect::AcupointPixel*> by_name;
+      for (const auto& p : placed) by_name[p.name] = &p;
+      for (std::size_t i = 0; i < model_.points.size(); ++i) {
+        PointResult& r = results[i];
+        const std::string& name = model_.points[i].name;
+        const auto it = by_name.find(name);
+        if (it == by_name.end()) {
+          r.reason = "not placed by the acupoint model";
+          continue;
+        }
+        const cect::AcupointPixel& p = *it->second;
+        if (!p.valid) {
+          r.reason = "not placed: " + p.reason;
+          continue;
+        }
+        r.placed = true;
+        r.rectified = p.pixel;
+        r.raw = geometry.toRaw(p.pixel);
+        const cect::LocalizedPoint point = frame->localizeRectified(p.pixel);
+        if (!point.valid) {
+          r.reason = "not localised: " + point.reason;
+          continue;
+        }
+        r.measured = true;
+        ++measured;
+        r.accepted = filter_.update(name, point.position, point.covariance, stamp);
+        if (!r.accepted) {
+          const cect::FilteredPoint* f = filter_.get(name, stamp);
+          std::ostringstream why;
+          why << "measurement rejected as an outlier";
+          if (f) why << " (" << (point.position - f->position).norm() * 100.0 << " cm from the estimate)";
+          r.reason = why.str();
+        }
+      }
+    }
+  }
+  if (!frame_problem.empty()) {
+    for (auto& r : results) r.reason = frame_problem;
+    if (logDue(frame_problem)) NODELET_WARN_STREAM("no acupoints in this pair: " << frame_problem);
+  }
+
+  // 4. Outputs.
+  publish(header, *frame, results, frame_problem, config);
+
+  // 5. Status.
+  const double elapsed = msSince(start);
+  int valid = 0;
+  {
+    std::lock_guard<std::mutex> lock(estimates_mutex_);
+    for (const auto& e : estimates_) valid += e.second.valid ? 1 : 0;
+  }
+  std::lock_guard<std::mutex> lock(status_mutex_);
+  ++processed_;
+  if (!frame_problem.empty()) ++unusable_;
+  last_pair_bad_ = false;
+  last_problem_ = frame_problem;
+  last_valid_ = valid;
+  last_measured_ = measured;
+  rejected_outliers_ = filter_.rejected();
+  last_processing_ms_ = elapsed;
+  last_cect_ms_ = frame->timings().total_ms;
+  total_processing_ms_ += elapsed;
+  const ros::WallTime now = ros::WallTime::now();
+  processed_times_.push_back(now);
+  while (processed_times_.size() > 2 && (now - processed_times_.front()).toSec() > kRateWindow) {
+    processed_times_.pop_front();
+  }
+  if (processed_ == 1) {
+    NODELET_INFO_STREAM("first pair: " << valid << " of " << model_.points.size() << " acupoints valid, " << elapsed
+                                       << " ms");
+  }
+}
+
+void CectNodelet::publish(const std_msgs::Header& header, const cect::CectFrame& frame,
+                          const std::vector<PointResult>& results, const std::string& frame_problem,
+                          const Config& config) {
+  const double stamp = header.stamp.toSec();
+  auto array = boost::make_shared<massage_cell::AcupointArray>();
+  array->header = header;
+  array->acupoints.resize(model_.points.size());
+  std::vector<geometry_msgs::TransformStamped> transforms;
+  visualization_msgs::MarkerArray markers;
+  std::map<std::string, Estimate> estimates;
+
+  for (std::size_t i = 0; i < model_.points.size(); ++i) {
+    const cect::AcupointSpec& spec = model_.points[i];
+    const PointResult& r = results[i];
+    massage_cell::Acupoint& a = array->acupoints[i];
+    a.name = spec.name;
+    a.region = spec.region;
+    a.u = r.placed ? r.raw.x : std::numeric_limits<float>::quiet_NaN();
+    a.v = r.placed ? r.raw.y : std::numeric_limits<float>::quiet_NaN();
+    // A pair without a usable back invalidates every point (the subject may
+    // have left); otherwise the filter's estimate stands for max_age.
+    const cect::FilteredPoint* f = frame_problem.empty() ? filter_.get(spec.name, stamp) : nullptr;
+    Estimate& e = estimates[spec.name];
+    e.header = header;
+    a.valid = e.valid = f != nullptr;
+    if (f) {
+      e.position = f->position;
+      e.covariance = f->covariance;
+      a.position.x = f->position.x();
+      a.position.y = f->position.y();
+      a.position.z = f->position.z();
+      toArray(f->covariance, a.covariance.data());
+      if (!r.accepted) {  // held from earlier pairs: say why this one did not measure it
+        std::ostringstream why;
+        why << r.reason << "; estimate from " << stamp - f->stamp << " s before";
+        a.reason = why.str();
+      }
+      geometry_msgs::TransformStamped t;
+      t.header = header;
+      t.child_frame_id = frame_prefix_ + spec.name;
+      t.transform.translation.x = f->position.x();
+      t.transform.translation.y = f->position.y();
+      t.transform.translation.z = f->position.z();
+      t.transform.rotation.w = 1.0;
+      transforms.push_back(t);
+    } else {
+      a.reason = r.reason.empty() ? "no current estimate" : r.reason;
+      e.reason = a.reason;
+    }
+
+    if (!config.publish_debug) continue;
+    visualization_msgs::Marker sphere;
+    sphere.header = header;
+    sphere.ns = "acupoints";
+    sphere.id = static_cast<int>(2 * i);
+    sphere.lifetime = ros::Duration(kMarkerLifetime);
+    visualization_msgs::Marker text = sphere;
+    text.id = sphere.id + 1;
+    if (!f) {
+      sphere.action = text.action = visualization_msgs::Marker::DELETE;
+    } else {
+      sphere.type = visualization_msgs::Marker::SPHERE;
+      sphere.action = visualization_msgs::Marker::ADD;
+      sphere.pose.position = a.position;
+      sphere.pose.orientation.w = 1.0;
+      sphere.scale.x = sphere.scale.y = sphere.scale.z = 0.012;
+      sphere.color = regionColour(spec.region, r.accepted);
+      text.type = visualization_msgs::Marker::TEXT_VIEW_FACING;
+      text.action = visualization_msgs::Marker::ADD;
+      text.pose = sphere.pose;
+      text.pose.position.z -= 0.015;  // toward the camera (optical z looks at the back)
+      text.scale.z = 0.01;
+      text.color = sphere.color;
+      text.text = spec.name;
+    }
+    markers.markers.push_back(sphere);
+    markers.markers.push_back(text);
+  }
+
+  {
+    std::lock_guard<std::mutex> lock(estimates_mutex_);
+    estimates_ = std::move(estimates);
+  }
+  acupoints_pub_.publish(array);
+  if (!transforms.empty()) tf_broadcaster_->sendTransform(transforms);
+  if (config.publish_debug) {
+    if (markers_pub_.getNumSubscribers() > 0) markers_pub_.publish(markers);
+    if (debug_image_pub_.getNumSubscribers() > 0) publishDebugImage(header, frame, results);
+  }
+}
+
+void CectNodelet::publishDebugImage(const std_msgs::Header& header, const cect::CectFrame& frame,
+                                    const std::vector<PointResult>& results) {
+  cv::Mat image;
+  try {
+    image = frame.drawDebug();
+  } catch (const std::exception& e) {
+    NODELET_WARN_STREAM_THROTTLE(kLogPeriod, "debug picture failed: " << e.what());
+  }
+  if (image.empty()) image = frame.leftRectified().clone();
+  if (image.empty()) return;
+  if (image.type() == CV_8UC1) cv::cvtColor(image, image, cv::COLOR_GRAY2BGR);
+  if (image.type() != CV_8UC3) return;
+  // Scaled up (nearest neighbour, an integer factor) to >= kDebugWidth
+  // pixels so that ~100 names stay legible on a small image.
+  const int scale = std::max(1, (kDebugWidth + image.cols - 1) / image.cols);
+  if (scale > 1) cv::resize(image, image, cv::Size(), scale, scale, cv::INTER_NEAREST);
+  // The acupoints at their rectified pixels: filled = measured and accepted,
+  // red ring = measured but rejected by the filter, grey ring = placed, not localised.
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    const PointResult& r = results[i];
+    if (!r.placed) continue;
+    const cv::Point centre(cvRound((r.rectified.x + 0.5) * scale - 0.5), cvRound((r.rectified.y + 0.5) * scale - 0.5));
+    const cv::Scalar colour = r.accepted   ? cv::Scalar(0, 255, 255)
+                              : r.measured ? cv::Scalar(0, 0, 255)
+                                           : cv::Scalar(160, 160, 160);
+    cv::circle(image, centre, 3, colour, r.accepted ? cv::FILLED : 1, cv::LINE_AA);
+    cv::putText(image, model_.points[i].name, centre + cv::Point(4, -2), cv::FONT_HERSHEY_PLAIN, 0.7, colour, 1,
+                cv::LINE_AA);
+  }
+  debug_image_pub_.publish(cv_bridge::CvImage(header, enc::BGR8, image).toImageMsg());
+}
+
+// ------------------------------------------------------------ services --
+
+bool CectNodelet::localizePixels(massage_cell::LocalizePixels::Request& request,
+                                 massage_cell::LocalizePixels::Response& response) {
+  Analysed latest;
+  {
+    std::lock_guard<std::mutex> lock(latest_mutex_);
+    latest = latest_;
+  }
+  const std::size_t n = request.pixels.size();
+  response.points.assign(n, geometry_msgs::Point());
+  response.covariances.assign(9 * n, 0.0);
+  response.valid.assign(n, false);
+  response.reasons.assign(n, "");
+  response.header = latest.header;
+  if (!latest.frame) {
+    response.success = false;
+    response.message = "no stereo pair analysed yet";
+    std::fill(response.reasons.begin(), response.reasons.end(), response.message);
+    return true;
+  }
+  const cect::CectFrame& frame = *latest.frame;
+  if (!frame.valid()) {
+    response.success = false;
+    response.message = "the latest pair has no usable view of the back: " + frame.reason();
+    std::fill(response.reasons.begin(), response.reasons.end(), response.message);
+    return true;
+  }
+  int valid = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto& pixel = request.pixels[i];
+    if (!std::isfinite(pixel.x) || !std::isfinite(pixel.y)) {
+      response.reasons[i] = "the pixel is not finite";
+      continue;
+    }
+    cect::LocalizedPoint p;
+    try {
+      p = frame.localize(cv::Point2f(static_cast<float>(pixel.x), static_cast<float>(pixel.y)));
+    } catch (const std::exception& e) {
+      response.reasons[i] = std::string("localisation failed: ") + e.what();
+      continue;
+    }
+    response.valid[i] = p.valid;
+    if (!p.valid) {
+      response.reasons[i] = p.reason.empty() ? "not localised" : p.reason;
+      continue;
+    }
+    ++valid;
+    response.points[i].x = p.position.x();
+    response.points[i].y = p.position.y();
+    response.points[i].z = p.position.z();
+    toArray(p.covariance, &response.covariances[9 * i]);
+  }
+  response.success = true;
+  response.message = std::to_string(valid) + " of " + std::to_string(n) + " pixels localised";
+  return true;
+}
+
+bool CectNodelet::getAcupoint(massage_cell::GetAcupoint::Request& request,
+                              massage_cell::GetAcupoint::Response& response) {
+  response.success = false;
+  if (!model_.find(request.name)) {
+    response.message = "unknown acupoint '" + request.name + "' (known: " + joined(model_.names()) + ")";
+    return true;
+  }
+  Estimate e;
+  {
+    std::lock_guard<std::mutex> lock(estimates_mutex_);
+    e = estimates_[request.name];
+  }
+  if (!e.valid) {
+    response.message = "no valid estimate of " + request.name + ": " + e.reason;
+    return true;
+  }
+  double max_age = 0.0;
+  {
+    boost::recursive_mutex::scoped_lock lock(config_mutex_);
+    max_age = config_.max_age;
+  }
+  const double age = (ros::Time::now() - e.header.stamp).toSec();
+  if (age > max_age) {
+    std::ostringstream m;
+    m << "the estimate of " << request.name << " is " << age << " s old (max_age " << max_age
+      << " s): no usable stereo pair since";
+    response.message = m.str();
+    return true;
+  }
+  toArray(e.covariance, response.covariance.data());
+  geometry_msgs::PointStamped point;
+  point.header = e.header;
+  point.point.x = e.position.x();
+  point.point.y = e.position.y();
+  point.point.z = e.position.z();
+  const std::string target = request.target_frame;
+  if (target.empty() || target == point.header.frame_id) {
+    response.point = point;
+    response.success = true;
+    response.message = "in " + point.header.frame_id;
+    return true;
+  }
+
+  // Into target_frame: the transform at the estimate's stamp, waited for up
+  // to kTfWait of wall time (polled: tf2's own timeout goes by ROS time,
+  // which stands still when a replay ends); failing that the latest
+  // transform (right for static frames and slow-moving ones).
+  if (!tf_buffer_->_frameExists(target)) {
+    response.message = "cannot express " + request.name + " in '" + target + "': tf knows no frame '" + target + "'";
+    return true;
+  }
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(kTfWait);
+  while (!tf_buffer_->canTransform(target, point.header.frame_id, point.header.stamp) &&
+         ros::WallTime::now() < deadline) {
+    ros::WallDuration(0.005).sleep();
+  }
+  try {
+    geometry_msgs::TransformStamped t;
+    std::string note;
+    if (tf_buffer_->canTransform(target, point.header.frame_id, point.header.stamp)) {
+      t = tf_buffer_->lookupTransform(target, point.header.frame_id, point.header.stamp);
+    } else {
+      t = tf_buffer_->lookupTransform(target, point.header.frame_id, ros::Time(0));
+      std::ostringstream n;
+      n << " (latest transform, " << (point.header.stamp - t.header.stamp).toSec() << " s from the estimate)";
+      note = n.str();
+    }
+    tf2::doTransform(point, response.point, t);
+    response.point.header.stamp = point.header.stamp;
+    response.point.header.frame_id = target;
+    response.success = true;
+    response.message = "in " + target + note;
+  } catch (const tf2::TransformException& ex) {
+    response.message =
+        "cannot express " + request.name + " in '" + target + "' (from '" + point.header.frame_id + "'): " + ex.what();
+  }
+  return true;
+}
+
+// -------------------------------------------------------- diagnostics --
+
+void CectNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
+  using diagnostic_msgs::DiagnosticStatus;
+  std::lock_guard<std::mutex> lock(status_mutex_);
+  const ros::WallTime now = ros::WallTime::now();
+  double rate = 0.0;
+  if (processed_times_.size() >= 2 && (now - processed_times_.back()).toSec() < kRateWindow) {
+    rate = (processed_times_.size() - 1) / std::max(1e-6, (processed_times_.back() - processed_times_.front()).toSec());
+  }
+  const int total = static_cast<int>(model_.points.size());
+  const bool recent_error = !last_error_time_.isZero() && (now - last_error_time_).toSec() < kRateWindow;
+  if (last_pair_bad_) {
+    status.summary(DiagnosticStatus::ERROR, "last pair skipped: " + last_error_);
+  } else if (processed_ > 0 && !last_problem_.empty()) {
+    status.summary(DiagnosticStatus::WARN, last_problem_);
+  } else if (recent_error) {
+    status.summary(DiagnosticStatus::WARN, "some pairs were bad and skipped");
+  } else if (received_ == 0) {
+    status.summary(DiagnosticStatus::OK, "waiting for stereo pairs");
+  } else if (last_valid_ < total) {
+    status.summary(DiagnosticStatus::WARN,
+                   std::to_string(last_valid_) + " of " + std::to_string(total) + " acupoints valid");
+  } else {
+    status.summary(DiagnosticStatus::OK, "all " + std::to_string(total) + " acupoints valid");
+  }
+  status.add("acupoint model", model_path_);
+  status.add("input", geometry_summary_);
+  status.add("pairs received", received_);
+  status.add("pairs processed", processed_);
+  status.add("dropped pairs", dropped_);
+  status.add("bad pairs", bad_);
+  status.add("pairs without acupoints", unusable_);
+  status.add("valid acupoints", last_valid_);
+  status.add("acupoints", total);
+  status.add("acupoints measured in the last pair", last_measured_);
+  status.add("outliers rejected", rejected_outliers_);
+  status.add("processing rate (Hz)", rate);
+  status.add("last processing time (ms)", last_processing_ms_);
+  status.add("last CECT time (ms)", last_cect_ms_);
+  status.add("mean processing time (ms)", processed_ > 0 ? total_processing_ms_ / processed_ : 0.0);
+  status.add("last reason", last_problem_);
+  status.add("last error", last_error_);
+}
+
+}  // namespace massage_cell::nodes
+
+PLUGINLIB_EXPORT_CLASS(massage_cell::nodes::CectNodelet, nodelet::Nodelet)

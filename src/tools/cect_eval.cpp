@@ -1,0 +1,399 @@
+// cect_eval: the thesis's three CECT experiments on rendered subjects
+// (ideal conditions over 28 subjects, three light directions, four camera
+// shifts), with CECT and dense StereoSGBM at the same pixels against the
+// simulator's exact ground truth.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "cli.h"
+#include "massage_cell/cect/acupoint_model.h"
+#include "massage_cell/cect/cect.h"
+#include "massage_cell/sim/body_model.h"
+#include "massage_cell/stereo/pipeline.h"
+#include "massage_cell/sim/renderer.h"
+#include "massage_cell/sim/scene_builder.h"
+#include "massage_cell/sim/stereo_frame.h"
+
+namespace {
+
+using namespace massage_cell;
+using tools::UsageError;
+using Clock = std::chrono::steady_clock;
+
+const char* kUsage = R"(Usage: cect_eval [--experiments ideal,lighting,shift] [--subjects N] [--condition-subjects K]
+                 [--random-points N] [--width W --height H --fx F --baseline B --camera-height Z]
+                 [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX] [--csv]
+
+Renders prone subjects with the scene simulator and localises points on their
+backs with CECT (segmentation -> contour correspondences -> barycentric
+transfer -> constraints -> 3D) and, at the same left pixels, with dense
+StereoSGBM on the same rectified pair. Errors are 3D distances to the exact
+surface point seen at that pixel (the simulator's ground truth), in mm.
+Experiments (the thesis's Sec. 3.3):
+  ideal      subjects 1..N (default 28), light top-centre, no camera shift
+  lighting   subjects 1..K (default 8) under lights top-left / top-centre / top-right
+  shift      subjects 1..K with the camera shifted 0 / 4 / 7 / 14 cm along the table
+Point sets: `acupoints` (every point of the acupoint model, placed by the model
+from the left view) and `random` (N random back pixels seen by both cameras,
+at least 8 px inside the back's border; default 100 per pair).
+acc_rate: share of the queried points localised with an error < 10 mm (a point
+a method cannot localise counts as a miss). `model` reports how far the model's
+placed acupoints lie from the anatomical ones (independent of the matching).
+CECT ms: segmentation to 3D acupoints per pair (2 cores).
+  --csv   print CSV: condition,subject,method,points,mean_mm,max_mm,acc_rate
+)";
+
+struct Options {
+  std::vector<std::string> experiments{"ideal", "lighting", "shift"};
+  int subjects = 28;
+  int condition_subjects = 8;
+  int random_points = 100;
+  int width = 640, height = 480;
+  double fx = 500.0, baseline = 0.10, camera_height = 0.95;
+  bool raw = false;
+  bool csv = false;
+  std::string acupoints;
+  int seed_step = -1;
+  double query_search = -1.0;
+};
+
+struct Condition {
+  std::string name;
+  sim::LightPreset light = sim::LightPreset::kTopCentre;
+  double shift = 0.0;
+  std::vector<int> subjects;
+};
+
+/// Errors of one method on one point set of one pair.
+struct Stats {
+  int queried = 0;
+  std::vector<double> errors_mm;  ///< localised points only
+  double mean() const {
+    if (errors_mm.empty()) return std::nan("");
+    double s = 0;
+    for (double e : errors_mm) s += e;
+    return s / static_cast<double>(errors_mm.size());
+  }
+  double max() const { return errors_mm.empty() ? std::nan("") : *std::max_element(errors_mm.begin(), errors_mm.end()); }
+  double accRate() const {
+    if (queried == 0) return std::nan("");
+    return static_cast<double>(std::count_if(errors_mm.begin(), errors_mm.end(), [](double e) { return e < 10.0; })) /
+           queried;
+  }
+  void add(const Stats& o) {
+    queried += o.queried;
+    errors_mm.insert(errors_mm.end(), o.errors_mm.begin(), o.errors_mm.end());
+  }
+};
+
+/// Bilinear sample of a CV_32FC3 / CV_32F map where all four neighbours are finite.
+bool sampleMap(const cv::Mat& m, double x, double y, Eigen::Vector3d* out) {
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= m.cols || y0 + 1 >= m.rows) return false;
+  const double fx = x - x0, fy = y - y0;
+  Eigen::Vector3d acc = Eigen::Vector3d::Zero();
+  for (int dy = 0; dy <= 1; ++dy)
+    for (int dx = 0; dx <= 1; ++dx) {
+      Eigen::Vector3d v;
+      if (m.type() == CV_32FC3) {
+        const cv::Vec3f p = m.at<cv::Vec3f>(y0 + dy, x0 + dx);
+        v = Eigen::Vector3d(p[0], p[1], p[2]);
+      } else {
+        v = Eigen::Vector3d::Constant(m.at<float>(y0 + dy, x0 + dx));
+      }
+      if (!v.allFinite()) return false;
+      acc += (dx ? fx : 1 - fx) * (dy ? fy : 1 - fy) * v;
+    }
+  *out = acc;
+  return true;
+}
+
+struct PairResult {
+  std::map<std::string, Stats> stats;  ///< "cect/acupoints", "sgbm/random", ...
+  Stats model;                         ///< placed vs anatomical acupoints
+  double cect_ms = 0.0, sgbm_ms = 0.0;
+  std::string failure;                 ///< CECT's reason when the frame was not usable
+};
+
+PairResult evaluatePair(const Options& o, const Condition& c, int subject, const cect::AcupointModel& model,
+                        const cect::CectParams& params) {
+  PairResult res;
+  const sim::BodyParameters body = sim::BodyParameters::subject(subject);
+  const sim::BackModel back(body);
+  const sim::Renderer renderer(sim::makeBackScene(back, 1));
+  sim::RigParameters rig;
+  rig.width = o.width;
+  rig.height = o.height;
+  rig.fx = o.fx;
+  rig.baseline = o.baseline;
+  rig.centre.z() = o.camera_height;
+  rig.shift = c.shift;
+  rig.rectified = !o.raw;
+  const sim::StereoPairModel pair = sim::makeStereoPair(rig);
+  sim::RenderOptions ro;
+  ro.noise_seed = static_cast<std::uint32_t>(subject);
+  const sim::StereoFrame frame = sim::renderStereoFrame(renderer, pair, sim::Lighting::preset(c.light), ro);
+  const cect::StereoGeometry geometry(pair.left_info, pair.right_info);
+  const Eigen::Isometry3d left_from_world = pair.left.world_from_camera.inverse();
+
+  // Ground truth at a rectified left pixel: the surface point seen there.
+  auto truth = [&](const cv::Point2f& rect, Eigen::Vector3d* p) {
+    const cv::Point2f raw = geometry.toRaw(rect);
+    Eigen::Vector3d w;
+    if (!sampleMap(frame.left.points, raw.x, raw.y, &w)) return false;
+    *p = left_from_world * w;
+    return true;
+  };
+
+  // CECT: segmentation to 3D acupoints, timed.
+  const auto t0 = Clock::now();
+  const cect::CectFrame f = cect::CectFrame::analyse(frame.left.image, frame.right.image, geometry, params);
+  std::vector<cect::AcupointPixel> placed;
+  std::vector<cect::LocalizedPoint> located;
+  if (f.valid()) {
+    const cect::BackLandmarks lm = cect::findLandmarks(f.left(), model);
+    if (lm.valid) {
+      const cect::PixelScale scale = [&](const cv::Point2f& q) {
+        const cect::LocalizedPoint p = f.localizeRectified(q);
+        return p.valid ? p.position.z() / geometry.fx() : std::nan("");
+      };
+      placed = cect::placeAcupoints(lm, model, scale);
+      for (const auto& a : placed)
+        located.push_back(a.valid ? f.localizeRectified(a.pixel) : cect::LocalizedPoint{});
+    } else {
+      res.failure = "landmarks: " + lm.reason;
+    }
+  } else {
+    res.failure = f.reason();
+  }
+  res.cect_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+
+  // SGBM on the same rectified pair.
+  const auto t1 = Clock::now();
+  cv::Mat left_rect, right_rect, disp16, disp;
+  geometry.rectify(frame.left.image, frame.right.image, &left_rect, &right_rect);
+  const int block = 5, num = 16 * static_cast<int>(std::ceil(o.width / 5.0 / 16.0));
+  auto sgbm = cv::StereoSGBM::create(0, num, block, 8 * 3 * block * block, 32 * 3 * block * block, 1, 63, 10, 100, 1,
+                                     cv::StereoSGBM::MODE_SGBM_3WAY);
+  sgbm->compute(left_rect, right_rect, disp16);
+  disp16.convertTo(disp, CV_32F, 1.0 / 16.0);
+  disp.setTo(std::numeric_limits<float>::quiet_NaN(), disp16 < 0);
+  res.sgbm_ms = std::chrono::duration<double, std::milli>(Clock::now() - t1).count();
+  auto sgbmPoint = [&](const cv::Point2f& q, Eigen::Vector3d* p) {
+    Eigen::Vector3d d;
+    if (!sampleMap(disp, q.x, q.y, &d) || !(d.x() > 0)) return false;
+    *p = geometry.triangulate(q.x, q.y, d.x());
+    return true;
+  };
+
+  // Point sets: the model's acupoints, and random back pixels.
+  struct Query {
+    cv::Point2f rect;
+    const cect::LocalizedPoint* cect = nullptr;  ///< precomputed (acupoints)
+  };
+  std::vector<Query> acu, rnd;
+  for (std::size_t i = 0; i < placed.size(); ++i)
+    if (placed[i].valid) acu.push_back({placed[i].pixel, &located[i]});
+  const std::size_t expected = model.points.size();
+  {
+    cv::Mat back_mask = (frame.left.labels == sim::kLabelBack) & (frame.left_visible > 0);
+    cv::erode(back_mask, back_mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(17, 17)));
+    std::vector<cv::Point> pts;
+    cv::findNonZero(back_mask, pts);
+    std::mt19937 rng(static_cast<std::uint32_t>(1000 + subject));
+    std::shuffle(pts.begin(), pts.end(), rng);
+    for (int i = 0; i < o.random_points && i < static_cast<int>(pts.size()); ++i) {
+      const cv::Point2f raw(static_cast<float>(pts[static_cast<std::size_t>(i)].x),
+                            static_cast<float>(pts[static_cast<std::size_t>(i)].y));
+      rnd.push_back({geometry.toRectified(raw), nullptr});
+    }
+  }
+  auto score = [&](const std::vector<Query>& qs, const std::string& set, int queried) {
+    Stats sc, ss;
+    sc.queried = ss.queried = queried;
+    for (const Query& q : qs) {
+      Eigen::Vector3d gt;
+      if (!truth(q.rect, &gt)) {
+        // No ground truth (off the surface): not a fair query for either method.
+        --sc.queried;
+        --ss.queried;
+        continue;
+      }
+      const cect::LocalizedPoint lp = q.cect ? *q.cect : f.localizeRectified(q.rect);
+      if (lp.valid) sc.errors_mm.push_back(1000.0 * (lp.position - gt).norm());
+      Eigen::Vector3d ps;
+      if (sgbmPoint(q.rect, &ps)) ss.errors_mm.push_back(1000.0 * (ps - gt).norm());
+    }
+    res.stats["cect/" + set] = sc;
+    res.stats["sgbm/" + set] = ss;
+  };
+  score(acu, "acupoints", static_cast<int>(expected));
+  score(rnd, "random", static_cast<int>(rnd.size()));
+
+  // Model placement against the anatomical acupoints.
+  const auto anatomical = sim::toCameraFrame(back.acupoints(), pair.left);
+  res.model.queried = static_cast<int>(expected);
+  for (const auto& a : placed) {
+    if (!a.valid) continue;
+    const auto it = anatomical.find(a.name);
+    Eigen::Vector3d gt;
+    if (it == anatomical.end() || !truth(a.pixel, &gt)) continue;
+    res.model.errors_mm.push_back(1000.0 * (gt - it->second).norm());
+  }
+  return res;
+}
+
+std::string fmt(double v, int prec = 2) {
+  if (!std::isfinite(v)) return "-";
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(prec) << v;
+  return s.str();
+}
+
+double medianOf(std::vector<double> v) {
+  if (v.empty()) return std::nan("");
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+void run(const Options& o) {
+  stereo::retainFreedMemory();  // page faults would otherwise dominate the per-pair timings
+  const cect::AcupointModel model =
+      cect::loadAcupointModel(o.acupoints.empty() ? std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/acupoints.yaml"
+                                                  : o.acupoints);
+  cect::CectParams params;
+  if (o.seed_step >= 0) params.seed_step = o.seed_step;
+  if (o.query_search >= 0) params.query_search = o.query_search;
+
+  std::vector<Condition> conditions;
+  auto range = [](int n) {
+    std::vector<int> v;
+    for (int i = 1; i <= n; ++i) v.push_back(i);
+    return v;
+  };
+  for (const std::string& e : o.experiments) {
+    if (e == "ideal") {
+      conditions.push_back({"ideal", sim::LightPreset::kTopCentre, 0.0, range(o.subjects)});
+    } else if (e == "lighting") {
+      conditions.push_back({"light_top_left", sim::LightPreset::kTopLeft, 0.0, range(o.condition_subjects)});
+      conditions.push_back({"light_top_centre", sim::LightPreset::kTopCentre, 0.0, range(o.condition_subjects)});
+      conditions.push_back({"light_top_right", sim::LightPreset::kTopRight, 0.0, range(o.condition_subjects)});
+    } else if (e == "shift") {
+      for (int cm : {0, 4, 7, 14})
+        conditions.push_back({"shift_" + std::to_string(cm) + "cm", sim::LightPreset::kTopCentre, cm / 100.0,
+                              range(o.condition_subjects)});
+    }
+  }
+
+  if (o.csv) std::cout << "condition,subject,method,points,mean_mm,max_mm,acc_rate\n";
+  else
+    std::cout << "CECT vs StereoSGBM at the same left pixels; " << o.width << "x" << o.height << ", fx " << o.fx
+              << " px, baseline " << o.baseline << " m, camera " << o.camera_height << " m above the table"
+              << (o.raw ? ", raw (distorted, unrectified) pairs" : ", rectified pairs") << "\n\n"
+              << std::left << std::setw(18) << "condition" << std::setw(8) << "method" << std::setw(11) << "points"
+              << std::right << std::setw(8) << "queried" << std::setw(8) << "valid%" << std::setw(9) << "mean mm"
+              << std::setw(9) << "max mm" << std::setw(9) << "acc<1cm" << "\n";
+  for (const Condition& c : conditions) {
+    std::map<std::string, Stats> total;
+    Stats model_total;
+    std::vector<double> cect_ms, sgbm_ms;
+    std::vector<std::string> failures;
+    for (int s : c.subjects) {
+      const PairResult r = evaluatePair(o, c, s, model, params);
+      for (const auto& [key, st] : r.stats) {
+        total[key].add(st);
+        if (o.csv) {
+          const auto slash = key.find('/');
+          std::cout << c.name << "," << s << "," << key.substr(0, slash) << "," << key.substr(slash + 1) << ","
+                    << fmt(st.mean(), 3) << "," << fmt(st.max(), 3) << "," << fmt(st.accRate(), 4) << "\n";
+        }
+      }
+      model_total.add(r.model);
+      cect_ms.push_back(r.cect_ms);
+      sgbm_ms.push_back(r.sgbm_ms);
+      if (!r.failure.empty()) failures.push_back("subject " + std::to_string(s) + ": " + r.failure);
+    }
+    if (o.csv) continue;
+    for (const auto& [key, st] : total) {
+      const auto slash = key.find('/');
+      std::cout << std::left << std::setw(18) << c.name << std::setw(8) << key.substr(0, slash) << std::setw(11)
+                << key.substr(slash + 1) << std::right << std::setw(8) << st.queried << std::setw(8)
+                << fmt(st.queried ? 100.0 * st.errors_mm.size() / st.queried : std::nan(""), 1) << std::setw(9)
+                << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(8)
+                << fmt(100.0 * st.accRate(), 1) << "%\n";
+    }
+    std::cout << std::left << std::setw(18) << c.name << "model placement vs anatomical acupoints: mean "
+              << fmt(model_total.mean(), 1) << " mm, max " << fmt(model_total.max(), 1) << " mm; CECT "
+              << fmt(medianOf(cect_ms), 1) << " ms median (max " << fmt(*std::max_element(cect_ms.begin(), cect_ms.end()), 1)
+              << "), SGBM " << fmt(medianOf(sgbm_ms), 1) << " ms; " << c.subjects.size() << " subjects\n";
+    for (const auto& f : failures) std::cout << "  CECT failed on " << f << "\n";
+    std::cout << "\n";
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  return tools::runTool(
+      "cect_eval",
+      [&] {
+        tools::OptionTable t;
+        t.values["--experiments"] = [&](const std::string& opt, const std::string& v) {
+          o.experiments = tools::splitList(v);
+          tools::require(!o.experiments.empty(), opt + ": empty list");
+          for (const auto& e : o.experiments)
+            tools::require(e == "ideal" || e == "lighting" || e == "shift",
+                           opt + ": unknown experiment '" + e + "' (ideal, lighting, shift)");
+        };
+        t.values["--subjects"] = [&](const std::string& opt, const std::string& v) {
+          o.subjects = tools::parseInt(opt, v);
+          tools::require(o.subjects >= 1 && o.subjects <= 28, opt + " must be in 1..28");
+        };
+        t.values["--condition-subjects"] = [&](const std::string& opt, const std::string& v) {
+          o.condition_subjects = tools::parseInt(opt, v);
+          tools::require(o.condition_subjects >= 1 && o.condition_subjects <= 28, opt + " must be in 1..28");
+        };
+        t.values["--random-points"] = [&](const std::string& opt, const std::string& v) {
+          o.random_points = tools::parseInt(opt, v);
+          tools::require(o.random_points >= 0, opt + " must be >= 0");
+        };
+        t.values["--width"] = [&](const std::string& opt, const std::string& v) { o.width = tools::parseInt(opt, v); };
+        t.values["--height"] = [&](const std::string& opt, const std::string& v) { o.height = tools::parseInt(opt, v); };
+        t.values["--fx"] = [&](const std::string& opt, const std::string& v) { o.fx = tools::parseDouble(opt, v); };
+        t.values["--baseline"] = [&](const std::string& opt, const std::string& v) {
+          o.baseline = tools::parseDouble(opt, v);
+        };
+        t.values["--camera-height"] = [&](const std::string& opt, const std::string& v) {
+          o.camera_height = tools::parseDouble(opt, v);
+        };
+        t.values["--acupoints"] = [&](const std::string&, const std::string& v) { o.acupoints = v; };
+        t.values["--seed-step"] = [&](const std::string& opt, const std::string& v) {
+          o.seed_step = tools::parseInt(opt, v);
+          tools::require(o.seed_step >= 0, opt + " must be >= 0");
+        };
+        t.values["--query-search"] = [&](const std::string& opt, const std::string& v) {
+          o.query_search = tools::parseDouble(opt, v);
+          tools::require(o.query_search >= 0, opt + " must be >= 0");
+        };
+        t.flags["--raw"] = [&] { o.raw = true; };
+        t.flags["--csv"] = [&] { o.csv = true; };
+        if (!tools::parseArguments(argc, argv, t, kUsage)) return false;
+        tools::require(o.width >= 64 && o.height >= 48, "--width/--height too small");
+        tools::require(o.fx > 0 && o.baseline > 0 && o.camera_height > 0.3,
+                       "--fx, --baseline must be > 0 and --camera-height > 0.3 m");
+        return true;
+      },
+      [&] { run(o); });
+}
