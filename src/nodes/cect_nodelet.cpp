@@ -111,6 +111,9 @@ cect::CectParams cectParams(const CECTConfig& c) {
   p.min_crossing_angle = c.min_crossing_angle;
   p.seed_step = c.seed_step;
   p.ncc_radius = c.ncc_radius;
+  p.bandpass_low = c.bandpass_low;
+  p.bandpass_high = c.bandpass_high;
+  p.smooth_radius = c.smooth_radius;
   p.seed_search = c.seed_search;
   p.query_search = c.query_search;
   p.min_ncc = c.min_ncc;

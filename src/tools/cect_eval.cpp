@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <iomanip>
 #include <iostream>
 #include <map>
@@ -33,7 +34,8 @@ using Clock = std::chrono::steady_clock;
 
 const char* kUsage = R"(Usage: cect_eval [--experiments ideal,lighting,shift] [--subjects N] [--condition-subjects K]
                  [--random-points N] [--width W --height H --fx F --baseline B --camera-height Z]
-                 [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX] [--csv]
+                 [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX]
+                 [--param NAME=VALUE,...] [--csv] [--per-point]
 
 Renders prone subjects with the scene simulator and localises points on their
 backs with CECT (segmentation -> contour correspondences -> barycentric
@@ -51,7 +53,11 @@ acc_rate: share of the queried points localised with an error < 10 mm (a point
 a method cannot localise counts as a miss). `model` reports how far the model's
 placed acupoints lie from the anatomical ones (independent of the matching).
 CECT ms: segmentation to 3D acupoints per pair (2 cores).
-  --csv   print CSV: condition,subject,method,points,mean_mm,max_mm,acc_rate
+  --param      set CECT parameters by their CectParams names, e.g.
+               --param ncc_radius=9,smooth_radius=2 (see cect.h)
+  --csv        print CSV: condition,subject,method,points,mean_mm,max_mm,acc_rate
+  --per-point  also print, per condition, every acupoint's CECT figures over the
+               subjects and the commonest reason it was not localised
 )";
 
 struct Options {
@@ -63,10 +69,36 @@ struct Options {
   double fx = 500.0, baseline = 0.10, camera_height = 0.95;
   bool raw = false;
   bool csv = false;
+  bool per_point = false;
   std::string acupoints;
   int seed_step = -1;
   double query_search = -1.0;
+  std::vector<std::pair<std::string, double>> params;  ///< --param
 };
+
+/// The CectParams fields --param can set.
+const std::map<std::string, std::function<void(cect::CectParams&, double)>>& paramSetters() {
+  using P = cect::CectParams;
+  static const std::map<std::string, std::function<void(P&, double)>> m{
+      {"min_crossing_angle", [](P& p, double v) { p.min_crossing_angle = v; }},
+      {"sample_spacing", [](P& p, double v) { p.sample_spacing = v; }},
+      {"seed_step", [](P& p, double v) { p.seed_step = static_cast<int>(v); }},
+      {"ncc_radius", [](P& p, double v) { p.ncc_radius = static_cast<int>(v); }},
+      {"ncc_half_height", [](P& p, double v) { p.ncc_half_height = static_cast<int>(v); }},
+      {"bandpass_low", [](P& p, double v) { p.bandpass_low = v; }},
+      {"bandpass_high", [](P& p, double v) { p.bandpass_high = v; }},
+      {"seed_search", [](P& p, double v) { p.seed_search = v; }},
+      {"max_relief", [](P& p, double v) { p.max_relief = v; }},
+      {"smooth_radius", [](P& p, double v) { p.smooth_radius = v; }},
+      {"query_search", [](P& p, double v) { p.query_search = v; }},
+      {"min_ncc", [](P& p, double v) { p.min_ncc = v; }},
+      {"max_candidate_spread", [](P& p, double v) { p.max_candidate_spread = v; }},
+      {"continuity_margin", [](P& p, double v) { p.continuity_margin = v; }},
+      {"lr_tolerance", [](P& p, double v) { p.lr_tolerance = v; }},
+      {"pixel_sigma", [](P& p, double v) { p.pixel_sigma = v; }},
+  };
+  return m;
+}
 
 struct Condition {
   std::string name;
@@ -91,9 +123,16 @@ struct Stats {
     return static_cast<double>(std::count_if(errors_mm.begin(), errors_mm.end(), [](double e) { return e < 10.0; })) /
            queried;
   }
+  std::map<std::string, int> misses;  ///< why queried points were not localised
   void add(const Stats& o) {
     queried += o.queried;
     errors_mm.insert(errors_mm.end(), o.errors_mm.begin(), o.errors_mm.end());
+    for (const auto& [why, n] : o.misses) misses[why] += n;
+  }
+  std::string commonestMiss() const {
+    const auto it = std::max_element(misses.begin(), misses.end(),
+                                     [](const auto& a, const auto& b) { return a.second < b.second; });
+    return it == misses.end() ? std::string() : it->first + " (" + std::to_string(it->second) + ")";
   }
 };
 
@@ -122,6 +161,7 @@ bool sampleMap(const cv::Mat& m, double x, double y, Eigen::Vector3d* out) {
 struct PairResult {
   std::map<std::string, Stats> stats;  ///< "cect/acupoints", "sgbm/random", ...
   Stats model;                         ///< placed vs anatomical acupoints
+  std::map<std::string, Stats> per_point;  ///< CECT on each acupoint (by name)
   double cect_ms = 0.0, sgbm_ms = 0.0;
   std::string failure;                 ///< CECT's reason when the frame was not usable
 };
@@ -201,10 +241,17 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   struct Query {
     cv::Point2f rect;
     const cect::LocalizedPoint* cect = nullptr;  ///< precomputed (acupoints)
+    std::string name;                            ///< acupoints
   };
   std::vector<Query> acu, rnd;
   for (std::size_t i = 0; i < placed.size(); ++i)
-    if (placed[i].valid) acu.push_back({placed[i].pixel, &located[i]});
+    if (placed[i].valid) {
+      acu.push_back(Query{placed[i].pixel, &located[i], placed[i].name});
+    } else {
+      Stats& pp = res.per_point[placed[i].name];
+      pp.queried = 1;
+      pp.misses["placement: " + placed[i].reason] = 1;
+    }
   const std::size_t expected = model.points.size();
   {
     cv::Mat back_mask = (frame.left.labels == sim::kLabelBack) & (frame.left_visible > 0);
@@ -216,7 +263,7 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
     for (int i = 0; i < o.random_points && i < static_cast<int>(pts.size()); ++i) {
       const cv::Point2f raw(static_cast<float>(pts[static_cast<std::size_t>(i)].x),
                             static_cast<float>(pts[static_cast<std::size_t>(i)].y));
-      rnd.push_back({geometry.toRectified(raw), nullptr});
+      rnd.push_back(Query{geometry.toRectified(raw), nullptr, {}});
     }
   }
   auto score = [&](const std::vector<Query>& qs, const std::string& set, int queried) {
@@ -232,6 +279,12 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
       }
       const cect::LocalizedPoint lp = q.cect ? *q.cect : f.localizeRectified(q.rect);
       if (lp.valid) sc.errors_mm.push_back(1000.0 * (lp.position - gt).norm());
+      if (!q.name.empty()) {
+        Stats& pp = res.per_point[q.name];
+        pp.queried = 1;
+        if (lp.valid) pp.errors_mm.push_back(sc.errors_mm.back());
+        else pp.misses[lp.reason.substr(0, lp.reason.find(" by "))] = 1;
+      }
       Eigen::Vector3d ps;
       if (sgbmPoint(q.rect, &ps)) ss.errors_mm.push_back(1000.0 * (ps - gt).norm());
     }
@@ -275,6 +328,7 @@ void run(const Options& o) {
   cect::CectParams params;
   if (o.seed_step >= 0) params.seed_step = o.seed_step;
   if (o.query_search >= 0) params.query_search = o.query_search;
+  for (const auto& [name, value] : o.params) paramSetters().at(name)(params, value);
 
   std::vector<Condition> conditions;
   auto range = [](int n) {
@@ -305,7 +359,7 @@ void run(const Options& o) {
               << std::right << std::setw(8) << "queried" << std::setw(8) << "valid%" << std::setw(9) << "mean mm"
               << std::setw(9) << "max mm" << std::setw(9) << "acc<1cm" << "\n";
   for (const Condition& c : conditions) {
-    std::map<std::string, Stats> total;
+    std::map<std::string, Stats> total, per_point;
     Stats model_total;
     std::vector<double> cect_ms, sgbm_ms;
     std::vector<std::string> failures;
@@ -320,6 +374,7 @@ void run(const Options& o) {
         }
       }
       model_total.add(r.model);
+      for (const auto& [name, st] : r.per_point) per_point[name].add(st);
       cect_ms.push_back(r.cect_ms);
       sgbm_ms.push_back(r.sgbm_ms);
       if (!r.failure.empty()) failures.push_back("subject " + std::to_string(s) + ": " + r.failure);
@@ -338,6 +393,20 @@ void run(const Options& o) {
               << fmt(medianOf(cect_ms), 1) << " ms median (max " << fmt(*std::max_element(cect_ms.begin(), cect_ms.end()), 1)
               << "), SGBM " << fmt(medianOf(sgbm_ms), 1) << " ms; " << c.subjects.size() << " subjects\n";
     for (const auto& f : failures) std::cout << "  CECT failed on " << f << "\n";
+    if (o.per_point) {
+      std::cout << "  " << std::left << std::setw(14) << "acupoint" << std::right << std::setw(8) << "queried"
+                << std::setw(8) << "valid%" << std::setw(9) << "mean mm" << std::setw(9) << "max mm" << std::setw(9)
+                << "acc<1cm" << "  commonest miss\n";
+      for (const std::string& name : model.names()) {
+        const auto it = per_point.find(name);
+        if (it == per_point.end()) continue;
+        const Stats& st = it->second;
+        std::cout << "  " << std::left << std::setw(14) << name << std::right << std::setw(8) << st.queried
+                  << std::setw(8) << fmt(st.queried ? 100.0 * st.errors_mm.size() / st.queried : std::nan(""), 1)
+                  << std::setw(9) << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(8)
+                  << fmt(100.0 * st.accRate(), 1) << "%  " << st.commonestMiss() << "\n";
+      }
+    }
     std::cout << "\n";
   }
 }
@@ -387,8 +456,18 @@ int main(int argc, char** argv) {
           o.query_search = tools::parseDouble(opt, v);
           tools::require(o.query_search >= 0, opt + " must be >= 0");
         };
+        t.values["--param"] = [&](const std::string& opt, const std::string& v) {
+          for (const std::string& kv : tools::splitList(v)) {
+            const auto eq = kv.find('=');
+            tools::require(eq != std::string::npos, opt + ": expected NAME=VALUE, got '" + kv + "'");
+            const std::string name = kv.substr(0, eq);
+            tools::require(paramSetters().count(name) > 0, opt + ": unknown CECT parameter '" + name + "'");
+            o.params.emplace_back(name, tools::parseDouble(opt + " " + name, kv.substr(eq + 1)));
+          }
+        };
         t.flags["--raw"] = [&] { o.raw = true; };
         t.flags["--csv"] = [&] { o.csv = true; };
+        t.flags["--per-point"] = [&] { o.per_point = true; };
         if (!tools::parseArguments(argc, argv, t, kUsage)) return false;
         tools::require(o.width >= 64 && o.height >= 48, "--width/--height too small");
         tools::require(o.fx > 0 && o.baseline > 0 && o.camera_height > 0.3,

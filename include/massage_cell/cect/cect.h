@@ -42,7 +42,7 @@ struct CectParams {
   /// uncertain) and not used.
   double min_crossing_angle = 20.0;
   int seed_step = 16;           ///< interior seeds every N pixels (0: contour only, the plain thesis method)
-  int ncc_radius = 7;           ///< matching window half-width r for the refinement along the epipolar line
+  int ncc_radius = 11;          ///< matching window half-width r for the refinement along the epipolar line
   /// Window half-height (0: = ncc_radius). Taller than wide suits the back:
   /// its few structures (spine groove, paraspinal ridges, scapulae) run
   /// along the body, across the epipolar lines, and depth changes slowly
@@ -50,16 +50,16 @@ struct CectParams {
   int ncc_half_height = 0;
   /// Band-pass of the matching images: difference of Gaussians with these
   /// sigmas, pixels (bandpass_high <= 0: plain grey).
-  double bandpass_low = 1.0;
+  double bandpass_low = 1.5;
   double bandpass_high = 6.0;
   double seed_search = 10.0;    ///< pixels searched either side of a seed's barycentric prediction
   /// How far the back may rise above its contour, metres: the first seeds,
   /// predicted from the contour alone, are searched that far nearer.
   double max_relief = 0.3;
   /// Seeds are smoothed by a local quadratic over this many seed steps (0: off).
-  double smooth_radius = 3.0;
+  double smooth_radius = 4.0;
   double query_search = 0.0;    ///< pixels searched either side of a query's prediction (0: transfer only, the default: single windows on skin are noisier than the smoothed seeds)
-  double min_ncc = 0.6;         ///< weakest accepted correlation peak
+  double min_ncc = 0.5;         ///< weakest accepted correlation peak
   /// Constraint 1 (candidate agreement): the candidates from the triangle
   /// and its neighbours must agree within this many pixels.
   double max_candidate_spread = 4.0;
@@ -97,6 +97,17 @@ struct CectTimings {
   double rectify_ms = 0, segment_ms = 0, foundational_ms = 0, interior_ms = 0, total_ms = 0;
 };
 
+/// What became of the interior seeds (both passes).
+struct SeedStats {
+  int tried = 0;       ///< grid points matched
+  int no_peak = 0;     ///< no texture, or the correlation peak at the end of the search range
+  int weak = 0;        ///< peak below min_ncc
+  int left_right = 0;  ///< failed constraint 3
+  int continuity = 0;  ///< failed constraint 2 against their grid neighbours
+  int smoothing = 0;   ///< dropped: too far from their local quadratic
+  int accepted = 0;    ///< joined the triangulation (before smoothing)
+};
+
 /// The analysis of one stereo pair; answers point queries afterwards.
 class CectFrame {
  public:
@@ -118,6 +129,7 @@ class CectFrame {
   /// Delaunay triangles over vertices() (indices).
   const std::vector<cv::Vec3i>& triangles() const { return triangles_; }
   const CectTimings& timings() const { return timings_; }
+  const SeedStats& seedStats() const { return seed_stats_; }
   const StereoGeometry& geometry() const { return geometry_; }
   const CectParams& params() const { return params_; }
 
@@ -144,6 +156,7 @@ class CectFrame {
   std::vector<std::vector<int>> vertex_triangles_;  ///< triangles around each vertex
   cv::Mat triangle_index_;                  ///< CV_32S, rectified left: containing triangle, -1 outside
   CectTimings timings_;
+  SeedStats seed_stats_;
 
   /// Barycentric transfer of a rectified left pixel: the median disparity of
   /// the candidates from its triangle and the triangles sharing an edge with
