@@ -33,10 +33,13 @@
 #include "massage_cell/cect/cect.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <cstring>
 #include <map>
+#include <unordered_map>
 #include <stdexcept>
 #include <string>
 
@@ -189,6 +192,90 @@ bool barycentric(const cv::Point2f& p, const cv::Point2f& a, const cv::Point2f& 
   return true;
 }
 
+/// Gaussian blur of `img` (CV_32F) over the pixels of weight `w` (CV_32F in
+/// [0, 1]) only: blur(img w) / blur(w), normalised convolution. Blurs with
+/// sigma >= 3 run at half resolution (their result is smooth; 8x fewer
+/// operations).
+cv::Mat maskedBlur(const cv::Mat& img, const cv::Mat& w, double sigma) {
+  cv::Mat both, b;
+  cv::merge(std::vector<cv::Mat>{img.mul(w), w}, both);
+  if (sigma >= 3.0 && both.cols >= 8 && both.rows >= 8) {
+    cv::Mat half;
+    cv::resize(both, half, cv::Size((both.cols + 1) / 2, (both.rows + 1) / 2), 0, 0, cv::INTER_AREA);
+    cv::GaussianBlur(half, half, cv::Size(0, 0), sigma / 2.0);
+    cv::resize(half, b, both.size(), 0, 0, cv::INTER_LINEAR);
+  } else {
+    cv::GaussianBlur(both, b, cv::Size(0, 0), sigma);
+  }
+  cv::Mat ch[2];
+  cv::split(b, ch);
+  return ch[0] / cv::max(ch[1], 1e-3);
+}
+
+/// A local quadratic d(x, y) fitted to vertices around `centre`: Gaussian
+/// weights (sigma = radius / 2) over the vertices within `radius`, one refit
+/// without the residuals beyond 3 MAD. Returns false with fewer than
+/// `min_count` neighbours or a singular fit; *value = d(centre), *rms = the
+/// weighted rms residual of the points kept, *nearest = the nearest used
+/// vertex's distance.
+bool fitQuadratic(const std::vector<Correspondence>& V, const std::vector<int>& idx, const cv::Point2f& centre,
+                  double radius, std::size_t min_count, double* value, double* rms = nullptr,
+                  double* nearest = nullptr) {
+  const double s2 = 2.0 * (radius / 2.0) * (radius / 2.0);
+  std::vector<int> nb;
+  std::vector<double> wt;
+  double near = std::numeric_limits<double>::infinity();
+  for (int j : idx) {
+    const cv::Point2f q = V[static_cast<std::size_t>(j)].left - centre;
+    const double r2 = q.x * q.x + q.y * q.y;
+    if (r2 <= radius * radius) {
+      nb.push_back(j);
+      wt.push_back(std::exp(-r2 / s2));
+      near = std::min(near, std::sqrt(r2));
+    }
+  }
+  if (nb.size() < min_count) return false;
+  std::vector<bool> use(nb.size(), true);
+  Eigen::Matrix<double, 6, 1> coef;
+  std::vector<double> res(nb.size());
+  auto phiOf = [&](const Correspondence& v) {
+    const double x = (v.left.x - centre.x) / radius, y = (v.left.y - centre.y) / radius;
+    Eigen::Matrix<double, 6, 1> phi;
+    phi << 1.0, x, y, x * x, x * y, y * y;
+    return phi;
+  };
+  for (int pass = 0; pass < 2; ++pass) {
+    Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+    for (std::size_t k = 0; k < nb.size(); ++k) {
+      if (!use[k]) continue;
+      const Correspondence& v = V[static_cast<std::size_t>(nb[k])];
+      const Eigen::Matrix<double, 6, 1> phi = phiOf(v);
+      A += wt[k] * phi * phi.transpose();
+      b += wt[k] * v.disparity * phi;
+    }
+    coef = A.ldlt().solve(b);
+    if (!coef.allFinite()) return false;
+    for (std::size_t k = 0; k < nb.size(); ++k)
+      res[k] = std::abs(V[static_cast<std::size_t>(nb[k])].disparity - coef.dot(phiOf(V[static_cast<std::size_t>(nb[k])])));
+    if (pass == 1) break;
+    const double mad = std::max(0.3, median(res));
+    for (std::size_t k = 0; k < nb.size(); ++k) use[k] = res[k] <= 3.0 * mad;
+  }
+  *value = coef(0);
+  if (rms) {
+    double ss = 0.0, ws = 0.0;
+    for (std::size_t k = 0; k < nb.size(); ++k)
+      if (use[k]) {
+        ss += wt[k] * res[k] * res[k];
+        ws += wt[k];
+      }
+    *rms = ws > 0 ? std::sqrt(ss / ws) : 0.0;
+  }
+  if (nearest) *nearest = near;
+  return true;
+}
+
 }  // namespace
 
 /// Builds a CectFrame step by step (friend of CectFrame).
@@ -202,13 +289,18 @@ class CectFrameBuilder {
     f_.timings_.rectify_ms = msSince(t0);
 
     auto t = Clock::now();
-    f_.left_seg_ = segmentBack(f_.left_rect_, f_.params_.segmentation);
-    f_.right_seg_ = segmentBack(f_.right_rect_, f_.params_.segmentation);
+    // The two views are independent until matching: one core each.
+    cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& views) {
+      for (int v = views.start; v < views.end; ++v) {
+        const cv::Mat& img = v == 0 ? f_.left_rect_ : f_.right_rect_;
+        Segmentation& seg = v == 0 ? f_.left_seg_ : f_.right_seg_;
+        seg = segmentBack(img, f_.params_.segmentation);
+        if (seg.valid) (v == 0 ? f_.left_grey_ : f_.right_grey_) = matchingImage(img, seg.mask);
+      }
+    });
     f_.timings_.segment_ms = msSince(t);
     if (!f_.left_seg_.valid) return fail("left view: " + f_.left_seg_.reason, t0);
     if (!f_.right_seg_.valid) return fail("right view: " + f_.right_seg_.reason, t0);
-    f_.left_grey_ = matchingImage(f_.left_rect_, f_.left_seg_.mask);
-    f_.right_grey_ = matchingImage(f_.right_rect_, f_.right_seg_.mask);
 
     t = Clock::now();
     foundational();
@@ -225,6 +317,7 @@ class CectFrameBuilder {
       triangulate();
       seeds(f_.params_.seed_step, std::max(2.0, 0.5 * f_.params_.seed_search));
       if (f_.params_.smooth_radius > 0) smoothSeeds(f_.params_.smooth_radius * f_.params_.seed_step);
+      if (f_.params_.rim_profile) rimProfiles();
       triangulate();
     }
     f_.timings_.interior_ms = msSince(t);
@@ -240,51 +333,120 @@ class CectFrameBuilder {
     f_.timings_.total_ms = msSince(t0);
   }
 
+  /// Grey without the specular sheen, by the dichromatic reflection model:
+  /// in linear RGB (sRGB decoded) every back pixel is I = D c + S (1,1,1),
+  /// a diffuse part of the skin's own chromaticity c (the median over the
+  /// back) plus a specular part of the light's colour (white). D and S are
+  /// solved per pixel (least squares, 3 channels); S, noisy, is smoothed
+  /// (Gaussian, sheen_sigma) and taken off every channel; the grey of the
+  /// rest is returned, scaled back to 0..255. Outside the back: plain grey.
+  cv::Mat diffuseGrey(const cv::Mat& bgr, const cv::Mat& mask) const {
+    static const std::array<float, 256> lut = [] {
+      std::array<float, 256> t{};
+      for (int i = 0; i < 256; ++i) {
+        const double v = i / 255.0;
+        t[static_cast<std::size_t>(i)] =
+            static_cast<float>(v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4));
+      }
+      return t;
+    }();
+    cv::Mat lin(bgr.size(), CV_32FC3);
+    for (int y = 0; y < bgr.rows; ++y) {
+      const cv::Vec3b* src = bgr.ptr<cv::Vec3b>(y);
+      cv::Vec3f* dst = lin.ptr<cv::Vec3f>(y);
+      for (int x = 0; x < bgr.cols; ++x)
+        dst[x] = cv::Vec3f(lut[src[x][0]], lut[src[x][1]], lut[src[x][2]]);
+    }
+    // The skin's chromaticity: per-channel medians of the normalised colour
+    // over the more saturated half of the back (the sheen whitens the rest).
+    std::vector<cv::Vec3f> chroma;
+    for (int y = 0; y < bgr.rows; y += 3) {
+      const cv::Vec3f* l = lin.ptr<cv::Vec3f>(y);
+      const std::uint8_t* m = mask.ptr<std::uint8_t>(y);
+      for (int x = 0; x < bgr.cols; x += 3) {
+        const float sum = l[x][0] + l[x][1] + l[x][2];
+        if (m[x] && sum > 1e-3f) chroma.push_back(l[x] / sum);
+      }
+    }
+    cv::Mat S = cv::Mat::zeros(bgr.size(), CV_32F);
+    if (chroma.size() >= 32) {
+      auto whiteness = [](const cv::Vec3f& v) { return std::min({v[0], v[1], v[2]}); };
+      auto half = chroma.begin() + static_cast<std::ptrdiff_t>(chroma.size() / 2);
+      std::nth_element(chroma.begin(), half, chroma.end(),
+                       [&](const cv::Vec3f& a, const cv::Vec3f& b) { return whiteness(a) < whiteness(b); });
+      Eigen::Vector3d c;
+      for (int k = 0; k < 3; ++k) {
+        std::vector<float> v;
+        v.reserve(chroma.size() / 2);
+        for (auto it = chroma.begin(); it != half; ++it) v.push_back((*it)[k]);
+        auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+        std::nth_element(v.begin(), mid, v.end());
+        c(k) = *mid;
+      }
+      // Normal equations of min |I - D c - S 1|^2: [c.c c.1; c.1 3] [D S]' = [c.I 1.I]'.
+      const double cc = c.squaredNorm(), c1 = c.sum();
+      const double det = 3.0 * cc - c1 * c1;
+      if (std::abs(det) > 1e-9) {
+        const float a = static_cast<float>(-c1 / det), b = static_cast<float>(cc / det);
+        const cv::Vec3f cf(static_cast<float>(c(0)), static_cast<float>(c(1)), static_cast<float>(c(2)));
+        for (int y = 0; y < bgr.rows; ++y) {
+          const cv::Vec3f* l = lin.ptr<cv::Vec3f>(y);
+          float* s = S.ptr<float>(y);
+          for (int x = 0; x < bgr.cols; ++x) {
+            const float ci = cf[0] * l[x][0] + cf[1] * l[x][1] + cf[2] * l[x][2];
+            const float oi = l[x][0] + l[x][1] + l[x][2];
+            s[x] = a * ci + b * oi;
+          }
+        }
+        cv::Mat m;
+        mask.convertTo(m, CV_32F, 1.0 / 255.0);
+        S = maskedBlur(S, m, f_.params_.sheen_sigma);
+        S.setTo(0, mask == 0);
+      }
+    }
+    cv::Mat out(bgr.size(), CV_32F);
+    for (int y = 0; y < bgr.rows; ++y) {
+      const cv::Vec3f* l = lin.ptr<cv::Vec3f>(y);
+      const float* s = S.ptr<float>(y);
+      float* o = out.ptr<float>(y);
+      for (int x = 0; x < bgr.cols; ++x)
+        o[x] = 255.0f * (0.114f * l[x][0] + 0.587f * l[x][1] + 0.299f * l[x][2] - s[x]);
+    }
+    return out;
+  }
+
   /// Matching image band-passed: a difference of Gaussians keeps
   /// the skin's mottling and the relief's edges and drops the broad shading
   /// and the specular sheen, which move with the viewpoint.
   cv::Mat matchingImage(const cv::Mat& bgr, const cv::Mat& mask) const {
-    cv::Mat g, f;
-    cv::cvtColor(bgr, g, cv::COLOR_BGR2GRAY);
-    g.convertTo(f, CV_32F);
     const CectParams& p = f_.params_;
-    if (p.bandpass_high <= 0) return f;
+    auto grey = [&](const cv::Mat& img, const cv::Mat& m) {
+      if (p.sheen_sigma > 0) return diffuseGrey(img, m);
+      cv::Mat g, f;
+      cv::cvtColor(img, g, cv::COLOR_BGR2GRAY);
+      g.convertTo(f, CV_32F);
+      return f;
+    };
+    if (p.bandpass_high <= 0) return grey(bgr, mask);
     // Normalised convolution inside the back: the step to the background at
     // the contour would otherwise ring ~2 sigma into the skin, and that
     // step is the occluding rim, a different surface line in each view.
     // Only the back's bounding box (plus the matching windows' reach) is needed.
     const int margin = 2 * (std::max(p.ncc_radius, p.ncc_half_height) + 2);
-    const cv::Rect roi =
-        (cv::boundingRect(mask) + cv::Size(2 * margin, 2 * margin) - cv::Point(margin, margin)) & cv::Rect(0, 0, f.cols, f.rows);
-    cv::Mat out = cv::Mat::zeros(f.size(), CV_32F);
+    const cv::Rect roi = (cv::boundingRect(mask) + cv::Size(2 * margin, 2 * margin) - cv::Point(margin, margin)) &
+                         cv::Rect(0, 0, bgr.cols, bgr.rows);
+    cv::Mat out = cv::Mat::zeros(bgr.size(), CV_32F);
     if (roi.empty()) return out;
-    cv::Mat m, fm;
+    const cv::Mat f = grey(bgr(roi), mask(roi));
+    cv::Mat m;
     mask(roi).convertTo(m, CV_32F, 1.0 / 255.0);
-    fm = f(roi).mul(m);
-    // Numerator and weight blurred together (two channels); wide blurs at
-    // half resolution (their result is smooth), 8x fewer operations.
-    cv::Mat both;
-    cv::merge(std::vector<cv::Mat>{fm, m}, both);
-    auto blur = [&](double sigma) {
-      cv::Mat b;
-      if (sigma >= 3.0 && both.cols >= 8 && both.rows >= 8) {
-        cv::Mat half;
-        cv::resize(both, half, cv::Size((both.cols + 1) / 2, (both.rows + 1) / 2), 0, 0, cv::INTER_AREA);
-        cv::GaussianBlur(half, half, cv::Size(0, 0), sigma / 2.0);
-        cv::resize(half, b, both.size(), 0, 0, cv::INTER_LINEAR);
-      } else {
-        cv::GaussianBlur(both, b, cv::Size(0, 0), sigma);
-      }
-      cv::Mat ch[2];
-      cv::split(b, ch);
-      return cv::Mat(ch[0] / cv::max(ch[1], 1e-3));
-    };
-    const cv::Mat lo = p.bandpass_low > 0 ? blur(p.bandpass_low) : f(roi);
-    cv::Mat band = lo - blur(p.bandpass_high);
+    const cv::Mat lo = p.bandpass_low > 0 ? maskedBlur(f, m, p.bandpass_low) : f;
+    cv::Mat band = lo - maskedBlur(f, m, p.bandpass_high);
     band.setTo(0, mask(roi) == 0);
     band.copyTo(out(roi));
     return out;
   }
+
 
 
   double maxDisparity() const {
@@ -301,6 +463,7 @@ class CectFrameBuilder {
       cv::Point2f left;
       std::vector<double> cands;  ///< candidate disparities
       int unique = -1;            ///< index into cands chosen by the order rule, -1 none
+      cv::Point2f normal;         ///< the contour's inward unit normal
     };
     std::vector<Sample> samples;
     samples.reserve(static_cast<std::size_t>(n));
@@ -329,6 +492,7 @@ class CectFrameBuilder {
       const bool rising = lr[static_cast<std::size_t>(li)];
       Sample s;
       s.left = cv::Point2f(static_cast<float>(lx[static_cast<std::size_t>(li)]), static_cast<float>(y));
+      s.normal = cv::Point2f(static_cast<float>(tan.y / len), static_cast<float>(-tan.x / len));  // inward
       // Order among the crossings of the same kind on both rows.
       int rank = 0, left_same = 0, right_same = 0;
       for (std::size_t k = 0; k < lx.size(); ++k)
@@ -383,8 +547,9 @@ class CectFrameBuilder {
       c.left = s.left;
       c.disparity = static_cast<float>(d);
       c.sigma = static_cast<float>(p.pixel_sigma * std::sqrt(2.0));
-      c.foundational = true;
+      c.source = Correspondence::Source::kContour;
       f_.vertices_.push_back(c);
+      rim_normals_.push_back(s.normal);
     }
   }
 
@@ -395,21 +560,30 @@ class CectFrameBuilder {
     f_.triangles_.clear();
     const cv::Rect rect(-1, -1, f_.left_rect_.cols + 2, f_.left_rect_.rows + 2);
     cv::Subdiv2D subdiv(rect);
-    std::map<int, int> vertex_of;  // subdiv vertex id -> our index
+    // getTriangleList returns the inserted coordinates exactly: look the
+    // vertices up by them (the first of coincident vertices wins).
+    std::unordered_map<std::uint64_t, int> vertex_at;
+    auto key = [](float x, float y) {
+      std::uint32_t bx, by;
+      std::memcpy(&bx, &x, sizeof bx);
+      std::memcpy(&by, &y, sizeof by);
+      return (static_cast<std::uint64_t>(bx) << 32) | by;
+    };
     for (std::size_t i = 0; i < V.size(); ++i) {
-      const int id = subdiv.insert(V[i].left);
-      vertex_of[id] = static_cast<int>(i);
+      subdiv.insert(V[i].left);
+      vertex_at.emplace(key(V[i].left.x, V[i].left.y), static_cast<int>(i));
     }
     std::vector<cv::Vec6f> tris;
     subdiv.getTriangleList(tris);
     auto indexOf = [&](float x, float y) -> int {
-      const int id = subdiv.findNearest(cv::Point2f(x, y));
-      const auto it = vertex_of.find(id);
-      if (it == vertex_of.end()) return -1;
-      const cv::Point2f q = V[static_cast<std::size_t>(it->second)].left;
-      return std::hypot(q.x - x, q.y - y) < 1e-3 ? it->second : -1;
+      const auto it = vertex_at.find(key(x, y));
+      return it == vertex_at.end() ? -1 : it->second;
     };
     const cv::Mat& mask = f_.left_seg_.mask;
+    // Edge midpoints of border triangles sit on the border itself: they may
+    // fall up to 1.5 px outside the mask.
+    if (near_mask_.empty())
+      cv::dilate(mask, near_mask_, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
     for (const auto& t : tris) {
       const int a = indexOf(t[0], t[1]), b = indexOf(t[2], t[3]), c = indexOf(t[4], t[5]);
       if (a < 0 || b < 0 || c < 0) continue;
@@ -420,9 +594,7 @@ class CectFrameBuilder {
       bool inside = true;
       for (const cv::Point2f& q : {(pa + pb + pc) / 3.0f, (pa + pb) * 0.5f, (pb + pc) * 0.5f, (pa + pc) * 0.5f}) {
         const int x = cvRound(q.x), y = cvRound(q.y);
-        const bool on_mask = x >= 0 && y >= 0 && x < mask.cols && y < mask.rows && mask.at<std::uint8_t>(y, x);
-        // Edge midpoints of border triangles sit on the border itself.
-        if (!on_mask && cv::pointPolygonTest(f_.left_seg_.contour, q, true) < -1.5) {
+        if (!(x >= 0 && y >= 0 && x < mask.cols && y < mask.rows && near_mask_.at<std::uint8_t>(y, x))) {
           inside = false;
           break;
         }
@@ -444,6 +616,78 @@ class CectFrameBuilder {
     }
   }
 
+  /// The band between the contour and the first seeds. The contour is the
+  /// back's occluding rim: there the surface turns away from the camera, and
+  /// across a smooth rim depth varies with the square root of the image
+  /// distance u to it (a cross-section of curvature radius R seen edge-on
+  /// rises by sqrt(2 R x) at a distance x from its rim). Linear interpolation
+  /// between a rim vertex and the first seeds ~30 px inside undershoots that
+  /// profile by up to ~4 px of disparity on a flank. So for every other rim
+  /// vertex, d(u, t) = c + a sqrt(u) + b u + e t is fitted (least squares)
+  /// to the seeds within a band along its inward normal (u along it, t
+  /// across it) and to the rim's own disparity at u = 0; where the fit holds
+  /// (rms within 2 pixel_sigma), vertices at u = 2, 5, 9, ... px are added up
+  /// to half a seed step short of the nearest seed.
+  void rimProfiles() {
+    auto& V = f_.vertices_;
+    const double step = f_.params_.seed_step;
+    const double band = 0.75 * step, reach = 5.0 * step;
+    const double rim_weight = 2.0;  // the rim's own crossing counts as two seeds
+    std::vector<int> seeds;
+    for (std::size_t i = 0; i < V.size(); ++i)
+      if (V[i].source == Correspondence::Source::kSeed) seeds.push_back(static_cast<int>(i));
+    const cv::Mat& mask = f_.left_seg_.mask;
+    std::vector<Correspondence> added;
+    const std::size_t n_rim = std::min(rim_normals_.size(), V.size());
+    for (std::size_t i = 0; i < n_rim; i += 2) {
+      const Correspondence& rim = V[i];
+      if (rim.source != Correspondence::Source::kContour) continue;
+      const cv::Point2f n = rim_normals_[i];
+      const cv::Point2f t(-n.y, n.x);
+      Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
+      Eigen::Vector4d b = Eigen::Vector4d::Zero();
+      auto add = [&](double u, double tt, double d, double w) {
+        const Eigen::Vector4d phi(1.0, std::sqrt(u / step), u / step, tt / step);
+        A += w * phi * phi.transpose();
+        b += w * d * phi;
+      };
+      add(0.0, 0.0, rim.disparity, rim_weight);
+      struct Obs { double u, t, d; };
+      std::vector<Obs> obs;
+      double u_min = reach;
+      for (int j : seeds) {
+        const cv::Point2f q = V[static_cast<std::size_t>(j)].left - rim.left;
+        const double u = q.dot(n), tt = q.dot(t);
+        if (u <= 0.0 || u > reach || std::abs(tt) > band) continue;
+        obs.push_back({u, tt, V[static_cast<std::size_t>(j)].disparity});
+        add(u, tt, obs.back().d, 1.0);
+        u_min = std::min(u_min, u);
+      }
+      if (obs.size() < 5 || u_min > 3.0 * step) continue;
+      const Eigen::Vector4d k = A.ldlt().solve(b);
+      if (!k.allFinite()) continue;
+      auto model = [&](double u, double tt) {
+        return k(0) + k(1) * std::sqrt(u / step) + k(2) * u / step + k(3) * tt / step;
+      };
+      double ss = rim_weight * std::pow(rim.disparity - model(0, 0), 2);
+      for (const Obs& o : obs) ss += std::pow(o.d - model(o.u, o.t), 2);
+      if (std::sqrt(ss / (static_cast<double>(obs.size()) + rim_weight)) > 2.0 * f_.params_.pixel_sigma) continue;
+      for (double u : {2.0, 5.0, 9.0, 14.0, 20.0, 27.0, 35.0, 44.0}) {
+        if (u > u_min - 0.5 * step) break;
+        const cv::Point2f q = rim.left + static_cast<float>(u) * n;
+        const int x = cvRound(q.x), y = cvRound(q.y);
+        if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows || !mask.at<std::uint8_t>(y, x)) break;
+        Correspondence c;
+        c.left = q;
+        c.disparity = static_cast<float>(model(u, 0.0));
+        c.sigma = static_cast<float>(f_.params_.pixel_sigma);
+        c.source = Correspondence::Source::kRimProfile;
+        added.push_back(c);
+      }
+    }
+    V.insert(V.end(), added.begin(), added.end());
+  }
+
   /// Each interior seed's disparity becomes the value at the seed of a
   /// weighted quadratic fitted to the seeds within `radius` pixels (Gaussian
   /// weights, sigma = radius / 2; one refit without the residuals beyond
@@ -454,59 +698,19 @@ class CectFrameBuilder {
     auto& V = f_.vertices_;
     std::vector<int> idx;
     for (std::size_t i = 0; i < V.size(); ++i)
-      if (!V[i].foundational) idx.push_back(static_cast<int>(i));
-    const double s2 = 2.0 * (radius / 2.0) * (radius / 2.0);
+      if (V[i].source == Correspondence::Source::kSeed) idx.push_back(static_cast<int>(i));
     std::vector<float> smoothed(V.size(), std::numeric_limits<float>::quiet_NaN());
-    std::vector<int> nb;
-    std::vector<double> wt;
     for (int i : idx) {
-      const cv::Point2f c = V[static_cast<std::size_t>(i)].left;
-      nb.clear();
-      wt.clear();
-      for (int j : idx) {
-        const cv::Point2f q = V[static_cast<std::size_t>(j)].left - c;
-        const double r2 = q.x * q.x + q.y * q.y;
-        if (r2 <= radius * radius) {
-          nb.push_back(j);
-          wt.push_back(std::exp(-r2 / s2));
-        }
-      }
-      if (nb.size() < 8) continue;  // too few to fit: the seed stays as matched
-      std::vector<bool> use(nb.size(), true);
       double fit = 0.0;
-      for (int pass = 0; pass < 2; ++pass) {
-        Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
-        Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
-        for (std::size_t k = 0; k < nb.size(); ++k) {
-          if (!use[k]) continue;
-          const Correspondence& v = V[static_cast<std::size_t>(nb[k])];
-          const double x = (v.left.x - c.x) / radius, y = (v.left.y - c.y) / radius;
-          Eigen::Matrix<double, 6, 1> phi;
-          phi << 1.0, x, y, x * x, x * y, y * y;
-          A += wt[k] * phi * phi.transpose();
-          b += wt[k] * v.disparity * phi;
-        }
-        const Eigen::Matrix<double, 6, 1> coef = A.ldlt().solve(b);
-        if (!coef.allFinite()) break;
-        fit = coef(0);
-        if (pass == 1) break;
-        std::vector<double> res(nb.size());
-        for (std::size_t k = 0; k < nb.size(); ++k) {
-          const Correspondence& v = V[static_cast<std::size_t>(nb[k])];
-          const double x = (v.left.x - c.x) / radius, y = (v.left.y - c.y) / radius;
-          res[k] = std::abs(v.disparity - (coef(0) + coef(1) * x + coef(2) * y + coef(3) * x * x + coef(4) * x * y +
-                                           coef(5) * y * y));
-        }
-        const double mad = std::max(0.3, median(res));
-        for (std::size_t k = 0; k < nb.size(); ++k) use[k] = res[k] <= 3.0 * mad;
-      }
-      smoothed[static_cast<std::size_t>(i)] = static_cast<float>(fit);
+      // Too few neighbours to fit: the seed stays as matched.
+      if (fitQuadratic(V, idx, V[static_cast<std::size_t>(i)].left, radius, 8, &fit))
+        smoothed[static_cast<std::size_t>(i)] = static_cast<float>(fit);
     }
     std::vector<Correspondence> kept;
     kept.reserve(V.size());
     for (std::size_t i = 0; i < V.size(); ++i) {
       Correspondence v = V[i];
-      if (!v.foundational && std::isfinite(smoothed[i])) {
+      if (v.source == Correspondence::Source::kSeed && std::isfinite(smoothed[i])) {
         if (std::abs(v.disparity - smoothed[i]) > f_.params_.continuity_margin) {
           ++f_.seed_stats_.smoothing;
           continue;
@@ -540,6 +744,14 @@ class CectFrameBuilder {
     cv::Mat taken = cv::Mat::zeros(h, w, CV_8U);
     for (const auto& v : f_.vertices_)
       cv::circle(taken, cv::Point(cvRound(v.left.x), cvRound(v.left.y)), std::max(2, step / 3), cv::Scalar(255), -1);
+    struct Job {
+      cv::Point2f q;
+      double lo, hi;
+      int gx, gy;
+      enum { kNoPeak, kWeak, kLeftRight, kFound } outcome = kNoPeak;
+      double d = 0.0;
+    };
+    std::vector<Job> jobs;
     for (int y = step / 2; y < h; y += step)
       for (int x = step / 2; x < w; x += step) {
         if (!inner.at<std::uint8_t>(y, x) || taken.at<std::uint8_t>(y, x)) continue;
@@ -557,29 +769,41 @@ class CectFrameBuilder {
           const double z0 = fxb / std::max(d0, 1e-3);
           hi = z0 > p.max_relief ? fxb / (z0 - p.max_relief) + reach : maxDisparity();
         }
-        ++f_.seed_stats_.tried;
-        const MatchResult m = matchAlongRow(f_.left_grey_, f_.right_grey_, q.x, q.y, std::max(p.min_disparity, d0 - reach),
-                                            std::min(maxDisparity(), hi), r, ry, false);
-        if (!m.ok) {
-          ++f_.seed_stats_.no_peak;
-          continue;
-        }
+        jobs.push_back({q, std::max(p.min_disparity, d0 - reach), std::min(maxDisparity(), hi), x / step, y / step});
+      }
+    // Matching, the bulk of the work, on every core (each seed on its own).
+    cv::parallel_for_(cv::Range(0, static_cast<int>(jobs.size())), [&](const cv::Range& range) {
+      for (int i = range.start; i < range.end; ++i) {
+        Job& j = jobs[static_cast<std::size_t>(i)];
+        const MatchResult m = matchAlongRow(f_.left_grey_, f_.right_grey_, j.q.x, j.q.y, j.lo, j.hi, r, ry, false);
+        if (!m.ok) continue;  // kNoPeak
         if (m.ncc < p.min_ncc) {
-          ++f_.seed_stats_.weak;
+          j.outcome = Job::kWeak;
           continue;
         }
         // Constraint 3: back from the right view, from the whole pixel
         // nearest the match (its own disparity to the seed is q.x - xr).
-        const float xr = std::round(static_cast<float>(q.x - m.disparity));
-        const double d_back = q.x - xr;
-        const MatchResult back = matchAlongRow(f_.right_grey_, f_.left_grey_, xr, q.y, d_back - 2.0 - p.lr_tolerance,
+        const float xr = std::round(static_cast<float>(j.q.x - m.disparity));
+        const double d_back = j.q.x - xr;
+        const MatchResult back = matchAlongRow(f_.right_grey_, f_.left_grey_, xr, j.q.y, d_back - 2.0 - p.lr_tolerance,
                                                d_back + 2.0 + p.lr_tolerance, r, ry, true);
         if (!back.ok || std::abs(back.disparity - d_back) > p.lr_tolerance) {
-          ++f_.seed_stats_.left_right;
+          j.outcome = Job::kLeftRight;
           continue;
         }
-        found.push_back({q, m.disparity, x / step, y / step});
+        j.outcome = Job::kFound;
+        j.d = m.disparity;
       }
+    });
+    for (const Job& j : jobs) {
+      ++f_.seed_stats_.tried;
+      switch (j.outcome) {
+        case Job::kNoPeak: ++f_.seed_stats_.no_peak; break;
+        case Job::kWeak: ++f_.seed_stats_.weak; break;
+        case Job::kLeftRight: ++f_.seed_stats_.left_right; break;
+        case Job::kFound: found.push_back({j.q, j.d, j.gx, j.gy}); break;
+      }
+    }
     // Constraint 2: continuity with the grid neighbours.
     std::map<std::pair<int, int>, double> grid;
     for (const auto& s : found) grid[{s.gx, s.gy}] = s.d;
@@ -601,12 +825,14 @@ class CectFrameBuilder {
       c.left = s.left;
       c.disparity = static_cast<float>(s.d);
       c.sigma = static_cast<float>(p.pixel_sigma);
-      c.foundational = false;
+      c.source = Correspondence::Source::kSeed;
       f_.vertices_.push_back(c);
     }
   }
 
   CectFrame& f_;
+  std::vector<cv::Point2f> rim_normals_;  ///< inward contour normal of each foundational vertex (same index)
+  cv::Mat near_mask_;                     ///< the left mask dilated by 2 px
 };
 
 CectFrame CectFrame::analyse(const cv::Mat& left, const cv::Mat& right, const StereoGeometry& geometry,
@@ -628,7 +854,7 @@ CectFrame CectFrame::analyse(const cv::Mat& left, const cv::Mat& right, const St
 
 std::size_t CectFrame::foundationalCount() const {
   return static_cast<std::size_t>(std::count_if(vertices_.begin(), vertices_.end(),
-                                                [](const Correspondence& c) { return c.foundational; }));
+                                                [](const Correspondence& c) { return c.foundational(); }));
 }
 
 double CectFrame::transfer(const cv::Point2f& q, double* spread, int* count) const {
@@ -713,10 +939,7 @@ LocalizedPoint CectFrame::localizeRectified(const cv::Point2f& q) const {
   double spread = 0;
   int count = 0;
   const double d0 = transfer(q, &spread, &count);
-  if (!std::isfinite(d0)) {
-    out.reason = "pixel outside the triangulated back (too close to its border)";
-    return out;
-  }
+  if (!std::isfinite(d0)) return extrapolate(q, out);
   out.spread = spread;
   out.candidates = count;
   // Constraint 1.
@@ -758,6 +981,47 @@ LocalizedPoint CectFrame::localizeRectified(const cv::Point2f& q) const {
   return out;
 }
 
+LocalizedPoint CectFrame::extrapolate(const cv::Point2f& q, LocalizedPoint out) const {
+  // A back pixel between the contour and the triangulation where the
+  // contour gives no foundational correspondences (it runs along the
+  // epipolar lines: the neck base, the waist band): the local quadratic of
+  // the seeds around it, evaluated at most max_extrapolation seed steps
+  // beyond the nearest seed, with the fit's rms and the distance in its
+  // uncertainty.
+  const double step = std::max(1, params_.seed_step);
+  double d = 0.0, rms = 0.0, nearest = 0.0;
+  std::vector<int> idx;
+  for (std::size_t i = 0; i < vertices_.size(); ++i)
+    if (!vertices_[i].foundational()) idx.push_back(static_cast<int>(i));
+  if (params_.max_extrapolation <= 0 || params_.seed_step <= 0 ||
+      !fitQuadratic(vertices_, idx, q, 4.0 * step, 12, &d, &rms, &nearest) ||
+      nearest > params_.max_extrapolation * step) {
+    out.reason = "pixel outside the triangulated back (too close to its border)";
+    return out;
+  }
+  if (rms > 2.0 * params_.pixel_sigma) {
+    out.reason = "pixel outside the triangulated back, and the seeds around it do not fit a smooth surface (rms " +
+                 std::to_string(rms) + " px)";
+    return out;
+  }
+  const double sigma = std::hypot(params_.pixel_sigma, rms) * (1.0 + nearest / step);
+  Eigen::Matrix3d J;
+  out.position = geometry_.triangulate(q.x, q.y, d, &J);
+  if (!(out.position.z() > 0.0) || !out.position.allFinite()) {
+    out.reason = "point behind the camera";
+    return out;
+  }
+  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+  S(0, 0) = S(1, 1) = params_.pixel_sigma * params_.pixel_sigma;
+  S(2, 2) = sigma * sigma;
+  out.covariance = J * S * J.transpose();
+  out.disparity = d;
+  out.disparity_sigma = sigma;
+  out.extrapolated = true;
+  out.valid = true;
+  return out;
+}
+
 cv::Mat CectFrame::drawDebug() const {
   cv::Mat img = left_rect_.empty() ? cv::Mat() : left_rect_.clone();
   if (img.empty()) return img;
@@ -773,7 +1037,10 @@ cv::Mat CectFrame::drawDebug() const {
   }
   for (const auto& v : vertices_)
     cv::circle(img, cv::Point(cvRound(v.left.x), cvRound(v.left.y)), 2,
-               v.foundational ? cv::Scalar(0, 0, 255) : cv::Scalar(0, 255, 0), -1, cv::LINE_AA);
+               v.foundational()                                        ? cv::Scalar(0, 0, 255)
+               : v.source == Correspondence::Source::kRimProfile ? cv::Scalar(0, 200, 255)
+                                                                  : cv::Scalar(0, 255, 0),
+               -1, cv::LINE_AA);
   if (!valid_)
     cv::putText(img, reason_, cv::Point(10, 20), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 255), 1, cv::LINE_AA);
   return img;

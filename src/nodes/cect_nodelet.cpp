@@ -113,7 +113,10 @@ cect::CectParams cectParams(const CECTConfig& c) {
   p.ncc_radius = c.ncc_radius;
   p.bandpass_low = c.bandpass_low;
   p.bandpass_high = c.bandpass_high;
+  p.sheen_sigma = c.sheen_sigma;
   p.smooth_radius = c.smooth_radius;
+  p.rim_profile = c.rim_profile;
+  p.max_extrapolation = c.max_extrapolation;
   p.seed_search = c.seed_search;
   p.query_search = c.query_search;
   p.min_ncc = c.min_ncc;

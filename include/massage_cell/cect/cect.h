@@ -52,12 +52,20 @@ struct CectParams {
   /// sigmas, pixels (bandpass_high <= 0: plain grey).
   double bandpass_low = 1.5;
   double bandpass_high = 6.0;
+  /// Sheen removal (dichromatic model, see cect.cpp): the specular part,
+  /// estimated per pixel from the colour, smoothed by a Gaussian of this
+  /// sigma (pixels), is taken off before matching (0: off).
+  double sheen_sigma = 6.0;
   double seed_search = 10.0;    ///< pixels searched either side of a seed's barycentric prediction
   /// How far the back may rise above its contour, metres: the first seeds,
   /// predicted from the contour alone, are searched that far nearer.
   double max_relief = 0.3;
   /// Seeds are smoothed by a local quadratic over this many seed steps (0: off).
   double smooth_radius = 4.0;
+  /// Fill the band between the contour and the first seeds from a rim
+  /// profile (disparity ~ sqrt of the distance to the occluding contour,
+  /// fitted to the seeds nearby) instead of interpolating linearly.
+  bool rim_profile = true;
   double query_search = 0.0;    ///< pixels searched either side of a query's prediction (0: transfer only, the default: single windows on skin are noisier than the smoothed seeds)
   double min_ncc = 0.5;         ///< weakest accepted correlation peak
   /// Constraint 1 (candidate agreement): the candidates from the triangle
@@ -69,6 +77,11 @@ struct CectParams {
   /// Constraint 3 (left-right consistency): matching back from the right
   /// view must land within this many pixels of the left point.
   double lr_tolerance = 1.0;
+  /// Back pixels outside the triangulation (next to a contour running along
+  /// the epipolar lines, e.g. the neck base) are extrapolated from the seeds'
+  /// local quadratic when the nearest seed is within this many seed steps
+  /// (0: never; they stay valid = false).
+  double max_extrapolation = 1.5;
   double pixel_sigma = 0.3;     ///< pixels: localisation noise of a matched point (covariance)
 };
 
@@ -77,7 +90,13 @@ struct Correspondence {
   cv::Point2f left;
   float disparity = 0.0f;  ///< left.x - right.x
   float sigma = 0.0f;      ///< standard deviation of the disparity, pixels
-  bool foundational = true;
+  enum class Source {
+    kContour,     ///< foundational: a contour sample and its epipolar line's crossing
+    kSeed,        ///< interior seed matched along its epipolar line (smoothed)
+    kRimProfile,  ///< between the contour and the first seeds, from the rim profile
+  };
+  Source source = Source::kContour;
+  bool foundational() const { return source == Source::kContour; }
 };
 
 struct LocalizedPoint {
@@ -91,9 +110,13 @@ struct LocalizedPoint {
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();    ///< metres^2
   double spread = 0.0;              ///< spread of the candidates, pixels (constraint 1)
   int candidates = 0;
+  /// Outside the triangulation, from the seeds' local quadratic (see
+  /// CectParams::max_extrapolation); its uncertainty grows with the distance.
+  bool extrapolated = false;
 };
 
 struct CectTimings {
+  /// segment_ms: both views segmented and their matching images made (in parallel).
   double rectify_ms = 0, segment_ms = 0, foundational_ms = 0, interior_ms = 0, total_ms = 0;
 };
 
@@ -162,6 +185,8 @@ class CectFrame {
   /// the candidates from its triangle and the triangles sharing an edge with
   /// it; NaN outside the triangulation. `spread` = max - min candidate.
   double transfer(const cv::Point2f& q, double* spread, int* count) const;
+  /// The fallback of localizeRectified outside the triangulation.
+  LocalizedPoint extrapolate(const cv::Point2f& q, LocalizedPoint out) const;
 
   friend class CectFrameBuilder;
 };
