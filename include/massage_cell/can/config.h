@@ -1,0 +1,83 @@
+// Configuration of the CAN motion stack (layer 3/4/5): the bus timing, and
+// per axis its CANopen node and CiA 402 drive parameters in SI units
+// (metres, m/s, m/s^2) with the counts-per-metre scale, plus the simulated
+// drive's own settings. Loaded from YAML (config/can_axes.yaml documents
+// every field); problems are ConfigErrors naming the field, e.g.
+// "axes[1].node_id: duplicate node id 2 (axis 'X' already uses it)".
+#pragma once
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace massage_cell::can {
+
+class ConfigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Settings only the simulated drive uses (SimDrive).
+struct SimDriveSettings {
+  std::string device_name = "massage_cell sim drive";  ///< 0x1008 (segmented SDO upload when > 4 chars)
+  double start_position = 0.0;      ///< m, actual position at power-up
+  double home_switch = 0.0;         ///< m, where the homing switch / index is
+  double max_velocity = 1.0;        ///< m/s, 0x607F max profile velocity
+  std::uint32_t device_type = 0x00020192;  ///< 0x1000: CiA 402 servo drive
+};
+
+/// One axis: a CANopen node running a CiA 402 drive.
+struct AxisConfig {
+  std::string name;                  ///< required, unique ("X")
+  std::uint8_t node_id = 0;          ///< required, 1..127, unique
+  double counts_per_metre = 0.0;     ///< required, > 0
+  // CANopen
+  std::uint16_t heartbeat_ms = 100;          ///< producer heartbeat time written to 0x1017
+  std::uint32_t heartbeat_timeout_ms = 0;    ///< consumer timeout; 0 = 3 x heartbeat_ms
+  bool velocity_pdo = false;                 ///< map 0x606C (+ 0x6061) into TPDO2
+  // CiA 402 motion
+  double profile_velocity = 0.1;             ///< m/s, 0x6081
+  double profile_acceleration = 0.5;         ///< m/s^2, 0x6083
+  double profile_deceleration = 0.5;         ///< m/s^2, 0x6084
+  double quick_stop_deceleration = 2.0;      ///< m/s^2, 0x6085
+  int quick_stop_option = 2;                 ///< 0x605A (2: stop on the quick-stop ramp, then switch on disabled; 6: stay in quick stop active)
+  double min_position = -1.0;                ///< m, 0x607D:01 software limit
+  double max_position = 1.0;                 ///< m, 0x607D:02
+  double following_error_window = 0.005;     ///< m, 0x6065
+  std::uint32_t enable_timeout_ms = 500;     ///< per CiA 402 transition
+  std::uint32_t move_timeout_ms = 30000;     ///< profile-position move
+  // Homing (0x6098 method, 0x607C offset, 0x6099 speeds)
+  int homing_method = 17;                    ///< CiA 402 homing method (17: negative limit switch)
+  double home_offset = 0.0;                  ///< m, 0x607C
+  double homing_speed = 0.05;                ///< m/s, 0x6099:01 and :02
+  std::uint32_t homing_timeout_ms = 10000;   ///< per attempt
+  int homing_retries = 2;                    ///< attempts after the first
+  SimDriveSettings sim;
+
+  std::uint32_t heartbeatTimeoutMs() const { return heartbeat_timeout_ms ? heartbeat_timeout_ms : 3u * heartbeat_ms; }
+  /// metres -> counts (rounded), counts -> metres.
+  std::int32_t toCounts(double metres) const;
+  double toMetres(std::int64_t counts) const { return static_cast<double>(counts) / counts_per_metre; }
+};
+
+/// The whole stack.
+struct CanConfig {
+  std::uint32_t sync_period_us = 10000;  ///< SYNC producer period (bus.sync_period_ms)
+  std::uint32_t sdo_timeout_ms = 100;    ///< per SDO frame
+  std::uint32_t boot_timeout_ms = 2000;  ///< reset communication -> boot-up
+  std::vector<AxisConfig> axes;
+
+  /// The axis with that node id / name, or nullptr.
+  const AxisConfig* findNode(std::uint8_t node) const;
+  const AxisConfig* findAxis(const std::string& name) const;
+};
+
+/// Parses YAML text; `source` names it in error messages. Throws ConfigError.
+CanConfig parseCanConfig(const std::string& yaml_text, const std::string& source = "<string>");
+/// Loads a YAML file. Throws ConfigError (also for a missing / unreadable file).
+CanConfig loadCanConfig(const std::string& path);
+/// Checks ranges and uniqueness (parseCanConfig calls it). Throws ConfigError.
+void validate(const CanConfig& config, const std::string& source = "<config>");
+
+}  // namespace massage_cell::can

@@ -1,0 +1,210 @@
+// CANopen master (layer 3; CiA 301 subset) for the configured nodes:
+//  - NMT: commands, bring-up (reset communication -> boot-up -> SDO
+//    configuration in pre-operational -> start -> operational heartbeat),
+//    boot-up detection (a node that reboots on its own is reconfigured);
+//  - SYNC producer (bus.sync_period_ms); before each SYNC the RPDO1 of every
+//    operational node (controlword 0x6040 + target position 0x607A) is sent,
+//    so synchronous drives apply it at that SYNC;
+//  - TPDO consumer: TPDO1 = statusword 0x6041 + position actual 0x6064,
+//    TPDO2 (velocity_pdo) = velocity actual 0x606C + mode display 0x6061;
+//  - heartbeat consumer per node (timeout -> event, node lost; heartbeat
+//    back -> event, node back or reconfigured);
+//  - EMCY consumer -> event with the error-code text;
+//  - SDO client per node (sdo_client.h);
+//  - bus state changes (error-passive, bus-off, recovery) -> events.
+// PDO mapping is written by SDO at start-up (0x1400/0x1600, 0x1800/0x1A00,
+// CiA 301 §7.5.2.35-38), with the PDO disabled while its mapping changes.
+//
+// Driving: poll() processes every received frame and all timers once and
+// never blocks, so tests run the master, the simulated drives and a
+// VirtualClock in one thread, deterministically. start() runs the same
+// poll in a background thread on a real clock (tools, nodes). All public
+// functions lock one recursive mutex; tick handlers and SDO callbacks run
+// under it (from poll), so they may call back into the master.
+#pragma once
+
+#include <condition_variable>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include "massage_cell/can/bus.h"
+#include "massage_cell/can/config.h"
+#include "massage_cell/can/sdo_client.h"
+
+namespace massage_cell::can {
+
+/// The master's view of one node.
+enum class NodeState {
+  kUnknown,      ///< not brought up yet
+  kResetting,    ///< reset communication sent, waiting for boot-up
+  kConfiguring,  ///< SDO configuration running (node pre-operational)
+  kStarting,     ///< NMT start sent, waiting for an operational heartbeat
+  kOperational,  ///< configured, NMT operational, heartbeat alive
+  kStopped,      ///< configured but its heartbeat reports stopped / pre-operational
+  kLost,         ///< heartbeat timed out
+  kFailed,       ///< bring-up failed (see the kConfigureFailed event)
+};
+const char* toString(NodeState state);
+
+enum class EventType {
+  kBootUp,            ///< a node sent its boot-up message
+  kNodeOperational,   ///< bring-up finished
+  kConfigureFailed,   ///< bring-up failed (text: why)
+  kHeartbeatTimeout,  ///< consumer heartbeat time expired
+  kHeartbeatResumed,  ///< heartbeat back after a timeout
+  kNmtStateChanged,   ///< heartbeat reports another NMT state
+  kEmcy,              ///< EMCY received (emcy_code, error_register, text)
+  kBusStateChanged,   ///< our endpoint's state changed (text: new state)
+  kMalformedFrame,    ///< a frame that did not decode (rate-limited: once per node per second)
+  kAxis,              ///< CiA 402 layer: axis state / fault / operation result
+};
+const char* toString(EventType type);
+
+/// Something the master (or an axis) wants to report.
+struct Event {
+  EventType type = EventType::kAxis;
+  std::uint8_t node = 0;  ///< 0: not node-specific
+  TimePoint stamp{};
+  std::string text;
+  std::uint16_t emcy_code = 0;
+  std::uint8_t error_register = 0;
+};
+
+/// Latest process data of one drive (from its TPDOs).
+struct DriveFeedback {
+  bool valid = false;  ///< a TPDO1 arrived since the node became operational
+  std::uint16_t statusword = 0;
+  std::int32_t position = 0;  ///< counts
+  bool has_velocity = false;
+  std::int32_t velocity = 0;  ///< counts/s
+  std::int8_t mode_display = 0;
+  TimePoint stamp{};
+  std::uint64_t count = 0;  ///< TPDO1s received
+  std::uint16_t emcy_code = 0;  ///< last EMCY error code of the node (0x0000: reset / none)
+  TimePoint emcy_stamp{};
+};
+
+struct MasterStats {
+  std::uint64_t syncs = 0, rpdos = 0, tpdos = 0, emcys = 0, heartbeats = 0, sdo_responses = 0;
+  std::uint64_t malformed = 0, ignored = 0, send_failures = 0;
+};
+
+/// One SDO write of the start-up configuration.
+struct StartupWrite {
+  std::uint16_t index;
+  std::uint8_t sub;
+  std::vector<std::uint8_t> data;
+};
+/// The CANopen part of a node's start-up configuration: 0x1017 heartbeat
+/// producer time, RPDO1 (0x6040 + 0x607A, synchronous), TPDO1 (0x6041 +
+/// 0x6064, every SYNC), TPDO2 (0x606C + 0x6061, every SYNC) or TPDO2 disabled.
+std::vector<StartupWrite> canopenStartupWrites(const AxisConfig& axis);
+/// TPDO mappings the master expects.
+PdoMapping tpdo1Mapping();
+PdoMapping tpdo2Mapping();
+PdoMapping rpdo1Mapping();
+
+class Master {
+ public:
+  using TickHandler = std::function<void(TimePoint now)>;
+  using EventCallback = std::function<void(const Event&)>;
+
+  /// The master of `config.axes` on `bus`; throws ConfigError for an invalid config.
+  Master(Bus& bus, const Clock& clock, CanConfig config);
+  ~Master();
+  Master(const Master&) = delete;
+  Master& operator=(const Master&) = delete;
+
+  /// The configuration the master runs (validated).
+  const CanConfig& config() const { return config_; }
+  /// The clock every timeout is measured on.
+  const Clock& clock() const { return clock_; }
+  /// The lock of all master state (layers above hold it across several calls).
+  std::recursive_mutex& mutex() const { return mutex_; }
+
+  // --- driving ---------------------------------------------------------------
+  /// Processes every frame waiting on the bus, then timers, tick handlers and
+  /// the SYNC producer; never blocks.
+  void poll();
+  /// Runs poll() in a background thread (real clocks only).
+  void start();
+  void stop();
+  bool threaded() const { return thread_.joinable(); }
+  /// Waits until `pred` (evaluated under the lock after each poll) holds;
+  /// polls by itself when no thread runs. False on timeout (real time).
+  bool waitUntil(const std::function<bool()>& pred, Duration timeout);
+
+  // --- NMT -------------------------------------------------------------------
+  /// Sends an NMT command (node 0 = all); false when the bus refused it.
+  bool sendNmt(NmtCommand command, std::uint8_t node);
+  /// Brings every configured node up (asynchronous; watch nodeState / events).
+  void bringUp();
+  void bringUp(std::uint8_t node);
+  NodeState nodeState(std::uint8_t node) const;
+  std::optional<NmtState> nmtState(std::uint8_t node) const;
+  bool allOperational() const;
+
+  // --- SDO -------------------------------------------------------------------
+  void sdoUpload(std::uint8_t node, std::uint16_t index, std::uint8_t sub, SdoClient::Callback done);
+  void sdoDownload(std::uint8_t node, std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
+                   SdoClient::Callback done);
+  /// Adds a write to the node's start-up configuration (after the CANopen part).
+  void addStartupWrite(std::uint8_t node, StartupWrite write);
+
+  // --- PDO -------------------------------------------------------------------
+  DriveFeedback feedback(std::uint8_t node) const;
+  /// RPDO1 content sent before every SYNC while the node is operational.
+  void setRpdo(std::uint8_t node, std::uint16_t controlword, std::int32_t target);
+  /// The controlword currently being sent.
+  std::uint16_t controlword(std::uint8_t node) const;
+
+  // --- events / hooks ----------------------------------------------------------
+  /// Events since the last call (oldest first).
+  std::vector<Event> takeEvents();
+  /// Also called for every event (under the lock).
+  void setEventCallback(EventCallback callback);
+  /// Records an event (layers above use kAxis).
+  void postEvent(Event event);
+  /// Runs at the end of every poll, before the SYNC producer (under the
+  /// lock); returns an id for removeTickHandler.
+  int addTickHandler(TickHandler handler);
+  void removeTickHandler(int id);
+  /// RPDO1 frames sent to the node so far (a controlword edge needs one in between).
+  std::uint64_t rpdosSent(std::uint8_t node) const;
+  MasterStats stats() const;
+
+ private:
+  struct Node;
+  Node& node(std::uint8_t id) const;
+  bool send(const can_frame& frame);
+  void process(const TimedFrame& frame);
+  void timers(TimePoint now);
+  void startConfiguration(Node& n);
+  void setState(Node& n, NodeState s);
+  void event(EventType type, std::uint8_t node, std::string text, std::uint16_t code = 0, std::uint8_t reg = 0);
+  void malformed(std::uint8_t node, const std::string& why);
+  std::string label(std::uint8_t node) const;
+  void threadMain();
+
+  Bus& bus_;
+  const Clock& clock_;
+  CanConfig config_;
+  mutable std::recursive_mutex mutex_;
+  std::condition_variable_any polled_;
+  std::map<std::uint8_t, std::unique_ptr<Node>> nodes_;
+  std::vector<Event> events_;
+  EventCallback event_callback_;
+  std::vector<std::pair<int, TickHandler>> tick_handlers_;
+  int last_tick_id_ = 0;
+  MasterStats stats_;
+  TimePoint next_sync_{};
+  BusState bus_state_ = BusState::kErrorActive;
+  TimePoint last_unknown_malformed_{};
+  std::thread thread_;
+  bool stop_ = false;
+};
+
+}  // namespace massage_cell::can
