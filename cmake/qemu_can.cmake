@@ -35,3 +35,50 @@ set_tests_properties(qemu_can_kernel_smoke PROPERTIES
   LABELS "qemu;can"
   PASS_REGULAR_EXPRESSION "\\[qemu_can/run\\] PASS: guest exit code 0"
   FAIL_REGULAR_EXPRESSION "qemu_can/run.sh: ERROR;CAN_KERNEL_SMOKE FAIL")
+
+# System test of the whole CAN motion stack on the guest's vcan0 (issue 6):
+# can_sim_drive (the three simulated CiA 402 drives of config/can_axes.yaml,
+# with its opt-in fault test hook on id 0x6C0) in the background, the CANopen
+# master can_kernel_system in the foreground: bring-up, enable, homing, moves,
+# an injected drive fault with fault reset, and the interface going down and
+# up again (vcan cannot go bus-off; the SocketCanBus recovers from both the
+# same way). See src/tools/can_kernel_system.cpp.
+# Static copies for the guest; massage_cell_can itself is an ordinary (PIC)
+# static library, which links into a static executable just as well. Debian's
+# libyaml-cpp-dev ships libyaml-cpp.a: link it explicitly (the yaml-cpp target
+# of the library's interface names the shared one).
+find_library(QEMU_CAN_YAML_CPP_STATIC NAMES libyaml-cpp.a)
+if(QEMU_CAN_YAML_CPP_STATIC)
+  set(_qemu_can_yaml ${QEMU_CAN_YAML_CPP_STATIC})
+else()
+  message(WARNING "libyaml-cpp.a not found (Debian: libyaml-cpp-dev): the static qemu_can_system programs will not link")
+  set(_qemu_can_yaml yaml-cpp)
+endif()
+add_executable(can_kernel_system ${PROJECT_SOURCE_DIR}/src/tools/can_kernel_system.cpp)
+add_executable(can_sim_drive_static ${PROJECT_SOURCE_DIR}/src/tools/can_sim_drive.cpp)
+foreach(t can_kernel_system can_sim_drive_static)
+  set_target_properties(${t} PROPERTIES POSITION_INDEPENDENT_CODE OFF)
+  target_include_directories(${t} PRIVATE $<TARGET_PROPERTY:massage_cell_can,INTERFACE_INCLUDE_DIRECTORIES>)
+  # The library's objects, then the static yaml-cpp and threads: not its
+  # PUBLIC yaml-cpp target (that would pull libyaml-cpp.so into -static).
+  target_link_libraries(${t} $<TARGET_FILE:massage_cell_can> ${_qemu_can_yaml} Threads::Threads)
+  add_dependencies(${t} massage_cell_can)
+  target_link_options(${t} PRIVATE -static)
+  if(TARGET tests)
+    add_dependencies(tests ${t})
+  endif()
+endforeach()
+
+add_test(NAME qemu_can_system
+  COMMAND ${PROJECT_SOURCE_DIR}/scripts/qemu_can/run.sh
+          --prepare --cache ${QEMU_CAN_CACHE} --timeout 150
+          --file ${PROJECT_SOURCE_DIR}/config/can_axes.yaml
+          --expect "^CAN_KERNEL_SYSTEM OK$"
+          -- $<TARGET_FILE:can_sim_drive_static> --interface vcan0 --config /data/can_axes.yaml --fault-frame-id 0x6C0
+          ::: $<TARGET_FILE:can_kernel_system> /data/can_axes.yaml --interface vcan0 --fault-frame-id 0x6C0)
+set_tests_properties(qemu_can_system PROPERTIES
+  TIMEOUT 170
+  PROCESSORS 2
+  LABELS "qemu;can"
+  PASS_REGULAR_EXPRESSION "\\[qemu_can/run\\] PASS: guest exit code 0"
+  FAIL_REGULAR_EXPRESSION "qemu_can/run.sh: ERROR;CAN_KERNEL_SYSTEM FAIL")

@@ -2,9 +2,16 @@
 // SocketCAN interface (one CAN_RAW socket and thread per drive) until
 // SIGINT / SIGTERM, so a master (or can_probe, candump) can be tried
 // against them on vcan0 without hardware.
+// Test hook (opt-in, off by default): --fault-frame-id ID makes it listen for
+// frames with that standard id, payload [node, code lo, code hi], and inject
+// a drive fault with that EMCY error code into that node's drive
+// (SimDrive::injectFault: EMCY, fault reaction -> fault). Used by
+// can_kernel_system (ctest qemu_can_system), whose master runs in another
+// process and cannot call injectFault directly.
 #include <algorithm>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <thread>
 
 #include "cli.h"
@@ -18,6 +25,7 @@ using namespace massage_cell::can;
 using namespace massage_cell::tools;
 
 const char* const kUsage = R"(Usage: can_sim_drive --interface IFACE --config FILE [--nodes LIST] [--status-s N]
+                     [--fault-frame-id ID]
 
 Runs the simulated CANopen CiA 402 drives configured in FILE (config/can_axes.yaml
 format: node ids, scale, sim.* settings) on the SocketCAN interface IFACE until
@@ -27,6 +35,11 @@ SYNC / PDOs and produces its heartbeat once 0x1017 is set.
   --config FILE       CAN axes YAML (required)
   --nodes LIST        only these node ids, e.g. 1,3 or 1-2 (default: all in FILE)
   --status-s N        print each drive's state every N seconds (default 0: never)
+  --fault-frame-id ID test hook, off by default: a frame with this standard id
+                      (e.g. 0x6C0, outside CiA 301's predefined COB-IDs) and
+                      payload [node, code lo, code hi] makes that node's drive
+                      fail with EMCY error code `code` (then fault; a fault
+                      reset clears it)
 Exit status: 0 after a signal, 1 on a configuration or interface error, 2 on bad options.
 )";
 
@@ -38,6 +51,7 @@ void onSignal(int) { g_stop = true; }
 int main(int argc, char** argv) {
   std::string interface, config_path, nodes_text;
   int status_s = 0;
+  canid_t fault_frame_id = 0;  // 0: no fault test hook
   return runTool(
       "can_sim_drive",
       [&] {
@@ -48,6 +62,13 @@ int main(int argc, char** argv) {
         t.values["--status-s"] = [&](const std::string& o, const std::string& v) {
           status_s = parseInt(o, v);
           require(status_s >= 0, o + ": must be >= 0");
+        };
+        t.values["--fault-frame-id"] = [&](const std::string& o, const std::string& v) {
+          char* end = nullptr;
+          const unsigned long id = std::strtoul(v.c_str(), &end, 0);
+          require(!v.empty() && *end == '\0' && id >= 1 && id <= CAN_SFF_MASK,
+                  o + ": expected a standard CAN id 0x001..0x7FF, got '" + v + "'");
+          fault_frame_id = static_cast<canid_t>(id);
         };
         if (!parseArguments(argc, argv, t, kUsage)) return false;
         require(!interface.empty(), "--interface is required (e.g. --interface vcan0)");
@@ -87,10 +108,35 @@ int main(int argc, char** argv) {
           std::printf("can_sim_drive: node %d (%s) on %s: booted\n", d->node(), d->config().name.c_str(),
                       interface.c_str());
         }
+        // The fault test hook: its own socket, receiving only its id.
+        std::unique_ptr<SocketCanBus> fault_bus;
+        if (fault_frame_id) {
+          SocketCanOptions o;
+          o.interface = interface;
+          o.filters = {can_filter{fault_frame_id, CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_SFF_MASK}};
+          fault_bus = std::make_unique<SocketCanBus>(o);
+          std::printf("can_sim_drive: fault test hook on id 0x%03X\n", static_cast<unsigned>(fault_frame_id));
+        }
         std::fflush(stdout);
         auto last = std::chrono::steady_clock::now();
         while (!g_stop) {
-          std::this_thread::sleep_for(std::chrono::milliseconds(50));
+          if (!fault_bus) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+          } else if (const auto f = fault_bus->receive(std::chrono::milliseconds(50))) {
+            const can_frame& fr = f->frame;
+            const auto it = std::find_if(drives.begin(), drives.end(),
+                                         [&](const auto& d) { return fr.len >= 3 && d->node() == fr.data[0]; });
+            if (it == drives.end()) {
+              std::printf("can_sim_drive: fault test frame %s ignored (expected [node, code lo, code hi] of one of "
+                          "this process's nodes)\n", formatFrame(fr).c_str());
+            } else {
+              const auto code = static_cast<std::uint16_t>(fr.data[1] | fr.data[2] << 8);
+              (*it)->injectFault(code);
+              std::printf("can_sim_drive: node %d: fault 0x%04X injected (test frame %s)\n", (*it)->node(), code,
+                          formatFrame(fr).c_str());
+            }
+            std::fflush(stdout);
+          }
           if (status_s > 0 && std::chrono::steady_clock::now() - last >= std::chrono::seconds(status_s)) {
             last = std::chrono::steady_clock::now();
             for (std::size_t i = 0; i < drives.size(); ++i) {

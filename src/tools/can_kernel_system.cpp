@@ -1,0 +1,388 @@
+// can_kernel_system: the CAN motion stack's system test on a real Linux
+// SocketCAN stack (issue 6). Runs inside the qemu guest of
+// scripts/qemu_can/run.sh (see cmake/qemu_can.cmake, ctest qemu_can_system)
+// as the CANopen master on vcan0, against can_sim_drive running the
+// simulated CiA 402 drives of the same config in another process:
+//
+//   can_sim_drive --interface vcan0 --config can_axes.yaml --fault-frame-id 0x6C0 &
+//   can_kernel_system can_axes.yaml [--interface vcan0] [--fault-frame-id 0x6C0]
+//
+// Steps (each prints its result):
+//   1. load the axes config; relax the timeouts for a software-emulated guest
+//      (SDO >= 300 ms, boot >= 5 s, heartbeat consumer >= 1 s, CiA 402
+//      transitions >= 2 s);
+//   2. bring every node up (reset communication, boot-up, SDO PDO mapping and
+//      drive parameters, NMT start, operational heartbeat); read the PDO
+//      mappings back by SDO (0x1600:00 = 2, 0x1A00:00 = 2);
+//   3. enable all CiA 402 axes; 4. home them; 5. move each to a target a few
+//      cm away and check the reported position;
+//   6. drive fault: a test frame (can_sim_drive --fault-frame-id) tells node
+//      2's simulated drive to fail with 0x2310; the master must get the EMCY
+//      and see the axis in fault while the others stay enabled; then fault
+//      reset (EMCY 0x0000 error reset), enable, move again;
+//   7. interface loss (vcan cannot go bus-off): `ip link set <if> down`, the
+//      SocketCanBus must report "down" and the heartbeats time out; `ip link
+//      set <if> up`: the bus must recover (reopened socket, recoveries + 1),
+//      the nodes' heartbeats resume (operational), all axes enabled, and a
+//      final move on every axis must reach its target.
+// Prints `CAN_KERNEL_SYSTEM OK` and exits 0, or `CAN_KERNEL_SYSTEM FAIL: <why>`
+// and exits 1.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "massage_cell/can/canopen.h"
+#include "massage_cell/can/cia402.h"
+#include "massage_cell/can/master.h"
+#include "massage_cell/can/socketcan_bus.h"
+
+namespace {
+
+using namespace massage_cell::can;
+using std::chrono::milliseconds;
+using std::chrono::seconds;
+
+struct Failure {
+  std::string why;
+};
+[[noreturn]] void fail(const std::string& why) { throw Failure{why}; }
+
+const auto g_start = std::chrono::steady_clock::now();
+double since() { return std::chrono::duration<double>(std::chrono::steady_clock::now() - g_start).count(); }
+
+void step(const std::string& text) {
+  std::printf("[%7.3f] STEP %s\n", since(), text.c_str());
+  std::fflush(stdout);
+}
+void ok(const std::string& text) {
+  std::printf("[%7.3f]   ok: %s\n", since(), text.c_str());
+  std::fflush(stdout);
+}
+
+std::string hex(unsigned v, int width = 4) {
+  char b[16];
+  std::snprintf(b, sizeof b, "0x%0*X", width, v);
+  return b;
+}
+
+class System {
+ public:
+  System(const std::string& interface, CanConfig config)
+      : bus_(makeOptions(interface)), master_(bus_, SteadyClock::instance(), std::move(config)) {
+    master_.setEventCallback([this](const Event& e) {  // called under the master's lock
+      events_.push_back(e);
+      std::printf("[%7.3f]   event %s node %d: %s\n", since(), toString(e.type), e.node, e.text.c_str());
+      std::fflush(stdout);
+    });
+    for (const AxisConfig& a : master_.config().axes) axes_.push_back(std::make_unique<Cia402Axis>(master_, a));
+  }
+  ~System() { master_.stop(); }
+
+  Master& master() { return master_; }
+  SocketCanBus& bus() { return bus_; }
+  std::vector<std::unique_ptr<Cia402Axis>>& axes() { return axes_; }
+  Cia402Axis& axis(std::uint8_t node) {
+    for (auto& a : axes_)
+      if (a->node() == node) return *a;
+    fail("no axis with node id " + std::to_string(node));
+  }
+
+  /// Index of the next event (for find()).
+  std::size_t mark() {
+    std::lock_guard<std::recursive_mutex> lock(master_.mutex());
+    return events_.size();
+  }
+  /// Waits for an event after `from` matching `pred`.
+  bool waitEvent(std::size_t from, const std::function<bool(const Event&)>& pred, milliseconds timeout) {
+    return master_.waitUntil(
+        [&] {
+          for (std::size_t i = from; i < events_.size(); ++i)
+            if (pred(events_[i])) return true;
+          return false;
+        },
+        timeout);
+  }
+
+  /// Waits until no axis operation runs; fails naming the axes that failed.
+  void waitAxes(const std::string& what, milliseconds timeout) {
+    const bool done = master_.waitUntil(
+        [&] {
+          for (auto& a : axes_)
+            if (a->busy()) return false;
+          return true;
+        },
+        timeout);
+    std::string errors;
+    for (auto& a : axes_) {
+      if (a->busy()) errors += " axis " + a->name() + ": still running after " + std::to_string(timeout.count()) + " ms;";
+      else if (a->status() == Cia402Axis::Status::kFailed) errors += " axis " + a->name() + ": " + a->error() + ";";
+    }
+    if (!done || !errors.empty()) fail(what + ":" + errors);
+  }
+
+  SdoResult sdoUpload(std::uint8_t node, std::uint16_t index, std::uint8_t sub) {
+    auto result = std::make_shared<std::optional<SdoResult>>();
+    master_.sdoUpload(node, index, sub, [result](const SdoResult& r) { *result = r; });
+    if (!master_.waitUntil([&] { return result->has_value(); }, seconds(5)))
+      fail("node " + std::to_string(node) + ": SDO upload " + hex(index) + " never completed");
+    return **result;
+  }
+
+ private:
+  static SocketCanOptions makeOptions(const std::string& interface) {
+    SocketCanOptions o;
+    o.interface = interface;
+    return o;
+  }
+
+  SocketCanBus bus_;
+  Master master_;
+  std::vector<std::unique_ptr<Cia402Axis>> axes_;
+  std::vector<Event> events_;  // guarded by master_.mutex()
+};
+
+std::string describe(Cia402Axis& a) {
+  char b[160];
+  std::snprintf(b, sizeof b, "%s (node %d): %s, statusword %s, position %.5f m%s", a.name().c_str(), a.node(),
+                toString(a.state()), hex(a.statusword()).c_str(), a.position(), a.homed() ? ", homed" : "");
+  return b;
+}
+
+void checkEnabled(System& s, const std::string& when) {
+  for (auto& a : s.axes()) {
+    if (a->state() != Cia402State::kOperationEnabled) fail(when + ": axis " + describe(*a) + " is not operation enabled");
+    ok(describe(*a));
+  }
+}
+
+void moveAll(System& s, const std::vector<std::pair<std::uint8_t, double>>& targets, const std::string& what) {
+  std::string text;
+  for (const auto& [node, target] : targets) {
+    Cia402Axis& a = s.axis(node);
+    a.moveTo(target);
+    char b[64];
+    std::snprintf(b, sizeof b, " %s->%.3f m", a.name().c_str(), target);
+    text += b;
+  }
+  step(what + ":" + text);
+  s.waitAxes(what, seconds(30));
+  for (const auto& [node, target] : targets) {
+    Cia402Axis& a = s.axis(node);
+    // Position as reported by the drive's TPDO1 (0.5 um resolution): within 0.1 mm.
+    const double err = std::fabs(a.position() - target);
+    if (err > 1e-4 || !(a.statusword() & sw::kTargetReached)) {
+      fail(what + ": axis " + describe(a) + " did not reach " + std::to_string(target) + " m (error " +
+           std::to_string(err * 1000) + " mm)");
+    }
+    ok(describe(a) + " reached its target");
+  }
+}
+
+void waitAllOperational(System& s, const std::string& what, milliseconds timeout) {
+  if (!s.master().waitUntil([&] { return s.master().allOperational(); }, timeout)) {
+    std::string states;
+    for (auto& a : s.axes()) states += " node " + std::to_string(a->node()) + " " + toString(s.master().nodeState(a->node())) + ";";
+    fail(what + ": not all nodes operational within " + std::to_string(timeout.count()) + " ms:" + states);
+  }
+}
+
+int run(const std::string& config_path, const std::string& interface, canid_t fault_id) {
+  // 1. config
+  step("load " + config_path);
+  CanConfig config = loadCanConfig(config_path);
+  if (config.axes.size() < 2) fail(config_path + ": the test needs at least two axes");
+  config.sdo_timeout_ms = std::max<std::uint32_t>(config.sdo_timeout_ms, 300);
+  config.boot_timeout_ms = std::max<std::uint32_t>(config.boot_timeout_ms, 5000);
+  for (AxisConfig& a : config.axes) {
+    a.heartbeat_timeout_ms = std::max<std::uint32_t>(a.heartbeatTimeoutMs(), 1000);
+    a.enable_timeout_ms = std::max<std::uint32_t>(a.enable_timeout_ms, 2000);
+  }
+  ok(std::to_string(config.axes.size()) + " axes; SDO timeout " + std::to_string(config.sdo_timeout_ms) +
+     " ms, boot timeout " + std::to_string(config.boot_timeout_ms) + " ms, heartbeat consumer >= 1000 ms, SYNC " +
+     std::to_string(config.sync_period_us / 1000) + " ms");
+
+  System s(interface, config);
+  s.master().start();
+
+  // 2. bring-up
+  step("bring up all nodes on " + interface + " (NMT reset communication, SDO PDO mapping, NMT start)");
+  s.master().bringUp();
+  waitAllOperational(s, "bring-up", seconds(20));
+  for (auto& a : s.axes()) {
+    const std::uint8_t n = a->node();
+    const SdoResult rpdo = s.sdoUpload(n, 0x1600, 0), tpdo = s.sdoUpload(n, 0x1A00, 0);
+    if (!rpdo.ok || !tpdo.ok) fail("node " + std::to_string(n) + ": reading the PDO mapping back failed: " + rpdo.error + tpdo.error);
+    if (rpdo.data.at(0) != 2 || tpdo.data.at(0) != 2) {
+      fail("node " + std::to_string(n) + ": PDO mapping has " + std::to_string(rpdo.data.at(0)) + " RPDO1 / " +
+           std::to_string(tpdo.data.at(0)) + " TPDO1 entries, expected 2 / 2");
+    }
+    ok("node " + std::to_string(n) + " (" + a->name() + ") operational; RPDO1 and TPDO1 mapping read back: 2 entries each");
+  }
+
+  // 3. enable
+  step("enable all CiA 402 axes");
+  for (auto& a : s.axes()) a->enable();
+  s.waitAxes("enable", seconds(15));
+  checkEnabled(s, "enable");
+
+  // 4. homing
+  step("home all axes");
+  for (auto& a : s.axes()) a->home();
+  s.waitAxes("homing", seconds(60));
+  for (auto& a : s.axes()) {
+    if (!a->homed() || std::fabs(a->position() - a->config().home_offset) > 1e-4)
+      fail("homing: axis " + describe(*a) + " is not homed at " + std::to_string(a->config().home_offset) + " m");
+    ok(describe(*a));
+  }
+
+  // 5. moves a few cm away from home, inside the limits.
+  auto targets = [&](double d) {
+    std::vector<std::pair<std::uint8_t, double>> t;
+    for (auto& a : s.axes()) {
+      const AxisConfig& c = a->config();
+      const double home = c.home_offset;
+      const double to = home + d <= c.max_position ? home + d : home - d;
+      t.emplace_back(a->node(), std::clamp(to, c.min_position, c.max_position));
+    }
+    return t;
+  };
+  moveAll(s, targets(0.04), "move");
+
+  // 6. drive fault on the second axis.
+  Cia402Axis& victim = *s.axes().at(1);
+  const std::uint8_t vn = victim.node();
+  const std::uint16_t code = 0x2310;  // continuous over-current
+  step("drive fault: tell node " + std::to_string(vn) + " (" + victim.name() + ") to fail with EMCY " + hex(code) +
+       " (test frame " + hex(fault_id, 3) + " to can_sim_drive)");
+  {
+    SocketCanOptions o;
+    o.interface = interface;
+    o.filters = {};  // send only
+    SocketCanBus trigger(o);
+    std::size_t m = s.mark();
+    if (!trigger.send(makeFrame(fault_id, {vn, static_cast<std::uint8_t>(code & 0xFF), static_cast<std::uint8_t>(code >> 8)})))
+      fail("sending the fault test frame failed: " + trigger.status().last_error);
+    if (!s.waitEvent(m, [&](const Event& e) { return e.type == EventType::kEmcy && e.node == vn && e.emcy_code == code; },
+                     seconds(5)))
+      fail("drive fault: no EMCY " + hex(code) + " from node " + std::to_string(vn) +
+           " within 5 s (is can_sim_drive running with --fault-frame-id " + hex(fault_id, 3) + "?)");
+    ok("EMCY " + hex(code) + " (" + emcyText(code) + ") from node " + std::to_string(vn));
+    if (!s.master().waitUntil([&] { return victim.state() == Cia402State::kFault; }, seconds(5)))
+      fail("drive fault: axis " + describe(victim) + " did not reach 'fault' within 5 s");
+    ok(describe(victim));
+    if (s.master().feedback(vn).emcy_code != code) fail("drive fault: feedback.emcy_code is not " + hex(code));
+    for (auto& a : s.axes()) {
+      if (a.get() == &victim) continue;
+      if (a->state() != Cia402State::kOperationEnabled) fail("drive fault: unrelated axis " + describe(*a) + " left operation enabled");
+    }
+    ok("the other axes stay operation enabled");
+
+    step("fault reset on " + victim.name() + ", enable again");
+    m = s.mark();
+    victim.faultReset();
+    s.waitAxes("fault reset", seconds(10));
+    if (!s.waitEvent(m, [&](const Event& e) { return e.type == EventType::kEmcy && e.node == vn && e.emcy_code == 0; },
+                     seconds(5)))
+      fail("fault reset: no EMCY 0x0000 (error reset) from node " + std::to_string(vn));
+    ok("EMCY 0x0000 (error reset); " + describe(victim));
+    victim.enable();
+    s.waitAxes("enable after fault reset", seconds(15));
+    checkEnabled(s, "after fault reset");
+  }
+  moveAll(s, {{vn, victim.config().home_offset + (victim.config().home_offset + 0.06 <= victim.config().max_position ? 0.06 : -0.06)}},
+          "move after fault recovery");
+
+  // 7. interface down / up: vcan cannot go bus-off, the SocketCanBus handles
+  // both the same way (close, reopen with back-off, recovered).
+  const BusStatus before = s.bus().status();
+  step("interface loss: ip link set " + interface + " down");
+  std::size_t m = s.mark();
+  if (std::system(("ip link set " + interface + " down").c_str()) != 0) fail("`ip link set " + interface + " down` failed");
+  if (!s.master().waitUntil([&] { return s.bus().status().state == BusState::kDown; }, seconds(5)))
+    fail("interface down: the SocketCanBus still reports " + std::string(toString(s.bus().status().state)));
+  ok("SocketCanBus state down: " + s.bus().status().last_error);
+  if (!s.waitEvent(m, [](const Event& e) { return e.type == EventType::kBusStateChanged; }, seconds(5)))
+    fail("interface down: no bus state event from the master");
+  if (!s.waitEvent(m, [](const Event& e) { return e.type == EventType::kHeartbeatTimeout; }, seconds(5)))
+    fail("interface down: no heartbeat timeout while the interface was down");
+  ok("master reported the bus state change and heartbeat timeouts");
+  step("ip link set " + interface + " up: wait for the reopen");
+  m = s.mark();
+  if (std::system(("ip link set " + interface + " up").c_str()) != 0) fail("`ip link set " + interface + " up` failed");
+  if (!s.master().waitUntil(
+          [&] {
+            const BusStatus st = s.bus().status();
+            return st.state == BusState::kErrorActive && st.recoveries > before.recoveries;
+          },
+          seconds(15)))
+    fail("interface up: the SocketCanBus did not recover within 15 s: " + s.bus().status().last_error);
+  ok("SocketCanBus back to error-active, recoveries " + std::to_string(before.recoveries) + " -> " +
+     std::to_string(s.bus().status().recoveries));
+  waitAllOperational(s, "after the interface came back", seconds(15));
+  if (!s.waitEvent(m, [](const Event& e) { return e.type == EventType::kHeartbeatResumed; }, seconds(1)))
+    fail("interface up: no heartbeat-resumed event");
+  if (!s.master().waitUntil(
+          [&] {
+            for (auto& a : s.axes())
+              if (!a->valid()) return false;
+            return true;
+          },
+          seconds(5)))
+    fail("interface up: no TPDO1 from every drive after recovery");
+  ok("all nodes operational again, heartbeats and TPDOs flowing");
+  for (auto& a : s.axes()) a->enable();  // a no-op for drives that stayed enabled
+  s.waitAxes("enable after interface recovery", seconds(15));
+  checkEnabled(s, "after interface recovery");
+  moveAll(s, targets(0.02), "move after interface recovery");
+
+  const MasterStats st = s.master().stats();
+  std::printf("master stats: syncs %llu rpdos %llu tpdos %llu emcys %llu heartbeats %llu sdo %llu send_failures %llu\n",
+              static_cast<unsigned long long>(st.syncs), static_cast<unsigned long long>(st.rpdos),
+              static_cast<unsigned long long>(st.tpdos), static_cast<unsigned long long>(st.emcys),
+              static_cast<unsigned long long>(st.heartbeats), static_cast<unsigned long long>(st.sdo_responses),
+              static_cast<unsigned long long>(st.send_failures));
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string config_path, interface = "vcan0";
+  canid_t fault_id = 0x6C0;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--interface" && i + 1 < argc) {
+      interface = argv[++i];
+    } else if (a == "--fault-frame-id" && i + 1 < argc) {
+      fault_id = static_cast<canid_t>(std::strtoul(argv[++i], nullptr, 0));
+    } else if (a == "-h" || a == "--help") {
+      std::printf("Usage: can_kernel_system CONFIG.yaml [--interface vcan0] [--fault-frame-id 0x6C0]\n");
+      return 0;
+    } else if (config_path.empty() && a.rfind("-", 0) != 0) {
+      config_path = a;
+    } else {
+      std::printf("CAN_KERNEL_SYSTEM FAIL: bad argument '%s'\n", a.c_str());
+      return 1;
+    }
+  }
+  if (config_path.empty()) {
+    std::printf("CAN_KERNEL_SYSTEM FAIL: no config file given\n");
+    return 1;
+  }
+  try {
+    run(config_path, interface, fault_id);
+  } catch (const Failure& f) {
+    std::printf("CAN_KERNEL_SYSTEM FAIL: %s\n", f.why.c_str());
+    return 1;
+  } catch (const std::exception& e) {
+    std::printf("CAN_KERNEL_SYSTEM FAIL: %s\n", e.what());
+    return 1;
+  }
+  std::printf("CAN_KERNEL_SYSTEM OK\n");
+  return 0;
+}
