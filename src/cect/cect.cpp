@@ -40,6 +40,7 @@
 #include <cstring>
 #include <map>
 #include <unordered_map>
+#include <utility>
 #include <stdexcept>
 #include <string>
 
@@ -965,20 +966,7 @@ LocalizedPoint CectFrame::localizeRectified(const cv::Point2f& q) const {
       }
     }
   }
-  Eigen::Matrix3d J;
-  out.position = geometry_.triangulate(q.x, q.y, d, &J);
-  if (!(out.position.z() > 0.0) || !out.position.allFinite()) {
-    out.reason = "point behind the camera";
-    return out;
-  }
-  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
-  S(0, 0) = S(1, 1) = params_.pixel_sigma * params_.pixel_sigma;
-  S(2, 2) = sigma * sigma;
-  out.covariance = J * S * J.transpose();
-  out.disparity = d;
-  out.disparity_sigma = sigma;
-  out.valid = true;
-  return out;
+  return triangulated(q, d, sigma, std::move(out));
 }
 
 LocalizedPoint CectFrame::extrapolate(const cv::Point2f& q, LocalizedPoint out) const {
@@ -1005,6 +993,13 @@ LocalizedPoint CectFrame::extrapolate(const cv::Point2f& q, LocalizedPoint out) 
     return out;
   }
   const double sigma = std::hypot(params_.pixel_sigma, rms) * (1.0 + nearest / step);
+  out.extrapolated = true;
+  return triangulated(q, d, sigma, std::move(out));
+}
+
+LocalizedPoint CectFrame::triangulated(const cv::Point2f& q, double d, double sigma, LocalizedPoint out) const {
+  // Covariance: pixel_sigma across the image, the disparity's sigma along
+  // it, through the triangulation's Jacobian.
   Eigen::Matrix3d J;
   out.position = geometry_.triangulate(q.x, q.y, d, &J);
   if (!(out.position.z() > 0.0) || !out.position.allFinite()) {
@@ -1017,7 +1012,6 @@ LocalizedPoint CectFrame::extrapolate(const cv::Point2f& q, LocalizedPoint out) 
   out.covariance = J * S * J.transpose();
   out.disparity = d;
   out.disparity_sigma = sigma;
-  out.extrapolated = true;
   out.valid = true;
   return out;
 }

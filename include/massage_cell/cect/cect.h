@@ -187,6 +187,8 @@ class CectFrame {
   double transfer(const cv::Point2f& q, double* spread, int* count) const;
   /// The fallback of localizeRectified outside the triangulation.
   LocalizedPoint extrapolate(const cv::Point2f& q, LocalizedPoint out) const;
+  /// `out` completed with the 3D point of rectified pixel q at disparity d and its covariance.
+  LocalizedPoint triangulated(const cv::Point2f& q, double d, double sigma, LocalizedPoint out) const;
 
   friend class CectFrameBuilder;
 };
