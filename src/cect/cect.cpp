@@ -319,7 +319,7 @@ class CectFrameBuilder {
       seeds(f_.params_.seed_step, std::max(2.0, 0.5 * f_.params_.seed_search));
       if (f_.params_.smooth_radius > 0) smoothSeeds(f_.params_.smooth_radius * f_.params_.seed_step);
       if (f_.params_.rim_profile) rimProfiles();
-      triangulate();
+      triangulate(f_.params_.max_triangle_edge * f_.params_.seed_step);
     }
     f_.timings_.interior_ms = msSince(t);
     if (f_.triangles_.empty()) return fail("no triangles over the foundational correspondences", t0);
@@ -468,13 +468,20 @@ class CectFrameBuilder {
     };
     std::vector<Sample> samples;
     samples.reserve(static_cast<std::size_t>(n));
+    std::vector<EdgeSample> edge;
     double last_y = -1e9;
     for (int i = 0; i < n; ++i) {
       const cv::Point2f& a = contour[static_cast<std::size_t>((i + n - 1) % n)];
       const cv::Point2f& b = contour[static_cast<std::size_t>((i + 1) % n)];
       const cv::Point2f tan = b - a;
       const double len = std::hypot(tan.x, tan.y);
-      if (len < 1e-6 || std::abs(tan.y) / len < min_sin) continue;
+      if (len < 1e-6) continue;
+      if (std::abs(tan.y) / len < min_sin) {
+        // Along the epipolar lines: left to edge registration (below).
+        edge.push_back({contour[static_cast<std::size_t>(i)],
+                        cv::Point2f(static_cast<float>(tan.y / len), static_cast<float>(-tan.x / len))});
+        continue;
+      }
       const cv::Point2f& c = contour[static_cast<std::size_t>(i)];
       (void)last_y;
       const double y = c.y;
@@ -552,11 +559,175 @@ class CectFrameBuilder {
       f_.vertices_.push_back(c);
       rim_normals_.push_back(s.normal);
     }
+    if (p.edge_window > 0 && !edge.empty()) registerEdges(edge);
+  }
+
+  struct EdgeSample {
+    cv::Point2f left;    ///< contour sample
+    cv::Point2f normal;  ///< inward unit normal
+  };
+
+  /// Row (sub-pixel) of the back's border in each column of a view, along
+  /// an edge that runs across the columns: tracked column by column from
+  /// (x0, y0) in direction `dir` (+-1) over `count` columns, each time the
+  /// score's zero crossing nearest the last row (within 3 px; 6 px at the
+  /// start) whose sign change matches the edge's side (`down_into_back`:
+  /// the back lies below the edge). NaN where the edge turns too steep.
+  static void trackEdge(const std::vector<std::vector<double>>& ys, const std::vector<std::vector<bool>>& rising,
+                        int x0, double y0, int dir, int count, bool down_into_back, std::vector<double>* out,
+                        int out_x0) {
+    double last = y0;
+    for (int k = 0; k < count; ++k) {
+      const int x = x0 + dir * k;
+      if (x < 0 || x >= static_cast<int>(ys.size())) break;
+      const double reach = k == 0 ? 6.0 : 3.0;
+      double best = std::numeric_limits<double>::quiet_NaN(), best_dist = reach;
+      for (std::size_t j = 0; j < ys[static_cast<std::size_t>(x)].size(); ++j) {
+        if (rising[static_cast<std::size_t>(x)][j] != down_into_back) continue;
+        const double dist = std::abs(ys[static_cast<std::size_t>(x)][j] - last);
+        if (dist <= best_dist) {
+          best_dist = dist;
+          best = ys[static_cast<std::size_t>(x)][j];
+        }
+      }
+      if (!std::isfinite(best)) break;
+      (*out)[static_cast<std::size_t>(x - out_x0)] = best;
+      last = best;
+    }
+  }
+
+  /// Step 2b: contour parts that run along the epipolar lines (the neck
+  /// base, a bottom edge) have no usable row crossings. Where an edge runs
+  /// parallel to the baseline both cameras see the same rim line (the
+  /// baseline lies in its tangent plane), so the edge's row as a function of
+  /// the column, y(x), is the same curve in both views shifted by the
+  /// disparity. Each such contour sample gets the shift that best aligns the
+  /// left curve with the right one over +-edge_window px, using only the
+  /// columns where the edge stays within min_crossing_angle of the rows
+  /// (where it turns steeper it is a flank's rim, a different line in each
+  /// view) (Gaussian weights;
+  /// quarter-pixel grid, then a parabola), within the disparities of the
+  /// row-crossing correspondences nearby (+-4 px), and is kept only where
+  /// the edge bends enough to fix it: the mean squared misalignment must
+  /// grow by edge_min_bend px^2 or more 2 px either side of the best shift,
+  /// and no other shift may come close (an ambiguous edge stays unmatched).
+  void registerEdges(const std::vector<EdgeSample>& edge) {
+    const CectParams& p = f_.params_;
+    const int W = static_cast<int>(std::lround(p.edge_window));
+    // Zero crossings of every column, per view (the transposed score's rows).
+    auto columns = [](const cv::Mat& score, std::vector<std::vector<double>>* ys,
+                      std::vector<std::vector<bool>>* rising) {
+      const cv::Mat t = score.t();
+      ys->resize(static_cast<std::size_t>(t.rows));
+      rising->resize(static_cast<std::size_t>(t.rows));
+      for (int x = 0; x < t.rows; ++x)
+        (*ys)[static_cast<std::size_t>(x)] = rowCrossings(t, x, &(*rising)[static_cast<std::size_t>(x)]);
+    };
+    std::vector<std::vector<double>> lys, rys;
+    std::vector<std::vector<bool>> lrise, rrise;
+    columns(f_.left_seg_.score, &lys, &lrise);
+    columns(f_.right_seg_.score, &rys, &rrise);
+    const std::size_t n_crossing = f_.vertices_.size();
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const double sw2 = 2.0 * (0.5 * W) * (0.5 * W);
+    for (std::size_t e = 0; e < edge.size(); e += 2) {  // every other sample, as the rim profile
+      const EdgeSample& es = edge[e];
+      const bool down = es.normal.y > 0.0f;
+      const int xi = cvRound(es.left.x);
+      // Disparity range from the row-crossing correspondences nearby.
+      double d_lo = std::numeric_limits<double>::infinity(), d_hi = -d_lo;
+      for (std::size_t v = 0; v < n_crossing; ++v) {
+        const cv::Point2f q = f_.vertices_[v].left - es.left;
+        if (q.x * q.x + q.y * q.y > 9.0 * W * W) continue;
+        d_lo = std::min(d_lo, static_cast<double>(f_.vertices_[v].disparity));
+        d_hi = std::max(d_hi, static_cast<double>(f_.vertices_[v].disparity));
+      }
+      if (!std::isfinite(d_lo)) continue;  // no prior nearby: too risky on a flat edge
+      d_lo = std::max(p.min_disparity, d_lo - 4.0);
+      d_hi = std::min(maxDisparity(), d_hi + 4.0);
+      // The left curve over [xi - W, xi + W], the right one over the
+      // columns those can shift to.
+      std::vector<double> yl(static_cast<std::size_t>(2 * W + 1), nan);
+      trackEdge(lys, lrise, xi, es.left.y, +1, W + 1, down, &yl, xi - W);
+      trackEdge(lys, lrise, xi, es.left.y, -1, W + 1, down, &yl, xi - W);
+      // Only the parts of the edge that run along the rows: where it turns
+      // steeper it becomes a flank's rim, a different line in each view.
+      const double max_slope = std::tan(p.min_crossing_angle * M_PI / 180.0);
+      {
+        std::vector<double> along(yl.size(), nan);
+        for (std::size_t k = 1; k + 1 < yl.size(); ++k)
+          if (std::abs(0.5 * (yl[k + 1] - yl[k - 1])) <= max_slope) along[k] = yl[k];  // NaN compares false
+        yl.swap(along);
+      }
+      const int rx0 = static_cast<int>(std::floor(xi - W - d_hi)) - 1;
+      const int rx1 = static_cast<int>(std::ceil(xi + W - d_lo)) + 1;
+      std::vector<double> yr(static_cast<std::size_t>(rx1 - rx0 + 1), nan);
+      const int rstart = cvRound(xi - 0.5 * (d_lo + d_hi));
+      trackEdge(rys, rrise, rstart, es.left.y, +1, rx1 - rstart + 1, down, &yr, rx0);
+      trackEdge(rys, rrise, rstart, es.left.y, -1, rstart - rx0 + 1, down, &yr, rx0);
+      auto rightAt = [&](double x) {
+        const double u = x - rx0;
+        const int k = static_cast<int>(std::floor(u));
+        if (k < 0 || k + 1 >= static_cast<int>(yr.size())) return nan;
+        const double f = u - k;
+        return (1.0 - f) * yr[static_cast<std::size_t>(k)] + f * yr[static_cast<std::size_t>(k + 1)];
+      };
+      double w_all = 0.0;
+      for (int k = -W; k <= W; ++k) w_all += std::exp(-k * k / sw2);
+      auto cost = [&](double d) {
+        double c = 0.0, ws = 0.0;
+        for (int k = -W; k <= W; ++k) {
+          const double a = yl[static_cast<std::size_t>(k + W)];
+          if (!std::isfinite(a)) continue;
+          const double b = rightAt(xi + k - d);
+          if (!std::isfinite(b)) continue;
+          const double w = std::exp(-k * k / sw2);
+          c += w * (a - b) * (a - b);
+          ws += w;
+        }
+        return ws >= 0.6 * w_all ? c / ws : nan;
+      };
+      const double step = 0.25;
+      std::vector<double> ds, cs;
+      for (double d = d_lo; d <= d_hi + 1e-9; d += step) {
+        ds.push_back(d);
+        cs.push_back(cost(d));
+      }
+      int best = -1;
+      for (std::size_t k = 0; k < cs.size(); ++k)
+        if (std::isfinite(cs[k]) && (best < 0 || cs[k] < cs[static_cast<std::size_t>(best)])) best = static_cast<int>(k);
+      if (best <= 0 || best + 1 >= static_cast<int>(cs.size())) continue;
+      const double a = cs[static_cast<std::size_t>(best - 1)], b = cs[static_cast<std::size_t>(best)],
+                   c = cs[static_cast<std::size_t>(best + 1)];
+      if (!std::isfinite(a) || !std::isfinite(c)) continue;
+      const double denom = a - 2.0 * b + c;
+      const double d = ds[static_cast<std::size_t>(best)] +
+                       (denom > 0 ? std::clamp(0.5 * (a - c) / denom, -0.5, 0.5) * step : 0.0);
+      const double c0 = cost(d), cm = cost(d - 2.0), cp = cost(d + 2.0);
+      if (!std::isfinite(c0) || !std::isfinite(cm) || !std::isfinite(cp)) continue;
+      const double bend = std::min(cm, cp) - c0;
+      if (c0 > 1.0 || bend < p.edge_min_bend) continue;
+      // Unique: every shift more than 2 px away is clearly worse.
+      bool unique = true;
+      for (std::size_t k = 0; k < cs.size() && unique; ++k)
+        if (std::abs(ds[k] - d) > 2.0 && std::isfinite(cs[k]) && cs[k] < c0 + 0.5 * bend) unique = false;
+      if (!unique) continue;
+      const double y = yl[static_cast<std::size_t>(W)];
+      if (!std::isfinite(y)) continue;
+      Correspondence v;
+      v.left = cv::Point2f(static_cast<float>(xi), static_cast<float>(y));
+      v.disparity = static_cast<float>(d);
+      // Weaker bends fix the shift less well.
+      v.sigma = static_cast<float>(p.pixel_sigma * std::sqrt(2.0) * std::max(1.0, 1.0 / std::sqrt(bend)));
+      v.source = Correspondence::Source::kEdge;
+      f_.vertices_.push_back(v);
+      rim_normals_.push_back(es.normal);
+    }
   }
 
   /// Delaunay triangulation of the vertices, the triangle index map and the
   /// triangles around each vertex.
-  void triangulate() {
+  void triangulate(double max_edge = 0.0) {
     auto& V = f_.vertices_;
     f_.triangles_.clear();
     const cv::Rect rect(-1, -1, f_.left_rect_.cols + 2, f_.left_rect_.rows + 2);
@@ -601,6 +772,11 @@ class CectFrameBuilder {
         }
       }
       const double area = std::abs((pb.x - pa.x) * (pc.y - pa.y) - (pc.x - pa.x) * (pb.y - pa.y)) * 0.5;
+      // Long edges bridge a gap in the correspondences (an unmatched edge
+      // along the rows, a patch without seeds): a plane over it is a poor
+      // guess; such pixels are better extrapolated from the seeds.
+      if (max_edge > 0.0 && std::max({cv::norm(pa - pb), cv::norm(pb - pc), cv::norm(pa - pc)}) > max_edge)
+        inside = false;
       if (inside && area > 0.5) f_.triangles_.emplace_back(a, b, c);
     }
     f_.vertex_triangles_.assign(V.size(), {});
@@ -642,7 +818,7 @@ class CectFrameBuilder {
     const std::size_t n_rim = std::min(rim_normals_.size(), V.size());
     for (std::size_t i = 0; i < n_rim; i += 2) {
       const Correspondence& rim = V[i];
-      if (rim.source != Correspondence::Source::kContour) continue;
+      if (!rim.foundational()) continue;
       const cv::Point2f n = rim_normals_[i];
       const cv::Point2f t(-n.y, n.x);
       Eigen::Matrix4d A = Eigen::Matrix4d::Zero();

@@ -109,6 +109,8 @@ cect::CectParams cectParams(const CECTConfig& c) {
   p.min_disparity = c.min_disparity;
   p.max_disparity = c.max_disparity;
   p.min_crossing_angle = c.min_crossing_angle;
+  p.edge_window = c.edge_window;
+  p.edge_min_bend = c.edge_min_bend;
   p.seed_step = c.seed_step;
   p.ncc_radius = c.ncc_radius;
   p.bandpass_low = c.bandpass_low;
@@ -117,6 +119,7 @@ cect::CectParams cectParams(const CECTConfig& c) {
   p.smooth_radius = c.smooth_radius;
   p.rim_profile = c.rim_profile;
   p.max_extrapolation = c.max_extrapolation;
+  p.max_triangle_edge = c.max_triangle_edge;
   p.seed_search = c.seed_search;
   p.query_search = c.query_search;
   p.min_ncc = c.min_ncc;

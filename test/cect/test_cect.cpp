@@ -352,6 +352,8 @@ TEST(Cect, RimProfileFollowsTheFlankBetweenContourAndSeeds) {
   const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
   cect::CectParams with, without;
   without.rim_profile = false;
+  // Every triangle kept, so that the band is interpolated either way.
+  with.max_triangle_edge = without.max_triangle_edge = 0.0;
   const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, with);
   const cect::CectFrame f0 = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, without);
   ASSERT_TRUE(f.valid() && f0.valid());
@@ -421,6 +423,77 @@ TEST(Cect, PixelsAtTheNeckBaseAreExtrapolatedWithAWiderSigma) {
   EXPECT_EQ(refused, extrapolated);
   std::cout << "neck base: " << extrapolated << " extrapolated, median |error| " << medianOf(err) << " px\n";
   EXPECT_LT(medianOf(err), 1.0);
+}
+
+TEST(Cect, EdgesAlongTheRowsAreMatchedByTheirShape) {
+  // The neck base runs along the rows: no row crossings. Its shape y(x),
+  // where it bends, fixes its shift between the views.
+  const Rendered r = renderBack(true);
+  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  cect::CectParams on, off;
+  off.edge_window = 0.0;
+  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, on);
+  const cect::CectFrame f0 = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, off);
+  ASSERT_TRUE(f.valid() && f0.valid());
+  auto isEdge = [](const cect::Correspondence& v) { return v.source == cect::Correspondence::Source::kEdge; };
+  EXPECT_EQ(std::count_if(f0.vertices().begin(), f0.vertices().end(), isEdge), 0);
+  const cv::Rect box = cv::boundingRect(f.left().mask);
+  int n = 0;
+  for (const auto& v : f.vertices()) {
+    if (!isEdge(v)) continue;
+    ++n;
+    EXPECT_TRUE(v.foundational());
+    // On the top edge, within 20 deg of the rows, and matched to the rim's
+    // own disparity (the truth one pixel inside, where the rim falls away
+    // steeply, is a little nearer).
+    EXPECT_LT(v.left.y, box.y + 0.2 * box.height);
+    const int x = cvRound(v.left.x), y = cvRound(v.left.y) + 1;
+    const float truth = r.frame.left_disparity.at<float>(y, x);
+    ASSERT_TRUE(std::isfinite(truth)) << v.left;
+    EXPECT_LT(std::abs(v.disparity - truth), 1.0) << v.left;
+  }
+  EXPECT_GE(n, 2);
+  std::cout << n << " edge correspondences on the neck base\n";
+}
+
+TEST(Cect, LongTrianglesAreDroppedAndTheirPixelsExtrapolated) {
+  // Triangles bridging the unmatched neck base span several seed steps;
+  // the final triangulation drops them and extrapolates their pixels.
+  const Rendered r = renderBack(true);
+  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  cect::CectParams on, off;
+  off.max_triangle_edge = 0.0;
+  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, on);
+  const cect::CectFrame f0 = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, off);
+  ASSERT_TRUE(f.valid() && f0.valid());
+  auto longest = [](const cect::CectFrame& fr) {
+    double m = 0.0;
+    for (const auto& t : fr.triangles())
+      for (int k = 0; k < 3; ++k)
+        m = std::max(m, static_cast<double>(cv::norm(fr.vertices()[static_cast<std::size_t>(t[k])].left -
+                                                     fr.vertices()[static_cast<std::size_t>(t[(k + 1) % 3])].left)));
+    return m;
+  };
+  const double limit = on.max_triangle_edge * on.seed_step;
+  EXPECT_LE(longest(f), limit);
+  EXPECT_GT(longest(f0), limit);
+  // The pixels the dropped triangles covered: now extrapolated, and better.
+  std::vector<double> e, e0;
+  for (int y = 0; y < f.left().mask.rows; y += 2)
+    for (int x = 0; x < f.left().mask.cols; x += 2) {
+      const float truth = r.frame.left_disparity.at<float>(y, x);
+      if (!std::isfinite(truth) || r.frame.left.labels.at<std::uint8_t>(y, x) != sim::kLabelBack) continue;
+      const cv::Point2f q(static_cast<float>(x), static_cast<float>(y));
+      const cect::LocalizedPoint p = f.localizeRectified(q), p0 = f0.localizeRectified(q);
+      if (!p.valid || !p.extrapolated || !p0.valid || p0.extrapolated) continue;
+      e.push_back(std::abs(p.disparity - truth));
+      e0.push_back(std::abs(p0.disparity - truth));
+    }
+  std::cout << "longest edge " << longest(f) << " / " << longest(f0) << " px; " << e.size()
+            << " pixels of dropped triangles: median |error| " << medianOf(e) << " px extrapolated, " << medianOf(e0)
+            << " px in the long triangles\n";
+  ASSERT_GT(e.size(), 20u);
+  EXPECT_LT(medianOf(e), 0.8 * medianOf(e0));
 }
 
 TEST(Cect, RenderedBackRawPair) {

@@ -41,6 +41,19 @@ struct CectParams {
   /// line (degrees) is ill-conditioned (its position along the row is
   /// uncertain) and not used.
   double min_crossing_angle = 20.0;
+  /// Contour parts within min_crossing_angle of the epipolar lines (the
+  /// neck base) are matched by aligning the edge's shape y(x) between the
+  /// views over +-edge_window px (0: not matched; they stay without
+  /// foundational correspondences).
+  double edge_window = 32.0;
+  /// An edge sample is matched only where shifting the alignment 2 px either
+  /// way raises the mean squared misalignment by this much (px^2): a
+  /// straight edge along the rows cannot fix its shift.
+  double edge_min_bend = 0.25;
+  /// The final triangulation drops triangles with an edge longer than this
+  /// many seed steps (0: keep all): they bridge gaps in the correspondences,
+  /// and the pixels under them are extrapolated from the seeds instead.
+  double max_triangle_edge = 2.0;
   int seed_step = 16;           ///< interior seeds every N pixels (0: contour only, the plain thesis method)
   int ncc_radius = 11;          ///< matching window half-width r for the refinement along the epipolar line
   /// Window half-height (0: = ncc_radius). Taller than wide suits the back:
@@ -94,9 +107,10 @@ struct Correspondence {
     kContour,     ///< foundational: a contour sample and its epipolar line's crossing
     kSeed,        ///< interior seed matched along its epipolar line (smoothed)
     kRimProfile,  ///< between the contour and the first seeds, from the rim profile
+    kEdge,        ///< foundational: a contour sample on an edge along the rows, matched by the edge's shape
   };
   Source source = Source::kContour;
-  bool foundational() const { return source == Source::kContour; }
+  bool foundational() const { return source == Source::kContour || source == Source::kEdge; }
 };
 
 struct LocalizedPoint {
