@@ -148,6 +148,8 @@ AxisConfig parseAxis(const YAML::Node& node, const std::string& path, const std:
   f.read("following_error_window", a.following_error_window, false, 1e-12, kBig);
   f.read("enable_timeout_ms", a.enable_timeout_ms, false, 1, 600000);
   f.read("move_timeout_ms", a.move_timeout_ms, false, 1, 3600000);
+  f.read("master_heartbeat_timeout_ms", a.master_heartbeat_timeout_ms, false, 0, 65535);
+  f.read("abort_connection_option", a.abort_connection_option, false, 0, 3);
   if (f.has("homing")) {
     Fields h(f.get("homing"), f.where("homing"), source);
     h.read("method", a.homing_method, false, -128, 127);
@@ -176,6 +178,9 @@ void validate(const CanConfig& c, const std::string& source) {
   auto fail = [&](const std::string& where, const std::string& what) { throw ConfigError(source + ": " + where + ": " + what); };
   if (c.axes.empty()) fail("axes", "no axes configured");
   if (c.sync_period_us < 1000) fail("bus.sync_period_ms", "must be at least 1 ms");
+  if (!validNodeId(c.master_node_id)) {
+    fail("bus.master_node_id", std::to_string(c.master_node_id) + " is outside 1..127");
+  }
   std::map<int, std::string> ids;
   std::set<std::string> names;
   for (std::size_t i = 0; i < c.axes.size(); ++i) {
@@ -191,6 +196,24 @@ void validate(const CanConfig& c, const std::string& source) {
     if (!(a.counts_per_metre > 0)) fail(p + ".counts_per_metre", "must be > 0");
     if (a.min_position >= a.max_position) fail(p + ".max_position", "must be greater than min_position");
     if (a.heartbeatTimeoutMs() <= a.heartbeat_ms) fail(p + ".heartbeat_timeout_ms", "must be longer than heartbeat_ms");
+    if (a.node_id == c.master_node_id) {
+      fail(p + ".node_id", "node id " + std::to_string(a.node_id) + " is the master's own (bus.master_node_id); "
+                           "give the master or the axis another id");
+    }
+    if (a.master_heartbeat_timeout_ms > 0) {
+      if (c.master_heartbeat_ms == 0) {
+        fail(p + ".master_heartbeat_timeout_ms", "the drive would monitor the master's heartbeat, but "
+                                                  "bus.master_heartbeat_ms is 0 (the master sends none)");
+      }
+      if (a.master_heartbeat_timeout_ms <= c.master_heartbeat_ms) {
+        fail(p + ".master_heartbeat_timeout_ms", std::to_string(a.master_heartbeat_timeout_ms) +
+                                                      " ms must be longer than bus.master_heartbeat_ms (" +
+                                                      std::to_string(c.master_heartbeat_ms) + " ms)");
+      }
+    }
+    if (a.abort_connection_option < 0 || a.abort_connection_option > 3) {
+      fail(p + ".abort_connection_option", std::to_string(a.abort_connection_option) + " is outside 0..3");
+    }
     const double max_counts = static_cast<double>(std::numeric_limits<std::int32_t>::max());
     if (std::abs(a.min_position) * a.counts_per_metre > max_counts || std::abs(a.max_position) * a.counts_per_metre > max_counts) {
       fail(p + ".counts_per_metre", "position limits do not fit in 32-bit counts at this scale");
@@ -215,6 +238,8 @@ CanConfig parseCanConfig(const std::string& text, const std::string& source) {
     c.sync_period_us = static_cast<std::uint32_t>(std::lround(sync_ms * 1000.0));
     b.read("sdo_timeout_ms", c.sdo_timeout_ms, false, 1, 600000);
     b.read("boot_timeout_ms", c.boot_timeout_ms, false, 1, 600000);
+    b.read("master_node_id", c.master_node_id, false, 1, 127);
+    b.read("master_heartbeat_ms", c.master_heartbeat_ms, false, 0, 65535);
     b.rejectUnknown();
   }
   if (!top.has("axes")) top.fail("axes", "missing field (required)");

@@ -57,9 +57,18 @@ PdoMapping tpdo1Mapping() { return {{0x6041, 0, 16}, {0x6064, 0, 32}}; }
 PdoMapping tpdo2Mapping() { return {{0x606C, 0, 32}, {0x6061, 0, 8}}; }
 
 std::vector<StartupWrite> canopenStartupWrites(const AxisConfig& a) {
+  return canopenStartupWrites(a, CanConfig{}.master_node_id);
+}
+
+std::vector<StartupWrite> canopenStartupWrites(const AxisConfig& a, std::uint8_t master_node_id) {
   const std::uint32_t id = a.node_id;
   std::vector<StartupWrite> w;
   w.push_back({0x1017, 0, u16(a.heartbeat_ms)});
+  if (a.master_heartbeat_timeout_ms > 0) {
+    // Consumer of the master's heartbeat (bits 16..23 node id, 0..15 time in ms), and what the drive does on its loss.
+    w.push_back({0x1016, 1, u32(static_cast<std::uint32_t>(master_node_id) << 16 | (a.master_heartbeat_timeout_ms & 0xFFFF))});
+    w.push_back({0x6007, 0, u16(static_cast<std::uint16_t>(a.abort_connection_option))});
+  }
   auto map = [&](std::uint16_t comm, std::uint16_t mapping, std::uint32_t cob, const PdoMapping& entries) {
     w.push_back({comm, 1, u32(kPdoInvalid | cob)});  // disable while the mapping changes
     w.push_back({mapping, 0, u8(0)});
@@ -100,6 +109,8 @@ struct Master::Node {
   TimePoint last_malformed_event{};
   std::uint64_t rpdos_sent = 0;
   TimePoint reset_sent{};
+  std::uint64_t outage_mark = 0;    // stats_.bus_outages when the current bring-up attempt began
+  bool restart_on_recovery = false; // its bring-up failed during an outage: restart when the bus is back
 };
 
 Master::Master(Bus& bus, const Clock& clock, CanConfig config) : bus_(bus), clock_(clock), config_(std::move(config)) {
@@ -109,7 +120,10 @@ Master::Master(Bus& bus, const Clock& clock, CanConfig config) : bus_(bus), cloc
         a, [this](const can_frame& f) { return send(f); }, clock_, std::chrono::milliseconds(config_.sdo_timeout_ms));
   }
   next_sync_ = clock_.now();
-  bus_state_ = bus_.status().state;
+  const BusStatus st = bus_.status();
+  bus_state_ = st.state;
+  seen_bus_offs_ = st.bus_off_events;
+  seen_recoveries_ = st.recoveries;
 }
 
 Master::~Master() { stop(); }
@@ -218,6 +232,9 @@ void Master::bringUp() {
 void Master::bringUp(std::uint8_t id) {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   Node& n = node(id);
+  own_nmt_ = NmtState::kOperational;  // the master has started the network
+  n.outage_mark = stats_.bus_outages;
+  n.restart_on_recovery = false;
   ++n.generation;
   n.sdo.cancelAll("bring-up restarted");
   n.nmt.reset();
@@ -230,9 +247,11 @@ void Master::bringUp(std::uint8_t id) {
 void Master::startConfiguration(Node& n) {
   ++n.generation;
   const unsigned gen = n.generation;
+  n.outage_mark = stats_.bus_outages;
+  n.restart_on_recovery = false;
   n.sdo.cancelAll("node rebooted");
   setState(n, NodeState::kConfiguring);
-  std::vector<StartupWrite> writes = canopenStartupWrites(n.cfg);
+  std::vector<StartupWrite> writes = canopenStartupWrites(n.cfg, config_.master_node_id);
   writes.insert(writes.end(), n.extra_writes.begin(), n.extra_writes.end());
   n.pending_writes = writes.size();
   const std::uint8_t id = n.id;
@@ -243,8 +262,7 @@ void Master::startConfiguration(Node& n) {
       if (!r.ok) {
         ++nn.generation;  // the remaining writes are moot
         nn.sdo.cancelAll("configuration failed");
-        setState(nn, NodeState::kFailed);
-        event(EventType::kConfigureFailed, id, label(id) + ": configuration failed: " + r.error);
+        bringUpFailed(nn, label(id) + ": configuration failed: " + r.error);
         return;
       }
       if (--nn.pending_writes == 0) {
@@ -264,6 +282,68 @@ NodeState Master::nodeState(std::uint8_t id) const {
 std::optional<NmtState> Master::nmtState(std::uint8_t id) const {
   std::lock_guard<std::recursive_mutex> lock(mutex_);
   return node(id).nmt;
+}
+
+NmtState Master::ownNmtState() const {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  return own_nmt_;
+}
+
+void Master::bringUpFailed(Node& n, const std::string& why) {
+  setState(n, NodeState::kFailed);
+  if (n.outage_mark == stats_.bus_outages && busUsable()) {
+    event(EventType::kConfigureFailed, n.id, why);  // a real failure: the bus was fine all along
+    return;
+  }
+  if (busUsable()) {
+    event(EventType::kConfigureFailed, n.id,
+          why + " (the bus was bus-off or down during this bring-up: bring-up restarted)");
+    ++stats_.bringup_restarts;
+    bringUp(n.id);
+  } else {
+    event(EventType::kConfigureFailed, n.id,
+          why + " (the bus is " + toString(bus_state_) + ": bring-up restarts when it recovers)");
+    n.restart_on_recovery = true;
+  }
+}
+
+void Master::busRecovered() {
+  for (auto& [id, n] : nodes_) {
+    if (!n->restart_on_recovery) continue;
+    n->restart_on_recovery = false;
+    event(EventType::kBusStateChanged, id, label(id) + ": bus recovered: bring-up restarted");
+    ++stats_.bringup_restarts;
+    bringUp(id);
+  }
+}
+
+void Master::checkBus() {
+  const BusStatus st = bus_.status();
+  const std::uint64_t offs = st.bus_off_events - seen_bus_offs_, recs = st.recoveries - seen_recoveries_;
+  seen_bus_offs_ = st.bus_off_events;
+  seen_recoveries_ = st.recoveries;
+  const BusState old = bus_state_, cur = st.state;
+  if (cur == old && recs == 0) return;
+  auto usable = [](BusState s) { return s != BusState::kBusOff && s != BusState::kDown; };
+  // Outages that began and ended since the last check (the bus recovered more
+  // often than the outage we knew of, if any, can explain), and whether a new
+  // one is going on now.
+  const std::uint64_t hidden = recs - (usable(old) || recs == 0 ? 0 : 1);
+  const bool started = !usable(cur) && (usable(old) || recs > 0);
+  stats_.bus_outages += hidden + (started ? 1 : 0);
+  bus_state_ = cur;
+  std::string text = bus_.name() + ": " + toString(old) + " -> ";
+  if (hidden > 0) {
+    text += std::string(offs ? "bus-off" : "down") + " -> " + toString(cur) +
+            (usable(cur) ? " (recovered" : " (recovered and lost again") + " between two polls; " +
+            std::to_string(hidden) + (hidden == 1 ? " outage)" : " outages)");
+  } else {
+    text += toString(cur);
+    if (usable(cur) && !usable(old)) text += " (recovered)";
+  }
+  if (!usable(cur) && !st.last_error.empty()) text += ": " + st.last_error;
+  event(EventType::kBusStateChanged, 0, text);
+  if (usable(cur) && (!usable(old) || hidden > 0)) busRecovered();
 }
 
 bool Master::allOperational() const {
@@ -430,32 +510,21 @@ void Master::process(const TimedFrame& tf) {
 // --- timers ------------------------------------------------------------------------
 
 void Master::timers(TimePoint now) {
-  const BusState bs = bus_.status().state;
-  if (bs != bus_state_) {
-    const BusState old = bus_state_;
-    bus_state_ = bs;
-    event(EventType::kBusStateChanged, 0,
-          bus_.name() + ": " + toString(old) + " -> " + toString(bs) +
-              (bs == BusState::kErrorActive ? " (recovered)" : ""));
-  }
+  checkBus();
   for (auto& [id, np] : nodes_) {
     Node& n = *np;
     n.sdo.poll();
     switch (n.state) {
       case NodeState::kResetting:
         if (now >= n.deadline) {
-          setState(n, NodeState::kFailed);
-          event(EventType::kConfigureFailed, id,
-                label(id) + ": no boot-up within " + std::to_string(config_.boot_timeout_ms) +
-                    " ms after reset communication (node absent, wrong node id or bitrate?)");
+          bringUpFailed(n, label(id) + ": no boot-up within " + std::to_string(config_.boot_timeout_ms) +
+                               " ms after reset communication (node absent, wrong node id or bitrate?)");
         }
         break;
       case NodeState::kStarting:
         if (now >= n.deadline) {
-          setState(n, NodeState::kFailed);
-          event(EventType::kConfigureFailed, id,
-                label(id) + ": no operational heartbeat within " + std::to_string(config_.boot_timeout_ms) +
-                    " ms after NMT start");
+          bringUpFailed(n, label(id) + ": no operational heartbeat within " + std::to_string(config_.boot_timeout_ms) +
+                               " ms after NMT start");
         }
         break;
       case NodeState::kOperational:
@@ -472,6 +541,13 @@ void Master::timers(TimePoint now) {
     }
   }
   for (std::size_t i = 0; i < tick_handlers_.size(); ++i) tick_handlers_[i].second(now);
+  // Heartbeat producer (before the RPDO + SYNC group, which stays together).
+  if (config_.master_heartbeat_ms > 0 && now >= next_heartbeat_) {
+    if (send(encodeHeartbeat(config_.master_node_id, own_nmt_))) ++stats_.heartbeats_produced;
+    const Duration hb = std::chrono::milliseconds(config_.master_heartbeat_ms);
+    next_heartbeat_ += hb;  // the first one (at the first poll) sets the phase
+    if (next_heartbeat_ <= now) next_heartbeat_ = now + hb;  // fell behind: do not burst
+  }
   // SYNC producer: RPDOs first, so synchronous drives apply them at this SYNC.
   const Duration period = std::chrono::microseconds(config_.sync_period_us);
   if (now >= next_sync_) {

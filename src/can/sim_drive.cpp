@@ -43,9 +43,15 @@ SimDrive::SimDrive(Bus& bus, const Clock& clock, const AxisConfig& config) : bus
   resetApplication();
   resetCommunication();
   last_advance_ = clock_.now();
+  applyFilters();
+}
+
+void SimDrive::applyFilters() {
   const canid_t id = config_.node_id;
   std::vector<can_filter> filters = {{kNmtCobId, CAN_SFF_MASK}, {kSyncCobId, CAN_SFF_MASK}, {kSdoRxBase + id, CAN_SFF_MASK}};
   for (canid_t base : kRpdoBase) filters.push_back({base + id, CAN_SFF_MASK});
+  const auto producer = static_cast<canid_t>((od_.get(0x1016, 1) >> 16) & 0x7F);
+  if (producer != 0) filters.push_back({kHeartbeatBase + producer, CAN_SFF_MASK});
   bus_.setFilters(filters);
 }
 
@@ -81,6 +87,7 @@ void SimDrive::resetApplication() {
   od_.add(0x6099, 2, A::kReadWrite, 4, std::llround(c.homing_speed * k / 4));
   od_.add(0x609A, 0, A::kReadWrite, 4, std::llround(c.profile_acceleration * k));
   od_.add(0x6502, 0, A::kReadOnly, 4, (1 << 0) | (1 << 5));  // supported modes: pp, homing
+  od_.add(0x6007, 0, A::kReadWrite, 2, 1, true);  // abort connection option code: fault
   // The drive restarts: the position reference (homing) is lost, the motor is off.
   actual_ -= offset_;
   demand_ -= offset_;
@@ -105,6 +112,9 @@ void SimDrive::resetCommunication() {
   od_.addString(0x1008, 0, A::kConst, c.sim.device_name);
   od_.addString(0x1009, 0, A::kConst, "sim 1");
   od_.addString(0x100A, 0, A::kConst, "massage_cell 1.0");
+  od_.add(0x1016, 0, A::kConst, 1, 1);
+  od_.add(0x1016, 1, A::kReadWrite, 4, 0);  // consumer heartbeat time: node id << 16 | ms (0: off)
+  consumer_armed_ = false;
   od_.add(0x1017, 0, A::kReadWrite, 2, 0);
   od_.add(0x1018, 0, A::kConst, 1, 4);
   od_.add(0x1018, 1, A::kReadOnly, 4, 0x4D43);  // vendor "MC"
@@ -131,6 +141,7 @@ void SimDrive::resetCommunication() {
   upload_ = {};
   download_ = {};
   pending_sdo_.clear();
+  applyFilters();  // 0x1016 is back to 0: no producer to listen to
 }
 
 PdoMapping SimDrive::mapping(std::uint16_t index) const {
@@ -181,6 +192,14 @@ std::uint32_t SimDrive::checkWrite(std::uint16_t index, std::uint8_t sub, const 
     const auto mode = static_cast<std::int8_t>(v);
     if (mode != 0 && mode != 1 && mode != 6) return sdo_abort::kInvalidValue;
   }
+  if (index == 0x1016 && sub == 1) {
+    const auto producer = (v >> 16) & 0xFF;
+    if ((v >> 24) != 0 || producer > 127 || producer == config_.node_id) return sdo_abort::kInvalidValue;
+  }
+  if (index == 0x6007) {
+    const auto option = static_cast<std::int16_t>(v);
+    if (option < 0 || option > 3) return sdo_abort::kValueTooHigh;  // manufacturer-specific codes: not simulated
+  }
   return 0;
 }
 
@@ -188,6 +207,10 @@ void SimDrive::afterWrite(std::uint16_t index, std::uint8_t sub) {
   if (index == 0x6040) processControlword();
   if (index == 0x6060) od_.set(0x6061, 0, od_.get(0x6060, 0));
   if (index == 0x1017) next_heartbeat_ = clock_.now() + std::chrono::milliseconds(od_.get(0x1017, 0));
+  if (index == 0x1016) {
+    consumer_armed_ = false;  // monitoring starts with the producer's next heartbeat
+    applyFilters();
+  }
   if (isRpdoComm(index) && sub == 1) rpdo_latched_[index - 0x1400].reset();
   if (isTpdoComm(index)) {
     tpdo_sync_count_[index - 0x1800] = 0;
@@ -253,10 +276,40 @@ void SimDrive::process(const can_frame& f, TimePoint now) {
       }
       break;
     }
+    case CobType::kHeartbeat: {
+      const auto consumer = od_.get(0x1016, 1);
+      const auto producer = static_cast<std::uint8_t>((consumer >> 16) & 0x7F);
+      if (producer == 0 || cob->node != producer || !decodeHeartbeat(f)) break;
+      ++stats_.master_heartbeats;
+      consumer_last_ = now;
+      consumer_armed_ = true;
+      return;
+    }
     default:
       break;
   }
   ++stats_.frames_ignored;
+}
+
+void SimDrive::checkHeartbeatConsumer(TimePoint now) {
+  const auto consumer = od_.get(0x1016, 1);
+  const auto time_ms = consumer & 0xFFFF;
+  if (!consumer_armed_ || time_ms == 0 || ((consumer >> 16) & 0x7F) == 0) return;
+  if (now - consumer_last_ <= std::chrono::milliseconds(time_ms)) return;
+  consumer_armed_ = false;  // one event per loss; the next heartbeat re-arms
+  ++stats_.master_heartbeat_losses;
+  const auto option = od_.get(0x6007, 0);
+  if (option == 1) {
+    enterFault(0x8130, {});  // EMCY 0x8130 + fault reaction
+    return;
+  }
+  sendEmcy(0x8130, static_cast<std::uint8_t>(od_.get(0x1001, 0) | 0x11));
+  if (option == 2 && (state_ == Cia402State::kReadyToSwitchOn || state_ == Cia402State::kSwitchedOn ||
+                      state_ == Cia402State::kOperationEnabled || state_ == Cia402State::kQuickStopActive)) {
+    enterState(Cia402State::kSwitchOnDisabled);
+  } else if (option == 3 && state_ == Cia402State::kOperationEnabled) {
+    enterState(Cia402State::kQuickStopActive);
+  }
 }
 
 void SimDrive::handleNmt(const NmtMessage& m, TimePoint now) {
@@ -801,6 +854,7 @@ void SimDrive::poll() {
     next_heartbeat_ += std::chrono::milliseconds(period);
     if (next_heartbeat_ <= now) next_heartbeat_ = now + std::chrono::milliseconds(period);
   }
+  checkHeartbeatConsumer(now);
   // Back from bus-off: say so (CiA 301 EMCY 0x8140).
   const BusState bs = bus_.status().state;
   if (bus_state_ == BusState::kBusOff && bs == BusState::kErrorActive) {

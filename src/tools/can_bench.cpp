@@ -1,12 +1,22 @@
 // can_bench: timing of the CAN stack on the in-process virtual bus, with the
 // master and one simulated drive in their own threads on the real clock (as
 // a node would run them): SDO round trip, SYNC period and SYNC -> TPDO
-// latency, and the time from an injected drive fault to the master's EMCY
-// event and to the axis seeing the fault state.
+// latency, the master's heartbeat period, and the time from an injected
+// drive fault to the master's EMCY event and to the axis seeing the fault
+// state.
+// With --interface the same runs over Linux SocketCAN (vcan0 in the qemu
+// guest: ctest qemu_can_bench): master, drive and sniffer each get their own
+// CAN_RAW socket in this one process, so every frame goes through the kernel
+// (af_can loopback) while the drive's fault can still be injected at a known
+// instant (SimDrive::injectFault) for the fault -> EMCY / axis timings.
+// The table ends with `CAN_BENCH OK` when every sample was collected (and,
+// with --max-p99-ms, within the limits); any failure prints
+// `CAN_BENCH FAIL: <why>` and exits 1.
 #include <algorithm>
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
+#include <deque>
 #include <future>
 #include <thread>
 
@@ -26,7 +36,8 @@ using namespace massage_cell::can;
 using namespace massage_cell::tools;
 using Ms = std::chrono::duration<double, std::milli>;
 
-const char* const kUsage = R"(Usage: can_bench [--samples N] [--faults N] [--sync-ms N] [--config FILE] [--interface IFACE] [--csv]
+const char* const kUsage = R"(Usage: can_bench [--samples N] [--faults N] [--sync-ms N] [--config FILE] [--interface IFACE]
+                 [--sdo-timeout-ms N] [--heartbeat-timeout-ms N] [--max-p99-ms X] [--csv]
 
 Times the CAN stack on the in-process virtual bus (or, with --interface, over
 SocketCAN: one CAN_RAW socket each for the master, the drive and the sniffer):
@@ -34,14 +45,23 @@ the master (its own thread) and the first axis of FILE as a simulated drive
 (its own thread), real clock.
   SDO round trip      N expedited uploads of 0x6041, one after the other
   SYNC period         SYNC-to-SYNC intervals as sent by the master (N)
-  SYNC -> TPDO1       time from each SYNC to the drive's TPDO1 on the bus (N)
+  SYNC -> TPDO1       time from each SYNC to the drive's TPDO1 answering it (N)
+  heartbeat period    the master's own heartbeat (bus.master_heartbeat_ms), meanwhile
   fault -> EMCY       injected drive fault to the master's EMCY event (--faults)
   fault -> axis       injected drive fault to the axis reporting 'fault' (TPDO1)
   --samples N   default 500        --faults N   default 20
   --sync-ms N   SYNC period, default 10
   --config FILE default config/can_axes.yaml of the source tree
   --interface IFACE  run over this SocketCAN interface (e.g. vcan0) instead
+  --sdo-timeout-ms N        SDO timeout (default: the config's bus.sdo_timeout_ms)
+  --heartbeat-timeout-ms N  the master's consumer timeout of the drive's heartbeat
+                            (default: the config's); raise both on a slow machine
+  --max-p99-ms X  also fail when the p99 of the SDO round trip, SYNC -> TPDO1 or
+                  fault -> EMCY exceeds X ms, or the SYNC period's median is more
+                  than 10 % off (default: no limits)
   --csv         print metric,value,unit rows instead of the table
+The table ends with the line `CAN_BENCH OK`; a failure prints `CAN_BENCH FAIL: ...`
+and exits 1.
 )";
 
 struct Stats {
@@ -63,7 +83,8 @@ Stats stats(std::vector<double> v) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int samples = 500, faults = 20, sync_ms = 10;
+  int samples = 500, faults = 20, sync_ms = 10, sdo_timeout_ms = 0, heartbeat_timeout_ms = 0;
+  double max_p99_ms = 0.0;
   bool csv = false;
   std::string interface;
   std::string config_path = std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/can_axes.yaml";
@@ -83,15 +104,38 @@ int main(int argc, char** argv) {
           sync_ms = parseInt(o, v);
           require(sync_ms >= 1 && sync_ms <= 1000, o + ": must be 1..1000");
         };
+        t.values["--sdo-timeout-ms"] = [&](const std::string& o, const std::string& v) {
+          sdo_timeout_ms = parseInt(o, v);
+          require(sdo_timeout_ms >= 1 && sdo_timeout_ms <= 60000, o + ": must be 1..60000");
+        };
+        t.values["--heartbeat-timeout-ms"] = [&](const std::string& o, const std::string& v) {
+          heartbeat_timeout_ms = parseInt(o, v);
+          require(heartbeat_timeout_ms >= 1 && heartbeat_timeout_ms <= 600000, o + ": must be 1..600000");
+        };
+        t.values["--max-p99-ms"] = [&](const std::string& o, const std::string& v) {
+          max_p99_ms = parseDouble(o, v);
+          require(max_p99_ms > 0, o + ": must be > 0");
+        };
         t.values["--config"] = [&](const std::string&, const std::string& v) { config_path = v; };
         t.values["--interface"] = [&](const std::string&, const std::string& v) { interface = v; };
         t.flags["--csv"] = [&] { csv = true; };
         return parseArguments(argc, argv, t, kUsage);
       },
       [&] {
+       try {
         CanConfig config = loadCanConfig(config_path);
         config.axes.resize(1);
         config.sync_period_us = static_cast<std::uint32_t>(sync_ms) * 1000u;
+        if (sdo_timeout_ms > 0) config.sdo_timeout_ms = static_cast<std::uint32_t>(sdo_timeout_ms);
+        if (heartbeat_timeout_ms > 0) {
+          if (static_cast<std::uint32_t>(heartbeat_timeout_ms) <= config.axes[0].heartbeat_ms) {
+            throw std::runtime_error("--heartbeat-timeout-ms " + std::to_string(heartbeat_timeout_ms) +
+                                     ": must be longer than the drive's heartbeat_ms (" +
+                                     std::to_string(config.axes[0].heartbeat_ms) + ")");
+          }
+          config.axes[0].heartbeat_timeout_ms = static_cast<std::uint32_t>(heartbeat_timeout_ms);
+        }
+        validate(config, config_path);
         const AxisConfig& a = config.axes[0];
         const Clock& clock = SteadyClock::instance();
         VirtualBus vbus(clock, 1 << 16);
@@ -112,13 +156,22 @@ int main(int argc, char** argv) {
         SimDrive drive(*dep, clock, a);
         std::atomic<bool> stop{false};
         std::thread drive_thread([&] { drive.run(stop, std::chrono::microseconds(500)); });
+        struct Joiner {  // a failure below must not leave the threads running (std::terminate)
+          Master& master;
+          std::atomic<bool>& stop;
+          std::thread& thread;
+          ~Joiner() {
+            master.stop();
+            stop = true;
+            if (thread.joinable()) thread.join();
+          }
+        } joiner{master, stop, drive_thread};
         drive.powerOn();
         master.start();
         master.bringUp();
         if (!master.waitUntil([&] { return master.allOperational() && axis.valid(); }, std::chrono::seconds(5))) {
-          stop = true;
-          drive_thread.join();
-          throw std::runtime_error("the simulated drive did not come up");
+          throw std::runtime_error("the simulated drive did not come up within 5 s (node " +
+                                   std::string(toString(master.nodeState(a.node_id))) + ")");
         }
 
         // SDO round trip.
@@ -134,21 +187,42 @@ int main(int argc, char** argv) {
           sdo.push_back(Ms(fut.get() - t0).count());
         }
 
-        // SYNC period and SYNC -> TPDO1 (bus stamps of the sniffer endpoint).
+        // SYNC period and SYNC -> TPDO1 (bus stamps of the sniffer endpoint). The
+        // drive answers every SYNC with one TPDO1 (transmission type 1), so the
+        // k-th TPDO1 after a SYNC belongs to the k-th SYNC still unanswered, even
+        // when an answer takes longer than a SYNC period.
         while (sniff->receive(Duration::zero())) {
         }
-        std::vector<double> period, latency;
-        std::optional<TimePoint> last_sync;
+        std::vector<double> period, latency, heartbeat;
+        std::optional<TimePoint> last_sync, last_heartbeat;
+        std::deque<TimePoint> unanswered;
         const canid_t tpdo = kTpdoBase[0] + a.node_id;
+        const canid_t own_heartbeat = kHeartbeatBase + config.master_node_id;
         while (static_cast<int>(period.size()) < samples) {
           auto f = sniff->receive(std::chrono::seconds(1));
-          if (!f) throw std::runtime_error("no SYNC on the bus");
+          if (!f) throw std::runtime_error("no SYNC on the bus for 1 s");
           if (f->frame.can_id == kSyncCobId) {
             if (last_sync) period.push_back(Ms(f->stamp - *last_sync).count());
             last_sync = f->stamp;
-          } else if (f->frame.can_id == tpdo && last_sync) {
-            latency.push_back(Ms(f->stamp - *last_sync).count());
+            unanswered.push_back(f->stamp);
+          } else if (f->frame.can_id == tpdo && !unanswered.empty()) {
+            latency.push_back(Ms(f->stamp - unanswered.front()).count());
+            unanswered.pop_front();
+          } else if (f->frame.can_id == own_heartbeat) {
+            if (last_heartbeat) heartbeat.push_back(Ms(f->stamp - *last_heartbeat).count());
+            last_heartbeat = f->stamp;
           }
+        }
+        // A SYNC the drive never answered stays unanswered; more than the last few means lost TPDO1s.
+        if (unanswered.size() > 3 || static_cast<int>(latency.size()) < samples - 3) {
+          throw std::runtime_error(std::to_string(samples + 1) + " SYNCs but only " + std::to_string(latency.size()) +
+                                   " TPDO1 answers");
+        }
+        if (config.master_heartbeat_ms > 0 && heartbeat.empty()) {
+          char cob[16];
+          std::snprintf(cob, sizeof cob, "0x%03X", static_cast<unsigned>(own_heartbeat));
+          throw std::runtime_error(std::string("no heartbeat of the master (COB-ID ") + cob + ") during " +
+                                   std::to_string(samples) + " SYNC periods");
         }
 
         // Injected fault -> EMCY event / axis fault state.
@@ -201,22 +275,45 @@ int main(int argc, char** argv) {
             {"sdo_round_trip", "SDO expedited upload round trip", stats(sdo)},
             {"sync_period", "SYNC period", stats(period)},
             {"sync_to_tpdo1", "SYNC -> TPDO1 on the bus", stats(latency)},
+            {"heartbeat_period", "master heartbeat period", stats(heartbeat)},
             {"fault_to_emcy_event", "injected fault -> master EMCY event", stats(to_emcy)},
             {"fault_to_axis_fault", "injected fault -> axis state 'fault'", stats(to_state)},
         };
+        std::string over;
+        if (max_p99_ms > 0) {
+          for (const Row* r : {&rows[0], &rows[2], &rows[4]}) {
+            if (r->s.p99 > max_p99_ms) over += std::string(" ") + r->label + " p99 " + std::to_string(r->s.p99) + " ms;";
+          }
+          if (std::fabs(rows[1].s.p50 - sync_ms) > 0.1 * sync_ms) {
+            over += " SYNC period median " + std::to_string(rows[1].s.p50) + " ms, configured " + std::to_string(sync_ms) + " ms;";
+          }
+        }
         if (csv) {
           std::printf("metric,value,unit\n");
           for (const Row& r : rows) {
             std::printf("%s_p50,%.4f,ms\n%s_p99,%.4f,ms\n%s_max,%.4f,ms\n%s_samples,%zu,count\n", r.key, r.s.p50, r.key,
                         r.s.p99, r.key, r.s.max, r.key, r.s.n);
           }
+          if (!over.empty()) throw std::runtime_error("over the limits:" + over);
           return;
         }
-        std::printf("can_bench: %s, master + simulated drive (node %d) in threads, SYNC %d ms, real clock\n",
-                    interface.empty() ? "virtual bus" : ("SocketCAN " + interface).c_str(), a.node_id, sync_ms);
+        std::printf("can_bench: %s, master + simulated drive (node %d) in threads, SYNC %d ms, real clock; "
+                    "SDO timeout %u ms, heartbeat consumer %u ms\n",
+                    interface.empty() ? "virtual bus" : ("SocketCAN " + interface).c_str(), a.node_id, sync_ms,
+                    config.sdo_timeout_ms, a.heartbeatTimeoutMs());
         std::printf("%-40s %7s %10s %10s %10s\n", "", "n", "p50 ms", "p99 ms", "max ms");
         for (const Row& r : rows) {
           std::printf("%-40s %7zu %10.3f %10.3f %10.3f\n", r.label, r.s.n, r.s.p50, r.s.p99, r.s.max);
         }
+        if (!over.empty()) throw std::runtime_error("over the limits (--max-p99-ms " + std::to_string(max_p99_ms) + "):" + over);
+        std::printf("CAN_BENCH OK\n");
+        std::fflush(stdout);
+       } catch (const std::exception& e) {
+        if (!csv) {
+          std::printf("CAN_BENCH FAIL: %s\n", e.what());
+          std::fflush(stdout);
+        }
+        throw;
+       }
       });
 }

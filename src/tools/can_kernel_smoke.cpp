@@ -28,11 +28,23 @@
 //   4. send -> receive latency over --frames frames (p50 / p99 / max in µs);
 //   5. binding to a nonexistent interface fails with ENODEV (SIOCGIFINDEX of an
 //      unknown name, bind() to an unused ifindex);
-//   6. (--peer N) N round trips with a --serve process.
+//   6. error frames (what the bus-off test of qemu_can_system relies on): vcan
+//      itself never reports errors, but a CAN_RAW socket may write a frame
+//      whose can_id has CAN_ERR_FLAG set, and af_can delivers it on vcan as an
+//      error frame to the sockets whose CAN_RAW_ERR_FILTER mask has that error
+//      class: CAN_ERR_BUSOFF reaches a socket with the full mask (CAN_ERR_MASK,
+//      SocketCanBus's default) and one with only CAN_ERR_BUSOFF, even when its
+//      CAN_RAW_FILTER receives no data frames; a CAN_ERR_CRTL frame (data[1]
+//      CAN_ERR_CRTL_TX_PASSIVE) arrives with its payload intact, but not at the
+//      CAN_ERR_BUSOFF-only socket; a socket with the default mask 0 and the
+//      writer itself (RECV_OWN_MSGS off) get none; a data filter that accepts
+//      everything never lets an error frame through without an error mask;
+//   7. (--peer N) N round trips with a --serve process.
 // Prints `CAN_KERNEL_SMOKE OK` and exits 0 when all pass; otherwise prints
 // `CAN_KERNEL_SMOKE FAIL: <reason>` and exits 1.
 
 #include <linux/can.h>
+#include <linux/can/error.h>
 #include <linux/can/raw.h>
 #include <net/if_arp.h>  // glibc header: linux/if_arp.h clashes with net/if.h
 #include <net/if.h>
@@ -284,6 +296,64 @@ void peerCheck(const Options& opt, int ifindex) {
               "max %.1f us\n", opt.peer, p.p50, p.p99, p.max);
 }
 
+// 6. Error frames written by a socket, delivered by af_can through the error masks.
+void errorFrameCheck(int ifindex) {
+  Socket inj, all, busoffOnly, none;
+  inj.setFilters({});  // the writer receives nothing itself
+  all.setFilters({});  // no data frames: error frames go through the error mask only
+  all.setOpt(SOL_CAN_RAW, CAN_RAW_ERR_FILTER, static_cast<can_err_mask_t>(CAN_ERR_MASK), "setsockopt(CAN_RAW_ERR_FILTER)");
+  busoffOnly.setOpt(SOL_CAN_RAW, CAN_RAW_ERR_FILTER, static_cast<can_err_mask_t>(CAN_ERR_BUSOFF),
+                    "setsockopt(CAN_RAW_ERR_FILTER)");
+  // `none` keeps the defaults: every data frame, error mask 0.
+  for (Socket* s : {&inj, &all, &busoffOnly, &none}) {
+    if (int e = s->bindTo(ifindex)) { errno = e; fail(errnoText("error frames: bind")); }
+  }
+  can_frame busoff{};
+  busoff.can_id = CAN_ERR_FLAG | CAN_ERR_BUSOFF;
+  busoff.can_dlc = CAN_ERR_DLC;
+  can_frame passive{};
+  passive.can_id = CAN_ERR_FLAG | CAN_ERR_CRTL;
+  passive.can_dlc = CAN_ERR_DLC;
+  passive.data[1] = CAN_ERR_CRTL_TX_PASSIVE;
+  passive.data[6] = 0x80;  // tx error counter 128 (CAN_ERR_CRTL's data[6])
+  auto write = [&](const can_frame& f, const char* what) {
+    const ssize_t n = ::write(inj.fd(), &f, sizeof f);
+    if (n != static_cast<ssize_t>(sizeof f))
+      fail(std::string("error frames: writing the ") + what + " error frame was refused (" + errnoText("write") + ")");
+  };
+  auto expectError = [&](Socket& s, const can_frame& want, const char* who, const char* what) {
+    Received r;
+    if (!receive(s, 1000, &r))
+      fail(std::string("error frames: the ") + who + " socket did not receive the " + what + " error frame within 1 s");
+    if (!sameFrame(r.frame, want)) {
+      char buf[96];
+      std::snprintf(buf, sizeof buf, "can_id 0x%08" PRIX32 " dlc %d data[1] 0x%02X", static_cast<uint32_t>(r.frame.can_id),
+                    r.frame.can_dlc, r.frame.data[1]);
+      fail(std::string("error frames: the ") + who + " socket got " + buf + " instead of the " + what + " error frame");
+    }
+  };
+  write(busoff, "bus-off");
+  expectError(all, busoff, "CAN_ERR_MASK", "bus-off");
+  expectError(busoffOnly, busoff, "CAN_ERR_BUSOFF-only", "bus-off");
+  write(passive, "error-passive (CAN_ERR_CRTL)");
+  expectError(all, passive, "CAN_ERR_MASK", "error-passive");
+  // A sentinel data frame: by the time it arrives, any error frame would have too.
+  const can_frame sentinel = makeFrame(0x3A5, 2, 0x11);
+  inj.send(sentinel);
+  Received r;
+  if (!receive(busoffOnly, 1000, &r)) fail("error frames: the sentinel data frame did not arrive");
+  if (!sameFrame(r.frame, sentinel))
+    fail("error frames: the CAN_ERR_BUSOFF-only socket received a frame of another error class (" + idText(r.frame.can_id) +
+         ") before the sentinel");
+  if (!receive(none, 1000, &r)) fail("error frames: the sentinel data frame did not reach the error-mask-0 socket");
+  if (!sameFrame(r.frame, sentinel))
+    fail("error frames: a socket with error mask 0 (and an accept-all data filter) received an error frame");
+  expectNothing(inj, 100, "error frames: the writer (RECV_OWN_MSGS off)");
+  expectNothing(all, 50, "error frames: the CAN_ERR_MASK socket after both error frames");
+  std::printf("can_kernel_smoke: error frames OK (written CAN_ERR_BUSOFF and CAN_ERR_CRTL/tx-passive delivered "
+              "through CAN_RAW_ERR_FILTER by class, not to error mask 0 nor to the writer)\n");
+}
+
 void run(const Options& opt) {
   int mtu = 0;
   const int ifindex = interfaceIndex(opt.iface, &mtu);
@@ -427,6 +497,7 @@ void run(const Options& opt) {
     std::printf("can_kernel_smoke: nonexistent interface -> ENODEV OK\n");
   }
 
+  errorFrameCheck(ifindex);
   if (opt.peer > 0) peerCheck(opt, ifindex);
 }
 

@@ -103,6 +103,62 @@ TEST(CanConfig, UnknownFieldsAndDuplicateNamesAreErrors) {
   EXPECT_NE(e.find("busses: unknown field"), std::string::npos) << e;
 }
 
+TEST(CanConfig, MasterHeartbeatKeysAndDefaults) {
+  const CanConfig d = parseCanConfig(kMinimal);
+  EXPECT_EQ(d.master_node_id, 127);  // defaults: heartbeat 0x77F every 100 ms
+  EXPECT_EQ(d.master_heartbeat_ms, 100);
+  EXPECT_EQ(d.axes[0].master_heartbeat_timeout_ms, 0u);  // drives do not monitor the master unless asked
+  EXPECT_EQ(d.axes[0].abort_connection_option, 1);
+  const CanConfig c = parseCanConfig(R"(
+bus: {master_node_id: 100, master_heartbeat_ms: 50}
+axes:
+  - {name: X, node_id: 1, counts_per_metre: 1000, master_heartbeat_timeout_ms: 150, abort_connection_option: 3}
+)");
+  EXPECT_EQ(c.master_node_id, 100);
+  EXPECT_EQ(c.master_heartbeat_ms, 50);
+  EXPECT_EQ(c.axes[0].master_heartbeat_timeout_ms, 150u);
+  EXPECT_EQ(c.axes[0].abort_connection_option, 3);
+  EXPECT_EQ(parseCanConfig(std::string("bus: {master_heartbeat_ms: 0}\n") + kMinimal).master_heartbeat_ms, 0);  // off
+  const CanConfig file = loadCanConfig(std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/can_axes.yaml");
+  EXPECT_EQ(file.master_node_id, 127);
+  EXPECT_EQ(file.master_heartbeat_ms, 100);
+}
+
+TEST(CanConfig, BadMasterHeartbeatValuesAreNamed) {
+  const std::string axes = "axes:\n  - {name: X, node_id: 1, counts_per_metre: 1}\n";
+  std::string e = errorOf("bus: {master_node_id: 0}\n" + axes);
+  EXPECT_NE(e.find("test.yaml: bus.master_node_id: 0 is outside 1..127"), std::string::npos) << e;
+  e = errorOf("bus: {master_node_id: 128}\n" + axes);
+  EXPECT_NE(e.find("bus.master_node_id: 128 is outside 1..127"), std::string::npos) << e;
+  e = errorOf("bus: {master_node_id: 1}\n" + axes);
+  EXPECT_NE(e.find("axes[0].node_id: node id 1 is the master's own (bus.master_node_id)"), std::string::npos) << e;
+  e = errorOf("bus: {master_heartbeat_ms: -5}\n" + axes);
+  EXPECT_NE(e.find("bus.master_heartbeat_ms: -5 is outside 0..65535"), std::string::npos) << e;
+  e = errorOf("bus: {master_heartbeat_ms: 70000}\n" + axes);
+  EXPECT_NE(e.find("bus.master_heartbeat_ms: 70000 is outside 0..65535"), std::string::npos) << e;
+  e = errorOf("bus: {master_heartbeat_ms: fast}\n" + axes);
+  EXPECT_NE(e.find("bus.master_heartbeat_ms: expected a number, got 'fast'"), std::string::npos) << e;
+  e = errorOf("bus: {master_heartbeat_ms: 0}\naxes:\n  - {name: X, node_id: 1, counts_per_metre: 1, "
+              "master_heartbeat_timeout_ms: 300}\n");
+  EXPECT_NE(e.find("axes[0].master_heartbeat_timeout_ms: the drive would monitor the master's heartbeat, but "
+                   "bus.master_heartbeat_ms is 0"), std::string::npos) << e;
+  e = errorOf("axes:\n  - {name: X, node_id: 1, counts_per_metre: 1, master_heartbeat_timeout_ms: 100}\n");
+  EXPECT_NE(e.find("axes[0].master_heartbeat_timeout_ms: 100 ms must be longer than bus.master_heartbeat_ms (100 ms)"),
+            std::string::npos) << e;
+  e = errorOf("axes:\n  - {name: X, node_id: 1, counts_per_metre: 1, abort_connection_option: 4}\n");
+  EXPECT_NE(e.find("axes[0].abort_connection_option: 4 is outside 0..3"), std::string::npos) << e;
+  // validate() checks a config built in code the same way.
+  CanConfig c = parseCanConfig(kMinimal);
+  c.master_node_id = 2;
+  try {
+    validate(c, "code");
+    FAIL() << "master id = axis Y's id accepted";
+  } catch (const ConfigError& err) {
+    EXPECT_NE(std::string(err.what()).find("code: axes[1].node_id: node id 2 is the master's own"), std::string::npos)
+        << err.what();
+  }
+}
+
 TEST(CanConfig, SyntaxErrorsAndMissingFiles) {
   EXPECT_NE(errorOf("axes: [\n").find("YAML syntax error"), std::string::npos);
   EXPECT_NE(errorOf("- 1\n- 2\n").find("expected a map"), std::string::npos);

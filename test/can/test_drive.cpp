@@ -38,6 +38,7 @@ struct Rig {
   void step(Duration dt = 1ms) {
     clock.advance(dt);
     for (auto& d : drives) d->poll();
+    if (!master_polled) return;  // the master "stops": no heartbeat, no SYNC, nothing received
     master->poll();
     for (Event& e : master->takeEvents()) events.push_back(std::move(e));
   }
@@ -87,6 +88,7 @@ struct Rig {
   std::vector<std::unique_ptr<SimDrive>> drives;
   std::vector<std::unique_ptr<Cia402Axis>> axes;
   std::vector<Event> events;
+  bool master_polled = true;
 };
 
 bool contains(const std::vector<S>& h, const std::vector<S>& seq) {
@@ -550,6 +552,142 @@ TEST(Drive, MalformedFramesNeverMoveAnAxis) {
   // And the axes still work.
   r.axes[0]->moveTo(0.25);
   ASSERT_TRUE(r.finish(*r.axes[0])) << r.axes[0]->error();
+}
+
+// The drives' consumer of the master's heartbeat (0x1016, 0x6007): X faults,
+// Z (quick-stop option 6) holds in quick stop active, Y does not monitor the master.
+CanConfig consumerConfig() {
+  CanConfig c = exampleConfig();
+  c.axes[0].master_heartbeat_timeout_ms = 300;  // abort connection option 1 (default): fault
+  c.axes[2].master_heartbeat_timeout_ms = 300;
+  c.axes[2].abort_connection_option = 3;        // quick stop
+  return c;
+}
+
+TEST(Drive, DrivesReactWhenTheMasterHeartbeatStops) {
+  Rig r(consumerConfig());
+  ASSERT_TRUE(r.start()) << r.dump();
+  EXPECT_EQ(r.drives[0]->object(0x1016, 1), (127 << 16) | 300);
+  EXPECT_EQ(r.drives[1]->object(0x1016, 1), 0);
+  EXPECT_EQ(r.drives[2]->object(0x6007, 0), 3);
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(r.enable(i)) << r.axes[i]->error();
+  // While the master runs, its heartbeat (every 100 ms) keeps the consumers happy.
+  r.run(1s);
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(r.drives[i]->state(), S::kOperationEnabled) << i;
+  EXPECT_GE(r.drives[0]->stats().master_heartbeats, 10u);
+  EXPECT_EQ(r.drives[0]->stats().master_heartbeat_losses, 0u);
+  Cia402Axis& x = *r.axes[0];
+  x.moveTo(0.5);
+  r.run(200ms);
+  ASSERT_EQ(x.status(), Status::kRunning);
+  const std::int32_t moving_at = r.drives[0]->position();
+  // The master stops (hangs, crashes): 300 ms after its last heartbeat the drives react.
+  r.master_polled = false;
+  r.run(190ms);  // its last heartbeat was at most 100 ms before it stopped
+  EXPECT_EQ(r.drives[0]->state(), S::kOperationEnabled);  // not yet
+  r.run(260ms);
+  EXPECT_EQ(r.drives[0]->state(), S::kFault);
+  EXPECT_EQ(r.drives[0]->errorCode(), 0x8130);
+  EXPECT_EQ(r.drives[0]->stats().master_heartbeat_losses, 1u);
+  EXPECT_EQ(r.drives[2]->state(), S::kQuickStopActive);
+  EXPECT_EQ(r.drives[1]->state(), S::kOperationEnabled);  // Y is not told to watch the master
+  EXPECT_NE(r.drives[0]->position(), moving_at);          // it was moving and braked to a stop
+  const std::int32_t stopped_at = r.drives[0]->position(), z_at = r.drives[2]->position();
+  r.run(300ms);
+  EXPECT_EQ(r.drives[0]->position(), stopped_at);
+  // The master comes back: the EMCYs waiting in its queue, then the drives' states by TPDO1.
+  // Z's quick stop option 6 keeps it in quick stop active until the master's cyclic
+  // "enable operation" controlword (RPDO1) takes it back (CiA 402 transition 16),
+  // standing where it stopped; X stays in fault until a fault reset.
+  r.master_polled = true;
+  ASSERT_TRUE(r.runUntil([&] { return x.state() == S::kFault; }, 500ms)) << r.dump();
+  ASSERT_TRUE(r.runUntil([&] { return r.drives[2]->state() == S::kOperationEnabled; }, 100ms));
+  EXPECT_EQ(r.axes[2]->state(), S::kOperationEnabled);
+  EXPECT_EQ(r.drives[2]->position(), z_at);
+  EXPECT_TRUE(r.hasEvent(EventType::kEmcy, 1, "EMCY 0x8130 life guard error or heartbeat error")) << r.dump();
+  EXPECT_TRUE(r.hasEvent(EventType::kEmcy, 3, "EMCY 0x8130"));
+  EXPECT_EQ(x.status(), Status::kFailed);
+  EXPECT_NE(x.error().find("move aborted by a drive fault"), std::string::npos) << x.error();
+  EXPECT_NE(x.error().find("last EMCY 0x8130"), std::string::npos) << x.error();
+  // Brought back: fault reset + enable (X), enable from quick stop active (Z), then move.
+  x.faultReset();
+  ASSERT_TRUE(r.finish(x, 2s)) << x.error();
+  ASSERT_TRUE(r.enable(0)) << x.error();
+  ASSERT_TRUE(r.enable(2)) << r.axes[2]->error();
+  x.moveTo(0.5);
+  ASSERT_TRUE(r.finish(x)) << x.error();
+  EXPECT_LE(std::abs(x.positionCounts() - x.config().toCounts(0.5)), 1);
+  EXPECT_EQ(r.drives[0]->stats().master_heartbeat_losses, 1u);  // re-armed by the heartbeats, no new loss
+}
+
+TEST(Drive, HeartbeatConsumerWaitsForTheFirstHeartbeatAndChecksItsObjects) {
+  CanConfig c = consumerConfig();
+  c.master_heartbeat_ms = 0;  // (not a valid config for a master: written by hand below)
+  c.axes[0].master_heartbeat_timeout_ms = 0;
+  c.axes[2].master_heartbeat_timeout_ms = 0;
+  Rig r(c);
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.enable(0));
+  std::vector<SdoResult> got;
+  auto collect = [&](const SdoResult& res) { got.push_back(res); };
+  r.master->sdoDownload(1, 0x1016, 1, toBytes((127u << 16) | 200u, 4), collect);  // monitor node 127, 200 ms
+  r.master->sdoDownload(1, 0x1016, 1, toBytes((1u << 16) | 200u, 4), collect);    // itself: refused
+  r.master->sdoDownload(1, 0x1016, 1, toBytes(0x01000000u | (5u << 16) | 200u, 4), collect);  // reserved bits
+  r.master->sdoDownload(1, 0x6007, 0, toBytes(4, 2), collect);                     // no such reaction here
+  ASSERT_TRUE(r.runUntil([&] { return got.size() == 4; }, 1s));
+  EXPECT_TRUE(got[0].ok) << got[0].error;
+  EXPECT_NE(got[1].error.find("0x06090030"), std::string::npos) << got[1].error;
+  EXPECT_NE(got[2].error.find("0x06090030"), std::string::npos) << got[2].error;
+  EXPECT_NE(got[3].error.find("0x06090031"), std::string::npos) << got[3].error;
+  // No heartbeat from node 127 ever came: the consumer is not armed, nothing happens.
+  r.run(1s);
+  EXPECT_EQ(r.drives[0]->state(), S::kOperationEnabled);
+  EXPECT_EQ(r.drives[0]->stats().master_heartbeat_losses, 0u);
+  // One heartbeat arms it; 200 ms of silence after it faults the drive.
+  auto other = r.bus.open("another master");
+  other->send(encodeHeartbeat(127, NmtState::kOperational));
+  r.run(150ms);
+  EXPECT_EQ(r.drives[0]->state(), S::kOperationEnabled);
+  other->send(encodeHeartbeat(127, NmtState::kOperational));
+  r.run(150ms);
+  EXPECT_EQ(r.drives[0]->state(), S::kOperationEnabled);
+  r.run(100ms);
+  EXPECT_EQ(r.drives[0]->state(), S::kFault);
+  EXPECT_EQ(r.drives[0]->stats().master_heartbeats, 2u);
+  // Reset communication clears 0x1016: no monitoring after a reboot until configured again.
+  EXPECT_EQ(r.drives[0]->object(0x1016, 1), (127 << 16) | 200);
+  r.master->sendNmt(NmtCommand::kResetCommunication, 1);
+  ASSERT_TRUE(r.runUntil([&] { return r.master->nodeState(1) == NodeState::kConfiguring; }, 100ms));
+  ASSERT_TRUE(r.runUntil([&] { return r.master->nodeState(1) == NodeState::kOperational; }, 1s));
+  EXPECT_EQ(r.drives[0]->object(0x1016, 1), 0);
+}
+
+TEST(Drive, MasterBusOffLongerThanTheDrivesConsumerTimeEndsInADefinedState) {
+  Rig r(consumerConfig());
+  ASSERT_TRUE(r.start());
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(r.enable(i));
+  r.bus.setBusOff(*r.master_ep, 1s);  // no heartbeat from the master for 1 s: X faults, Z quick-stops
+  r.run(1100ms);
+  EXPECT_TRUE(r.hasEvent(EventType::kBusStateChanged, 0, "master: error-active -> bus-off")) << r.dump();
+  EXPECT_TRUE(r.hasEvent(EventType::kBusStateChanged, 0, "bus-off -> error-active (recovered)"));
+  ASSERT_TRUE(r.runUntil([&] { return r.master->allOperational() && r.axes[0]->valid() && r.axes[2]->valid(); }, 1s));
+  // The EMCYs were sent while the master was bus-off and are lost; the states come by
+  // TPDO1: X in fault, Y untouched, Z back in operation enabled (the master's cyclic
+  // "enable operation" after its quick stop, transition 16), standing still.
+  EXPECT_FALSE(r.hasEvent(EventType::kEmcy, 1, "0x8130"));
+  EXPECT_EQ(r.drives[0]->stats().master_heartbeat_losses, 1u);
+  EXPECT_EQ(r.drives[2]->stats().master_heartbeat_losses, 1u);
+  EXPECT_EQ(r.axes[0]->state(), S::kFault);
+  EXPECT_EQ(r.axes[1]->state(), S::kOperationEnabled);
+  EXPECT_EQ(r.axes[2]->state(), S::kOperationEnabled);
+  EXPECT_TRUE(r.hasEvent(EventType::kHeartbeatTimeout, 1, "no heartbeat"));
+  EXPECT_TRUE(r.hasEvent(EventType::kAxis, 1, "FAULT (statusword")) << r.dump();
+  r.axes[0]->faultReset();
+  ASSERT_TRUE(r.finish(*r.axes[0], 2s)) << r.axes[0]->error();
+  ASSERT_TRUE(r.enable(0)) << r.axes[0]->error();
+  r.axes[2]->moveTo(0.2);
+  ASSERT_TRUE(r.finish(*r.axes[2])) << r.axes[2]->error();
+  EXPECT_LE(std::abs(r.axes[2]->positionCounts() - r.axes[2]->config().toCounts(0.2)), 1);
 }
 
 TEST(Drive, ThreadedMasterAndDrivesOnTheRealClock) {

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <map>
+#include <thread>
 
 #include "massage_cell/can/master.h"
 #include "massage_cell/can/virtual_bus.h"
@@ -408,6 +409,7 @@ TEST_F(MasterFixture, ConfigurationAbortFailsTheNodeWithTheReason) {
                        "node 1 (X): configuration failed: node 1: SDO download 0x1A00:02: aborted by the server: "
                        "0x06040041 object cannot be mapped to the PDO"));
   EXPECT_EQ(nodes[0]->nmt_log.back(), NmtCommand::kResetCommunication);  // never started
+  EXPECT_EQ(master->stats().bringup_restarts, 0u);  // the bus was fine: a real failure is not retried
 }
 
 TEST_F(MasterFixture, MissingNodeFailsAfterTheBootTimeout) {
@@ -446,6 +448,173 @@ TEST_F(MasterFixture, ReportsBusOffAndRecovery) {
   EXPECT_TRUE(hasEvent(events, EventType::kBusStateChanged, 0, "bus-off -> error-active (recovered)"));
   // 40 ms is shorter than the heartbeat timeout: the nodes are still operational.
   EXPECT_TRUE(master->allOperational());
+}
+
+TEST_F(MasterFixture, ReportsABusOffThatEndedBetweenTwoPolls) {
+  bringUp();
+  master->takeEvents();
+  const MasterStats before = master->stats();
+  bus.setBusOff(*master_ep, 500us);  // over before the master's next poll (1 ms later)
+  step();
+  EXPECT_EQ(master_ep->status().state, BusState::kErrorActive);
+  const auto events = master->takeEvents();
+  EXPECT_TRUE(hasEvent(events, EventType::kBusStateChanged, 0,
+                       "master: error-active -> bus-off -> error-active (recovered between two polls; 1 outage)"));
+  EXPECT_EQ(master->stats().bus_outages, before.bus_outages + 1);
+  EXPECT_TRUE(master->allOperational());
+  // A normal bus-off is one outage too, with its own two events.
+  bus.setBusOff(*master_ep, 20ms);
+  runUntil([] { return false; }, 30ms);
+  EXPECT_EQ(master->stats().bus_outages, before.bus_outages + 2);
+}
+
+TEST_F(MasterFixture, BringUpFailedDuringABusOffRestartsWhenTheBusRecovers) {
+  master->bringUp();
+  ASSERT_TRUE(runUntil([&] { return master->nodeState(1) == NodeState::kConfiguring; }, 100ms));
+  bus.setBusOff(*master_ep, 400ms);  // longer than the SDO timeout (100 ms): the configuration fails meanwhile
+  ASSERT_TRUE(runUntil([&] { return master->nodeState(1) == NodeState::kFailed; }, 300ms));
+  auto events = master->takeEvents();
+  EXPECT_TRUE(hasEvent(events, EventType::kConfigureFailed, 1,
+                       "no response within 100 ms (SDO protocol timed out) (the bus is bus-off: bring-up restarts "
+                       "when it recovers)"));
+  EXPECT_EQ(master->nodeState(2), NodeState::kFailed);
+  ASSERT_TRUE(runUntil([&] { return master->allOperational(); }, 1500ms));
+  events = master->takeEvents();
+  EXPECT_TRUE(hasEvent(events, EventType::kBusStateChanged, 0, "bus-off -> error-active (recovered)"));
+  EXPECT_TRUE(hasEvent(events, EventType::kBusStateChanged, 1, "node 1 (X): bus recovered: bring-up restarted"));
+  EXPECT_TRUE(hasEvent(events, EventType::kBusStateChanged, 2, "node 2 (Y): bus recovered: bring-up restarted"));
+  EXPECT_EQ(master->stats().bringup_restarts, 2u);
+  for (auto& n : nodes) {
+    EXPECT_EQ(n->nmt_log, (std::vector<NmtCommand>{NmtCommand::kResetCommunication, NmtCommand::kResetCommunication,
+                                                   NmtCommand::kStart}))
+        << "node " << int(n->id);
+  }
+}
+
+TEST_F(MasterFixture, BringUpFailedAfterAShortBusOffRestartsAtOnce) {
+  master->bringUp();
+  ASSERT_TRUE(runUntil([&] { return master->nodeState(1) == NodeState::kConfiguring; }, 100ms));
+  bus.setBusOff(*master_ep, 30ms);  // the SDO answer in flight is lost; its timeout fires after the recovery
+  ASSERT_TRUE(runUntil([&] { return master->stats().bringup_restarts >= 1; }, 300ms));
+  auto events = master->takeEvents();
+  EXPECT_TRUE(hasEvent(events, EventType::kConfigureFailed, 1,
+                       "(the bus was bus-off or down during this bring-up: bring-up restarted)"));
+  ASSERT_TRUE(runUntil([&] { return master->allOperational(); }, 1s));
+  // Bus-off once more, now with every node operational: nothing is restarted.
+  const std::uint64_t restarts = master->stats().bringup_restarts;
+  bus.setBusOff(*master_ep, 30ms);
+  runUntil([] { return false; }, 500ms);
+  EXPECT_TRUE(master->allOperational());
+  EXPECT_EQ(master->stats().bringup_restarts, restarts);
+}
+
+// The master's own heartbeat frames seen by another endpoint, with their stamps.
+std::vector<TimedFrame> heartbeatsOn(VirtualBus::Endpoint& sniffer, canid_t cob) {
+  std::vector<TimedFrame> out;
+  while (auto f = sniffer.receive(0ns)) {
+    if (f->frame.can_id == cob) out.push_back(*f);
+  }
+  return out;
+}
+
+TEST_F(MasterFixture, ProducesItsHeartbeatAtThePeriodWithItsState) {
+  auto sniffer = bus.open("sniffer");
+  EXPECT_EQ(master->ownNmtState(), NmtState::kPreOperational);
+  runUntil([] { return false; }, 1000ms);
+  auto hb = heartbeatsOn(*sniffer, 0x77F);  // 0x700 + the default master node id 127
+  ASSERT_EQ(hb.size(), 10u);
+  for (std::size_t i = 0; i < hb.size(); ++i) {
+    EXPECT_EQ(formatFrame(hb[i].frame), "77F#7F");  // pre-operational: nothing brought up yet
+    if (i > 0) {
+      EXPECT_EQ(hb[i].stamp - hb[i - 1].stamp, Duration(100ms));
+    }
+  }
+  const auto decoded = decodeHeartbeat(hb[0].frame);
+  ASSERT_TRUE(decoded) << decoded.error();
+  EXPECT_EQ(decoded->node, 127);
+  bringUp();
+  EXPECT_EQ(master->ownNmtState(), NmtState::kOperational);
+  heartbeatsOn(*sniffer, 0x77F);
+  const std::uint64_t produced = master->stats().heartbeats_produced;
+  runUntil([] { return false; }, 500ms);
+  hb = heartbeatsOn(*sniffer, 0x77F);
+  ASSERT_EQ(hb.size(), 5u);
+  for (const TimedFrame& f : hb) EXPECT_EQ(formatFrame(f.frame), "77F#05");  // operational
+  EXPECT_EQ(master->stats().heartbeats_produced - produced, 5u);
+  // The nodes' heartbeat consumer does not mistake it for a node: nothing malformed, nothing lost.
+  EXPECT_EQ(master->stats().malformed, 0u);
+  EXPECT_TRUE(master->allOperational());
+}
+
+TEST_F(MasterFixture, HeartbeatIdAndPeriodComeFromTheConfig) {
+  CanConfig c = config;
+  c.master_node_id = 100;
+  c.master_heartbeat_ms = 30;
+  master = std::make_unique<Master>(*master_ep, clock, c);
+  auto sniffer = bus.open("sniffer");
+  runUntil([] { return false; }, 300ms);
+  const auto hb = heartbeatsOn(*sniffer, 0x764);
+  ASSERT_EQ(hb.size(), 10u);
+  for (std::size_t i = 1; i < hb.size(); ++i) EXPECT_EQ(hb[i].stamp - hb[i - 1].stamp, Duration(30ms));
+  // 0 = no heartbeat at all.
+  c.master_heartbeat_ms = 0;
+  master = std::make_unique<Master>(*master_ep, clock, c);
+  heartbeatsOn(*sniffer, 0x764);
+  runUntil([] { return false; }, 300ms);
+  while (auto f = sniffer->receive(0ns)) EXPECT_NE(f->frame.can_id & 0x780u, 0x700u) << formatFrame(f->frame);
+  EXPECT_EQ(master->stats().heartbeats_produced, 0u);
+}
+
+TEST_F(MasterFixture, ConfiguresTheDrivesConsumerOfItsHeartbeat) {
+  AxisConfig a = axis("X", 1);
+  EXPECT_EQ(canopenStartupWrites(a, 100).size(), canopenStartupWrites(a).size());
+  for (const StartupWrite& w : canopenStartupWrites(a, 100)) EXPECT_TRUE(w.index != 0x1016 && w.index != 0x6007);
+  a.master_heartbeat_timeout_ms = 300;
+  a.abort_connection_option = 3;
+  std::map<std::pair<std::uint16_t, std::uint8_t>, std::uint64_t> w;
+  for (const StartupWrite& x : canopenStartupWrites(a, 100)) w[{x.index, x.sub}] = fromBytes(x.data);
+  EXPECT_EQ((w[{0x1016, 1}]), 0x0064012Cu);  // node 100 << 16 | 300 ms
+  EXPECT_EQ((w[{0x6007, 0}]), 3u);
+  // Through the master: the configured master node id goes into 0x1016:01.
+  CanConfig c = config;
+  c.axes[0].master_heartbeat_timeout_ms = 250;
+  master = std::make_unique<Master>(*master_ep, clock, c);
+  bringUp();
+  EXPECT_EQ(fromBytes(nodes[0]->od[{0x1016, 1}]), 0x007F00FAu);  // 127 << 16 | 250
+  EXPECT_EQ(fromBytes(nodes[0]->od[{0x6007, 0}]), 1u);
+  EXPECT_EQ(nodes[1]->od.count({0x1016, 1}), 0u);  // Y does not monitor the master
+}
+
+TEST(MasterHeartbeat, StopsWhenTheMasterStops) {
+  VirtualBus bus;  // real clock
+  auto ep = bus.open("master");
+  auto sniffer = bus.open("sniffer");
+  sniffer->setFilters({{0x77F, CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG}});
+  CanConfig c;
+  AxisConfig a;
+  a.name = "X";
+  a.node_id = 1;
+  a.counts_per_metre = 1000;
+  c.axes.push_back(a);
+  c.master_heartbeat_ms = 50;
+  auto master = std::make_unique<Master>(*ep, SteadyClock::instance(), c);
+  master->start();
+  std::this_thread::sleep_for(420ms);
+  std::size_t running = 0;
+  while (sniffer->receive(0ns)) ++running;
+  EXPECT_GE(running, 4u);  // 9 expected (t = 0, 50, ..., 400 ms); a loaded machine may delay a few
+  EXPECT_LE(running, 10u);
+  master->stop();
+  while (sniffer->receive(0ns)) {}
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(sniffer->pending(), 0u) << "heartbeats after stop()";
+  master->start();  // alive again
+  std::this_thread::sleep_for(200ms);
+  EXPECT_GE(sniffer->pending(), 1u);
+  master.reset();  // destruction stops it too
+  while (sniffer->receive(0ns)) {}
+  std::this_thread::sleep_for(200ms);
+  EXPECT_EQ(sniffer->pending(), 0u) << "heartbeats after the master was destroyed";
 }
 
 TEST(MasterConfig, RejectsInvalidConfig) {

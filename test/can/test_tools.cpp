@@ -91,9 +91,43 @@ TEST(CanBenchTool, MeasuresOnTheVirtualBus) {
   const auto at = r.output.find("sync_period_p50,");
   ASSERT_NE(at, std::string::npos);
   EXPECT_NEAR(std::stod(r.output.substr(at + 16)), 10.0, 1.0);
+  // The master's own heartbeat (100 ms by default) is measured meanwhile.
+  const auto hb = r.output.find("heartbeat_period_p50,");
+  ASSERT_NE(hb, std::string::npos) << r.output;
+  EXPECT_NEAR(std::stod(r.output.substr(hb + 21)), 100.0, 10.0);
   r = run(bench + " --samples 5");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.output.find("--samples: must be 10..100000"), std::string::npos) << r.output;
+  for (const char* bad : {" --max-p99-ms 0", " --max-p99-ms fast", " --sdo-timeout-ms 0", " --heartbeat-timeout-ms x"}) {
+    r = run(bench + bad);
+    EXPECT_EQ(r.status, 2) << bad << "\n" << r.output;
+    EXPECT_NE(r.output.find(std::string(bad).substr(1, std::string(bad).find(' ', 1) - 1) + ":"), std::string::npos)
+        << bad << "\n" << r.output;
+  }
+}
+
+TEST(CanBenchTool, TableEndsWithTheSuccessLineOrAFailure) {
+  const std::string bench = CAN_BENCH_TOOL;
+  ToolRun r = run(bench + " --samples 30 --faults 2 --sdo-timeout-ms 500 --heartbeat-timeout-ms 1000 --max-p99-ms 200");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("SDO timeout 500 ms, heartbeat consumer 1000 ms"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("master heartbeat period"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\nCAN_BENCH OK\n"), std::string::npos) << r.output;
+  // Limits nobody can meet: the table is printed, then the failure naming the metrics.
+  r = run(bench + " --samples 30 --faults 2 --max-p99-ms 0.000001");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_EQ(r.output.find("CAN_BENCH OK"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("CAN_BENCH FAIL: over the limits (--max-p99-ms"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("SDO expedited upload round trip p99"), std::string::npos) << r.output;
+  // A heartbeat consumer time shorter than the drive's heartbeat is refused.
+  r = run(bench + " --samples 30 --heartbeat-timeout-ms 50");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("CAN_BENCH FAIL: --heartbeat-timeout-ms 50: must be longer than the drive's heartbeat_ms (100)"),
+            std::string::npos) << r.output;
+  // A missing interface is a failure naming it.
+  r = run(bench + " --samples 30 --interface mcnocan7");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("CAN_BENCH FAIL: SocketCAN interface 'mcnocan7' does not exist"), std::string::npos) << r.output;
 }
 
 }  // namespace

@@ -54,6 +54,13 @@ struct AxisConfig {
   std::uint32_t homing_timeout_ms = 10000;   ///< per attempt
   int homing_retries = 2;                    ///< attempts after the first
   SimDriveSettings sim;
+  // Consumer of the master's heartbeat in the drive (CiA 301 0x1016; CiA 402
+  // 0x6007): 0 = the drive is not told to monitor the master (nothing is
+  // written); otherwise 0x1016:01 = master node id << 16 | this time, and
+  // 0x6007 = abort_connection_option, are written at start-up. Needs the
+  // master's heartbeat (CanConfig::master_heartbeat_ms) to be shorter.
+  std::uint32_t master_heartbeat_timeout_ms = 0;
+  int abort_connection_option = 1;           ///< 0x6007: 0 no action, 1 fault, 2 disable voltage, 3 quick stop
 
   std::uint32_t heartbeatTimeoutMs() const { return heartbeat_timeout_ms ? heartbeat_timeout_ms : 3u * heartbeat_ms; }
   /// metres -> counts (rounded), counts -> metres.
@@ -67,6 +74,9 @@ struct CanConfig {
   std::uint32_t sdo_timeout_ms = 100;    ///< per SDO frame
   std::uint32_t boot_timeout_ms = 2000;  ///< reset communication -> boot-up
   std::vector<AxisConfig> axes;
+  // The master's own CANopen identity (CiA 301 heartbeat producer):
+  std::uint8_t master_node_id = 127;       ///< bus.master_node_id: heartbeat COB-ID 0x700 + id; no axis may use it
+  std::uint16_t master_heartbeat_ms = 100; ///< bus.master_heartbeat_ms: producer period; 0 = no heartbeat
 
   /// The axis with that node id / name, or nullptr.
   const AxisConfig* findNode(std::uint8_t node) const;

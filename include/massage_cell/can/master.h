@@ -11,7 +11,22 @@
 //    back -> event, node back or reconfigured);
 //  - EMCY consumer -> event with the error-code text;
 //  - SDO client per node (sdo_client.h);
-//  - bus state changes (error-passive, bus-off, recovery) -> events.
+//  - bus state changes (error-passive, bus-off, recovery) -> events, also
+//    for a bus-off or interface loss that came and went between two polls
+//    (seen in the bus's bus_off_events / recoveries counters);
+//  - bus-off / interface loss recovery: the bus endpoint reopens by itself
+//    (SocketCanBus back-off); a node whose bring-up failed because the bus
+//    was bus-off or down meanwhile (lost NMT command, SDO timeout, no
+//    boot-up) has its bring-up restarted once the bus is back (at once when
+//    it already is), so no node stays `failed` because of an outage; nodes
+//    that were operational keep their state when the outage is shorter than
+//    their heartbeat consumer time, else they are `lost` (running axis
+//    operations fail) and come back on their next heartbeat;
+//  - heartbeat producer (CiA 301 §7.2.8.3.2): every bus.master_heartbeat_ms
+//    the master sends 0x700 + bus.master_node_id with its own NMT state
+//    (pre-operational until the first bringUp(), then operational); it
+//    stops when the master stops being polled (stop(), destruction), which
+//    is what a drive's heartbeat consumer (0x1016) detects.
 // PDO mapping is written by SDO at start-up (0x1400/0x1600, 0x1800/0x1A00,
 // CiA 301 §7.5.2.35-38), with the PDO disabled while its mapping changes.
 //
@@ -90,6 +105,9 @@ struct DriveFeedback {
 struct MasterStats {
   std::uint64_t syncs = 0, rpdos = 0, tpdos = 0, emcys = 0, heartbeats = 0, sdo_responses = 0;
   std::uint64_t malformed = 0, ignored = 0, send_failures = 0;
+  std::uint64_t heartbeats_produced = 0;  ///< own heartbeats sent (bus.master_heartbeat_ms)
+  std::uint64_t bus_outages = 0;          ///< bus-off / down periods seen (including ones between two polls)
+  std::uint64_t bringup_restarts = 0;     ///< bring-ups restarted because an outage made them fail
 };
 
 /// One SDO write of the start-up configuration.
@@ -101,7 +119,12 @@ struct StartupWrite {
 /// The CANopen part of a node's start-up configuration: 0x1017 heartbeat
 /// producer time, RPDO1 (0x6040 + 0x607A, synchronous), TPDO1 (0x6041 +
 /// 0x6064, every SYNC), TPDO2 (0x606C + 0x6061, every SYNC) or TPDO2 disabled.
+/// (This form assumes the default master node id, 127.)
 std::vector<StartupWrite> canopenStartupWrites(const AxisConfig& axis);
+/// The same, plus, when axis.master_heartbeat_timeout_ms > 0, the drive's
+/// consumer of the master's heartbeat: 0x1016:01 = master_node_id << 16 |
+/// timeout (CiA 301 §7.5.2.7) and 0x6007 = abort_connection_option.
+std::vector<StartupWrite> canopenStartupWrites(const AxisConfig& axis, std::uint8_t master_node_id);
 /// TPDO mappings the master expects.
 PdoMapping tpdo1Mapping();
 PdoMapping tpdo2Mapping();
@@ -146,6 +169,9 @@ class Master {
   NodeState nodeState(std::uint8_t node) const;
   std::optional<NmtState> nmtState(std::uint8_t node) const;
   bool allOperational() const;
+  /// The master's own NMT state as its heartbeat reports it: pre-operational
+  /// until the first bringUp(), then operational.
+  NmtState ownNmtState() const;
 
   // --- SDO -------------------------------------------------------------------
   void sdoUpload(std::uint8_t node, std::uint16_t index, std::uint8_t sub, SdoClient::Callback done);
@@ -184,6 +210,10 @@ class Master {
   void timers(TimePoint now);
   void startConfiguration(Node& n);
   void setState(Node& n, NodeState s);
+  void checkBus();
+  void bringUpFailed(Node& n, const std::string& why);
+  void busRecovered();
+  bool busUsable() const { return bus_state_ != BusState::kBusOff && bus_state_ != BusState::kDown; }
   void event(EventType type, std::uint8_t node, std::string text, std::uint16_t code = 0, std::uint8_t reg = 0);
   void malformed(std::uint8_t node, const std::string& why);
   std::string label(std::uint8_t node) const;
@@ -202,6 +232,9 @@ class Master {
   MasterStats stats_;
   TimePoint next_sync_{};
   BusState bus_state_ = BusState::kErrorActive;
+  std::uint64_t seen_bus_offs_ = 0, seen_recoveries_ = 0;  // the bus's counters at the last check
+  TimePoint next_heartbeat_{};
+  NmtState own_nmt_ = NmtState::kPreOperational;
   TimePoint last_unknown_malformed_{};
   std::thread thread_;
   bool stop_ = false;

@@ -13,6 +13,15 @@
 //    once (254/255); TPDOs sent on every n-th SYNC (type n = 1..240) or on
 //    change (254/255); DLC errors -> EMCY 0x8210, the frame is not applied;
 //  - heartbeat producer (0x1017);
+//  - heartbeat consumer of the master (0x1016:01 = producer node id << 16 |
+//    time in ms; 0 = off): monitoring starts with the first heartbeat of that
+//    node (CiA 301 §7.2.8.2.2.3); when none comes within the time the drive
+//    sends EMCY 0x8130 (heartbeat error) and reacts per 0x6007 abort
+//    connection option code (CiA 402): 1 fault (error code 0x8130, fault
+//    reaction -> fault), 2 disable voltage (-> switch on disabled), 3 quick
+//    stop (from operation enabled -> quick stop active, then per 0x605A),
+//    0 nothing but the EMCY. The next heartbeat re-arms it; a fault stays
+//    until a fault reset;
 //  - CiA 402 state machine (transitions 2..16, fault reset on the rising
 //    edge of controlword bit 7), profile position mode with a trapezoidal
 //    profile (0x6081 limited by 0x607F, 0x6083 / 0x6084), software position
@@ -51,6 +60,8 @@ class SimDrive {
   struct Stats {
     std::uint64_t syncs = 0, rpdos_applied = 0, rpdos_rejected = 0, tpdos = 0, sdo_requests = 0, sdo_aborts = 0;
     std::uint64_t emcys = 0, heartbeats = 0, frames_ignored = 0, sdo_dropped = 0;
+    std::uint64_t master_heartbeats = 0;       ///< heartbeats of the consumed producer (0x1016:01) received
+    std::uint64_t master_heartbeat_losses = 0; ///< consumer timeouts (EMCY 0x8130)
   };
 
   /// A powered-off drive for `config` (node id, scale, sim.* settings, and
@@ -142,6 +153,8 @@ class SimDrive {
   void enterState(Cia402State s);
   void enterFault(std::uint16_t code, std::array<std::uint8_t, 5> manufacturer);
   void sendEmcy(std::uint16_t code, std::uint8_t reg, std::array<std::uint8_t, 5> manufacturer = {});
+  void applyFilters();
+  void checkHeartbeatConsumer(TimePoint now);
   void startHoming();
   void completeHoming();
   void advance(TimePoint now);
@@ -164,6 +177,9 @@ class SimDrive {
   TimePoint next_heartbeat_{};
   TimePoint last_advance_{};
   BusState bus_state_ = BusState::kErrorActive;
+  // heartbeat consumer (0x1016:01)
+  bool consumer_armed_ = false;   // a heartbeat of the producer arrived since (re)configuration / the last loss
+  TimePoint consumer_last_{};
 
   // SDO server
   Upload upload_;
