@@ -47,6 +47,7 @@
 // All rows are handled with the head at the image top; head_up = false turns
 // the segmentation by 180 degrees first and the results back afterwards.
 #include "massage_cell/cect/acupoint_model.h"
+#include "massage_cell/cect/cect.h"
 
 #include <algorithm>
 #include <array>
@@ -487,6 +488,110 @@ T get(const YAML::Node& node, const std::string& key, const std::string& where) 
 }
 
 }  // namespace
+
+double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left, const PointLookup& point) {
+  BackLandmarks& l = *landmarks;
+  if (!l.valid || l.midline.size() < 10 || left.mask.empty() || !point) return kNaN;
+  const cv::Mat& mask = left.mask;
+  auto dot = [](const cv::Point3d& a, const cv::Point3d& b) { return a.x * b.x + a.y * b.y + a.z * b.z; };
+  std::vector<double> ys, shifts;
+  const double y0 = std::min(l.c7.y, l.l4.y), y1 = std::max(l.c7.y, l.l4.y);
+  for (const cv::Point2f& m : l.midline) {
+    if (m.y < y0 || m.y > y1) continue;  // the torso between C7 and L4
+    const int y = cvRound(m.y);
+    if (y < 0 || y >= mask.rows) continue;
+    const std::uint8_t* row = mask.ptr<std::uint8_t>(y);
+    int xl = -1, xr = -1;
+    for (int x = 0; x < mask.cols; ++x)
+      if (row[x]) {
+        if (xl < 0) xl = x;
+        xr = x;
+      }
+    if (xl < 0 || xr - xl < 20) continue;
+    cv::Point3d pl, pr;
+    const float fy = static_cast<float>(y);
+    // The rims themselves (the outermost back pixels): points further in
+    // are not symmetric (each view sees one flank more face-on).
+    if (!point(cv::Point2f(static_cast<float>(xl), fy), &pl) || !point(cv::Point2f(static_cast<float>(xr), fy), &pr))
+      continue;
+    // Across the body parallel to the image plane (the table, seen from
+    // above): the rims themselves lie at different heights (each is where
+    // the view ray grazes the flank), so the chord between them tilts.
+    const cv::Point3d mid = 0.5 * (pl + pr), across(pr.x - pl.x, pr.y - pl.y, 0.0);
+    const double len = std::sqrt(dot(across, across));
+    if (!(len > 0.0)) continue;
+    const cv::Point3d n = across / len;
+    double x = m.x;
+    bool ok = true;
+    for (int it = 0; it < 3 && ok; ++it) {
+      cv::Point3d p, pa, pb;
+      ok = point(cv::Point2f(static_cast<float>(x), fy), &p) && point(cv::Point2f(static_cast<float>(x - 2), fy), &pa) &&
+           point(cv::Point2f(static_cast<float>(x + 2), fy), &pb);
+      if (!ok) break;
+      const double slope = dot(pb - pa, n) / 4.0;  // metres along n per pixel
+      if (!(slope > 0.0)) {
+        ok = false;
+        break;
+      }
+      x -= dot(p - mid, n) / slope;
+      ok = x > xl && x < xr;
+    }
+    if (!ok) continue;
+    ys.push_back(m.y);
+    shifts.push_back(x - m.x);
+  }
+  if (ys.size() < 10) return kNaN;
+  // shift(y) = a + b y, least squares, once more without the residuals beyond 3 MAD.
+  std::vector<bool> use(ys.size(), true);
+  double a = 0.0, b = 0.0;
+  for (int pass = 0; pass < 2; ++pass) {
+    double n = 0, sy = 0, ss = 0, syy = 0, sys = 0;
+    for (std::size_t i = 0; i < ys.size(); ++i)
+      if (use[i]) {
+        n += 1;
+        sy += ys[i];
+        ss += shifts[i];
+        syy += ys[i] * ys[i];
+        sys += ys[i] * shifts[i];
+      }
+    const double det = n * syy - sy * sy;
+    if (n < 10 || std::abs(det) < 1e-9) return kNaN;
+    b = (n * sys - sy * ss) / det;
+    a = (ss - b * sy) / n;
+    std::vector<double> res;
+    for (std::size_t i = 0; i < ys.size(); ++i) res.push_back(std::abs(shifts[i] - a - b * ys[i]));
+    std::vector<double> sorted = res;
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
+    const double mad = std::max(0.1, sorted[sorted.size() / 2]);
+    for (std::size_t i = 0; i < ys.size(); ++i) use[i] = res[i] <= 3.0 * mad;
+  }
+  auto shiftAt = [&](double y) { return static_cast<float>(a + b * y); };
+  double mean = 0.0;
+  for (cv::Point2f& m : l.midline) {
+    m.x += shiftAt(m.y);
+    mean += shiftAt(m.y);
+  }
+  l.c7.x += shiftAt(l.c7.y);
+  l.l4.x += shiftAt(l.l4.y);
+  return mean / static_cast<double>(l.midline.size());
+}
+
+PixelScale frameScale(const CectFrame& frame) {
+  return [&frame](const cv::Point2f& q) {
+    const LocalizedPoint p = frame.localizeRectified(q);
+    return p.valid ? p.position.z() / frame.geometry().fx() : kNaN;
+  };
+}
+
+PointLookup framePoints(const CectFrame& frame) {
+  return [&frame](const cv::Point2f& q, cv::Point3d* out) {
+    const LocalizedPoint p = frame.localizeRectified(q);
+    if (!p.valid) return false;
+    *out = cv::Point3d(p.position.x(), p.position.y(), p.position.z());
+    return true;
+  };
+}
+
 
 // ---------------------------------------------------------------------------
 // AcupointModel

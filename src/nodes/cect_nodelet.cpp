@@ -479,16 +479,12 @@ void CectNodelet::process(const Pair& pair, const Config& config) {
   if (!frame->valid()) {
     frame_problem = "no usable view of the back: " + frame->reason();
   } else {
-    const cect::BackLandmarks landmarks = cect::findLandmarks(frame->left(), model_);
+    cect::BackLandmarks landmarks = cect::findLandmarks(frame->left(), model_);
     if (!landmarks.valid) {
       frame_problem = "no landmarks of the back: " + landmarks.reason;
     } else {
-      const double fx = geometry.fx();
-      const cect::PixelScale scale = [&frame, fx](const cv::Point2f& rect_pixel) {
-        const cect::LocalizedPoint p = frame->localizeRectified(rect_pixel);
-        return p.valid ? p.position.z() / fx : kNaN;
-      };
-      const std::vector<cect::AcupointPixel> placed = cect::placeAcupoints(landmarks, model_, scale);
+      if (config.correct_parallax) cect::correctMidlineParallax(&landmarks, frame->left(), cect::framePoints(*frame));
+      const std::vector<cect::AcupointPixel> placed = cect::placeAcupoints(landmarks, model_, cect::frameScale(*frame));
       std::map<std::string, const cect::AcupointPixel*> by_name;
       for (const auto& p : placed) by_name[p.name] = &p;
       for (std::size_t i = 0; i < model_.points.size(); ++i) {

@@ -35,7 +35,7 @@ using Clock = std::chrono::steady_clock;
 const char* kUsage = R"(Usage: cect_eval [--experiments ideal,lighting,shift] [--subjects N] [--condition-subjects K]
                  [--random-points N] [--width W --height H --fx F --baseline B --camera-height Z]
                  [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX]
-                 [--param NAME=VALUE,...] [--csv] [--per-point]
+                 [--param NAME=VALUE,...] [--csv] [--per-point] [--no-parallax-correction]
 
 Renders prone subjects with the scene simulator and localises points on their
 backs with CECT (segmentation -> contour correspondences -> barycentric
@@ -56,6 +56,9 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
   --param      set CECT parameters by their CectParams names, e.g.
                --param ncc_radius=9,smooth_radius=2 (see cect.h)
   --csv        print CSV: condition,subject,method,points,mean_mm,max_mm,acc_rate
+  --no-parallax-correction  place the acupoints from the silhouette's centre
+               line as it is (the default moves it onto the skin's midline in 3D:
+               correctMidlineParallax)
   --per-point  also print, per condition, every acupoint's CECT figures over the
                subjects and the commonest reason it was not localised
 )";
@@ -70,6 +73,7 @@ struct Options {
   bool raw = false;
   bool csv = false;
   bool per_point = false;
+  bool parallax = true;  ///< the model's midline corrected for the silhouette's parallax (3D)
   std::string acupoints;
   int seed_step = -1;
   double query_search = -1.0;
@@ -208,13 +212,10 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   std::vector<cect::AcupointPixel> placed;
   std::vector<cect::LocalizedPoint> located;
   if (f.valid()) {
-    const cect::BackLandmarks lm = cect::findLandmarks(f.left(), model);
+    cect::BackLandmarks lm = cect::findLandmarks(f.left(), model);
     if (lm.valid) {
-      const cect::PixelScale scale = [&](const cv::Point2f& q) {
-        const cect::LocalizedPoint p = f.localizeRectified(q);
-        return p.valid ? p.position.z() / geometry.fx() : std::nan("");
-      };
-      placed = cect::placeAcupoints(lm, model, scale);
+      if (o.parallax) cect::correctMidlineParallax(&lm, f.left(), cect::framePoints(f));
+      placed = cect::placeAcupoints(lm, model, cect::frameScale(f));
       for (const auto& a : placed)
         located.push_back(a.valid ? f.localizeRectified(a.pixel) : cect::LocalizedPoint{});
     } else {
@@ -474,6 +475,7 @@ int main(int argc, char** argv) {
         t.flags["--raw"] = [&] { o.raw = true; };
         t.flags["--csv"] = [&] { o.csv = true; };
         t.flags["--per-point"] = [&] { o.per_point = true; };
+        t.flags["--no-parallax-correction"] = [&] { o.parallax = false; };
         if (!tools::parseArguments(argc, argv, t, kUsage)) return false;
         tools::require(o.width >= 64 && o.height >= 48, "--width/--height too small");
         tools::require(o.fx > 0 && o.baseline > 0 && o.camera_height > 0.3,

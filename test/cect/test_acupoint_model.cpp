@@ -23,10 +23,12 @@
 #include <opencv2/imgproc.hpp>
 
 #include "massage_cell/cect/acupoint_model.h"
+#include "massage_cell/cect/cect.h"
 #include "massage_cell/sim/body_model.h"
 #include "massage_cell/sim/camera_model.h"
 #include "massage_cell/sim/renderer.h"
 #include "massage_cell/sim/scene_builder.h"
+#include "massage_cell/sim/stereo_frame.h"
 
 namespace cect = massage_cell::cect;
 namespace sim = massage_cell::sim;
@@ -482,6 +484,57 @@ TEST(AcupointPlacement, MeanSubjectAcupointsNearTheTruth) {
   EXPECT_LT(e.mean_px, 9.0);
   EXPECT_LT(e.max_px, 16.0);
   EXPECT_LT(std::abs(e.cun_rel), 0.01);  // calibrated on this subject
+}
+
+TEST(AcupointLandmarks, ParallaxCorrectionPutsTheMidlineOnTheSpine) {
+  // The silhouette's centre line is the table-level image of the midline;
+  // with the back in 3D (CECT on the mean subject's stereo pair: the rims'
+  // own correspondences) it moves onto the spine.
+  const sim::BackModel back(sim::BodyParameters::subject(0));
+  const sim::Renderer renderer(sim::makeBackScene(back, 1));
+  sim::RigParameters rig;
+  rig.rectified = true;
+  const sim::StereoPairModel pair = sim::makeStereoPair(rig);
+  sim::RenderOptions ro;
+  ro.supersample = 1;
+  const sim::StereoFrame frame =
+      sim::renderStereoFrame(renderer, pair, sim::Lighting::preset(sim::LightPreset::kTopCentre), ro);
+  const cect::CectFrame f = cect::CectFrame::analyse(frame.left.image, frame.right.image,
+                                                     cect::StereoGeometry(pair.left_info, pair.right_info), {});
+  ASSERT_TRUE(f.valid()) << f.reason();
+  cect::BackLandmarks l = cect::findLandmarks(f.left(), model());
+  ASSERT_TRUE(l.valid) << l.reason;
+  // Mean signed x offset of the midline's GV points from the true ones.
+  const auto truth = back.acupoints();
+  auto gvOffset = [&](const cect::BackLandmarks& lm) {
+    double sum = 0.0;
+    int n = 0;
+    for (const auto& a : cect::placeAcupoints(lm, model(), cect::frameScale(f)))
+      if (a.valid && a.name.rfind("GV", 0) == 0 && a.name != "GV14") {  // GV14: on the model's end cap
+        sum += a.pixel.x - project(pair.left, truth.at(a.name)).x;
+        ++n;
+      }
+    EXPECT_GT(n, 8);
+    return sum / std::max(1, n);
+  };
+  const double before = gvOffset(l);
+  const cect::BackLandmarks uncorrected = l;
+  const double shift = cect::correctMidlineParallax(&l, f.left(), cect::framePoints(f));
+  const double after = gvOffset(l);
+  std::printf("GV points' mean x offset: %.2f px from the silhouette, %.2f px corrected (mean shift %.2f px)\n",
+              before, after, shift);
+  EXPECT_GT(std::abs(before), 3.0);  // the parallax is there to correct
+  EXPECT_LT(std::abs(after), 1.5);
+  EXPECT_LT(std::abs(after), 0.4 * std::abs(before));
+  EXPECT_LT((l.c7.x - uncorrected.c7.x) * before, 0.0);                // moved toward the spine
+  EXPECT_FLOAT_EQ(l.c7.y, uncorrected.c7.y);                           // only across the body
+
+  // Without 3D it leaves the landmarks alone and says so.
+  cect::BackLandmarks none = uncorrected;
+  const cect::PointLookup nothing = [](const cv::Point2f&, cv::Point3d*) { return false; };
+  EXPECT_TRUE(std::isnan(cect::correctMidlineParallax(&none, f.left(), nothing)));
+  EXPECT_FLOAT_EQ(none.c7.x, uncorrected.c7.x);
+  EXPECT_FLOAT_EQ(none.midline[10].x, uncorrected.midline[10].x);
 }
 
 TEST(AcupointPlacement, LeftAndRightPointsAreMirrorImagesAboutTheMidline) {

@@ -79,6 +79,29 @@ BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model
 /// Metres per pixel at a rectified left pixel (depth / fx), NaN if unknown.
 using PixelScale = std::function<double(const cv::Point2f& rect_pixel)>;
 
+/// 3D point (left camera frame, metres) of a rectified left pixel; false if unknown.
+using PointLookup = std::function<bool(const cv::Point2f& rect_pixel, cv::Point3d* point)>;
+
+/// The silhouette's centre line is not the skin's midline: the flanks' rims
+/// lie ~0.1 m below the spine, so a camera off the body's symmetry plane
+/// (the left camera of a pair is half a baseline off) sees them shifted
+/// against the spine by the parallax (~8 mm in the cell). With the back in
+/// 3D this moves the midline (and C7, L4 on it) onto the skin point of each
+/// row that lies on the plane halfway between the two rims (normal from rim
+/// to rim parallel to the image plane: the camera looks down at the table;
+/// rolled against the body is fine): per row the 3D points of the outermost
+/// back pixels, Newton steps along the row, then a robust line
+/// fitted to the shifts over the torso's rows. Returns the mean shift in
+/// pixels (toward the image right: +); leaves the landmarks as they are and
+/// returns NaN when fewer than 10 rows have the 3D points.
+double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left, const PointLookup& point);
+
+class CectFrame;
+/// A CECT frame's surface as the model wants it: metres per pixel (depth / fx)
+/// and 3D points at rectified left pixels (the frame must outlive them).
+PixelScale frameScale(const CectFrame& frame);
+PointLookup framePoints(const CectFrame& frame);
+
 struct AcupointPixel {
   std::string name;
   cv::Point2f pixel;  ///< rectified left image
