@@ -1,0 +1,105 @@
+// Configuration of the three-axis massage arm (issue 7): which CAN axes are
+// the gantry's x / y / z joints, their soft limits (position, velocity,
+// acceleration), the Cartesian workspace envelope of the tool tip, the tool
+// offset, the command watchdog, the press routine and the per-region depth
+// limits (shared/reference/back_acupoints.md, safety notes). Loaded from
+// config/arm.yaml (which documents every field) with yaml-cpp; a problem is
+// an ArmConfigError naming the file and the field, e.g.
+// "config/arm.yaml: joints.Z.max: 0.35 m is beyond the drive's software limit 0.30 m".
+//
+// Frames and units: SI (metres, seconds), REP 103. The arm base frame
+// (URDF link arm_base_link) has x along the gantry's X axis, y along Y, z up;
+// joint q = (qx, qy, qz) puts the tool tip at q + tool_offset.
+#pragma once
+
+#include <array>
+#include <map>
+#include <stdexcept>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "massage_cell/can/config.h"
+
+namespace massage_cell::arm {
+
+class ArmConfigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Soft limits of one prismatic joint.
+struct JointLimits {
+  double min = 0.0;               ///< m
+  double max = 0.0;               ///< m
+  double max_velocity = 0.05;     ///< m/s
+  double max_acceleration = 0.25; ///< m/s^2
+};
+
+/// Press limits of one body region (back_acupoints.md, safety notes).
+struct RegionLimits {
+  double max_depth = 0.002;      ///< m past the surface point along the normal
+  double default_depth = 0.001;  ///< m, used when a request gives no depth
+};
+
+/// The press routine: approach above the target, descend along the surface
+/// normal to the depth, hold, retract; travel between targets at a safe height.
+struct PressConfig {
+  double approach_height = 0.03;   ///< m above the surface point along the normal
+  double travel_height = 0.28;     ///< m, tool-tip z in the arm base frame for moves between targets
+  double speed = 0.01;             ///< m/s, default approach / descent speed
+  double max_speed = 0.03;         ///< m/s, the most a request may ask for
+  double acceleration = 0.1;       ///< m/s^2 along the press path
+  double retract_speed = 0.02;     ///< m/s
+  double hold = 2.0;               ///< s, default hold time at depth
+  double max_hold = 30.0;          ///< s
+  int max_repeats = 10;            ///< presses per target
+  double max_normal_tilt = 0.7854; ///< rad between the outward normal and +z (config: degrees)
+  double knead_radius = 0.004;     ///< m, circle in the tangent plane while kneading
+  double knead_period = 1.0;       ///< s per circle
+  int knead_segments = 8;          ///< straight segments per circle
+};
+
+struct ArmConfig {
+  std::string source;                   ///< file it came from (for messages)
+  std::string can_config_path;          ///< resolved path of the CAN configuration
+  can::CanConfig can;                   ///< loaded from can_config_path
+  std::array<std::string, 3> axis_names{"X", "Y", "Z"};  ///< CAN axis of the x, y, z joint
+  std::array<std::string, 3> joint_names{"arm_x_joint", "arm_y_joint", "arm_z_joint"};  ///< URDF joints
+  std::array<JointLimits, 3> joints;
+  Eigen::Vector3d tool_offset = Eigen::Vector3d::Zero();   ///< m, tool tip - joint position (arm base frame)
+  Eigen::Vector3d workspace_min = Eigen::Vector3d::Zero(); ///< m, envelope of the tool tip (arm base frame)
+  Eigen::Vector3d workspace_max = Eigen::Vector3d::Zero();
+  double watchdog_timeout = 0.5;        ///< s without keepAlive() that ends a move or massage (0: off)
+  double bringup_timeout = 5.0;         ///< s for every node to become operational
+  double position_tolerance = 1e-4;     ///< m: a move that ends farther from its goal is a fault
+  PressConfig press;
+  std::map<std::string, RegionLimits> regions;
+  std::string default_region = "midline";  ///< for targets of no known region (the most conservative)
+  std::string acupoints_path;              ///< resolved path of the acupoint model (name -> region); may be empty
+  std::map<std::string, std::string> acupoint_regions;  ///< acupoint name -> region, from acupoints_path
+
+  /// Tool tip of joint position q, and the joint position of a tool tip.
+  Eigen::Vector3d toolOf(const Eigen::Vector3d& q) const { return q + tool_offset; }
+  Eigen::Vector3d jointsOf(const Eigen::Vector3d& tool) const { return tool - tool_offset; }
+  /// The CAN axis configuration of joint i.
+  const can::AxisConfig& axis(int i) const;
+  /// Region limits of `region` (the default region's when unknown).
+  const RegionLimits& limitsOf(const std::string& region) const;
+  /// Region of an acupoint name ("BL23_L"); empty when the model does not know it.
+  std::string regionOf(const std::string& acupoint) const;
+};
+
+/// Parses YAML text; relative paths in it are resolved against `base_dir`;
+/// `source` names the text in messages. Throws ArmConfigError.
+ArmConfig parseArmConfig(const std::string& yaml_text, const std::string& source, const std::string& base_dir);
+/// Loads a file (relative paths in it are relative to its folder). Throws ArmConfigError.
+ArmConfig loadArmConfig(const std::string& path);
+/// Checks ranges, the envelope inside the joint limits, the joint limits
+/// inside the drives' limits. Throws ArmConfigError.
+void validate(const ArmConfig& config);
+/// Reads `points: [{name, region}, ...]` of an acupoint model file
+/// (config/acupoints.yaml). Throws ArmConfigError.
+std::map<std::string, std::string> loadAcupointRegions(const std::string& path);
+
+}  // namespace massage_cell::arm

@@ -1,0 +1,259 @@
+// The arm controller (issue 7), ROS-free: the three prismatic axes X, Y, Z
+// of the gantry as CiA 402 drives behind one CANopen master
+// (include/massage_cell/can/), driven by a cycle that runs once per SYNC
+// (100 Hz with the default bus.sync_period_ms = 10), inside the master's
+// poll (a tick handler, in the poll that sends the SYNC, just before it), so
+// on a VirtualClock everything is deterministic and on the steady clock it
+// runs in the master's thread.
+//
+// What it guarantees:
+//  - no motion before homing (home(): enable, Z up to its switch first, then
+//    X and Y); moves and massages are refused until every axis is homed;
+//  - soft limits: every goal is checked against the joint limits and the
+//    Cartesian workspace envelope of the tool tip (config) before any frame
+//    is sent; the drives' own 0x607D limits lie outside them (validated);
+//  - synchronised point-to-point moves (profile.h): the profile velocity and
+//    acceleration of every moving axis are written by SDO (0x6081, 0x6083,
+//    0x6084), then all axes get their set-point in the same cycle, so they
+//    start at the same SYNC, arrive together and the tool follows the line;
+//  - the press routine (plan.h) never goes deeper than its region allows;
+//  - e-stop latch: setEstop(true) sends RPDO1 with the quick-stop
+//    controlword to every drive at once (the drives, synchronous RPDOs, apply
+//    it at the next SYNC) and the axes keep commanding quick stop; the latch
+//    holds, whatever the e-stop input does, until resetFault() with the input
+//    released;
+//  - faults: heartbeat loss, an EMCY, the bus going bus-off / down, an SDO
+//    failure (timeout, abort), a drive in fault or an axis operation failing
+//    stop all axes (quick stop), end the running command and enter kFault;
+//    every command except stop() is refused until resetFault() succeeds
+//    (fault reset of the drives, then enable);
+//  - command watchdog: while a move or a massage runs, keepAlive() must come
+//    at least every watchdog_timeout; otherwise a press in contact retracts
+//    and any other motion stops (quick stop, re-enable), and the command fails;
+//  - abortMassage() (the press target was lost): a press in contact retracts
+//    to its approach point and up to the travel height; the command fails.
+// Threading: every public function takes the master's (recursive) lock.
+#pragma once
+
+#include <array>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "massage_cell/arm/config.h"
+#include "massage_cell/arm/plan.h"
+#include "massage_cell/arm/profile.h"
+#include "massage_cell/can/cia402.h"
+#include "massage_cell/can/master.h"
+
+namespace massage_cell::arm {
+
+enum class Mode {
+  kStarting,   ///< bringing the CANopen nodes up
+  kReady,      ///< nodes up, not homed (drives not enabled)
+  kHoming,
+  kIdle,       ///< homed, standing, enabled
+  kMoving,
+  kMassaging,
+  kStopping,   ///< quick stop, then re-enable
+  kResetting,  ///< fault reset, then enable
+  kFault,      ///< stopped; refuses commands until resetFault()
+  kEstop,      ///< e-stop latched; refuses commands until resetFault()
+};
+const char* toString(Mode mode);
+
+/// A Bus that forwards to another one and remembers the last RPDO1 sent to
+/// each node (so an e-stop can resend it with the quick-stop controlword at
+/// once); an optional observer sees every frame sent.
+class TapBus final : public can::Bus {
+ public:
+  using Observer = std::function<void(const can_frame&)>;
+  explicit TapBus(can::Bus& inner) : inner_(inner) {}
+  std::string name() const override { return inner_.name(); }
+  bool send(const can_frame& frame) override;
+  std::optional<can::TimedFrame> receive(can::Duration timeout) override { return inner_.receive(timeout); }
+  void setFilters(const std::vector<can_filter>& filters) override { inner_.setFilters(filters); }
+  can::BusStatus status() const override { return inner_.status(); }
+  std::optional<can_frame> lastRpdo1(std::uint8_t node) const;
+  void setObserver(Observer observer);
+
+ private:
+  can::Bus& inner_;
+  mutable std::mutex mutex_;
+  std::map<std::uint8_t, can_frame> rpdo1_;
+  Observer observer_;
+};
+
+struct AxisStatus {
+  std::string name;
+  bool valid = false;  ///< statusword received
+  double position = 0.0;  ///< m
+  can::Cia402State state = can::Cia402State::kUnknown;
+  can::NodeState node = can::NodeState::kUnknown;
+  std::uint16_t statusword = 0;
+  bool homed = false;
+};
+
+struct ArmStatus {
+  Mode mode = Mode::kStarting;
+  bool homed = false;
+  bool estop_input = false;    ///< the e-stop input as last set
+  bool estop_latched = false;  ///< latched until resetFault()
+  std::array<AxisStatus, 3> axes;
+  Eigen::Vector3d joints = Eigen::Vector3d::Zero();  ///< m
+  Eigen::Vector3d tool = Eigen::Vector3d::Zero();    ///< m, arm base frame
+  std::vector<std::string> faults;  ///< why the arm is in fault (empty otherwise)
+  std::string activity;             ///< what the running command does now
+  std::string last_error;           ///< the last failure or refusal
+  can::BusState bus = can::BusState::kErrorActive;
+  std::uint64_t cycles = 0;
+  std::uint64_t command = 0;  ///< id of the running (or last) command
+  int target = -1;            ///< index of the massage target being worked on
+  int presses_done = 0;       ///< of the running (or last) massage
+};
+
+/// The outcome of a command.
+struct CommandResult {
+  bool done = false;
+  bool success = false;
+  std::string message;
+};
+
+/// A command's acceptance: id != 0, or the refusal.
+struct Accepted {
+  std::uint64_t id = 0;
+  std::string error;
+  explicit operator bool() const { return id != 0; }
+};
+
+class Controller {
+ public:
+  using Log = std::function<void(const std::string& text)>;
+  using CycleObserver = std::function<void(can::TimePoint now)>;
+
+  /// Builds the master (on `bus`, through a TapBus) and the three axes.
+  /// Throws ArmConfigError / can::ConfigError on a bad configuration.
+  Controller(can::Bus& bus, const can::Clock& clock, ArmConfig config);
+  ~Controller();
+  Controller(const Controller&) = delete;
+  Controller& operator=(const Controller&) = delete;
+
+  can::Master& master() { return *master_; }
+  const ArmConfig& config() const { return config_; }
+  can::Cia402Axis& axis(int i) { return *axes_.at(static_cast<std::size_t>(i)); }
+
+  /// Brings the nodes up (asynchronous: kStarting -> kReady, or kFault).
+  void start();
+
+  // --- commands (asynchronous; poll result(id)) -------------------------------------------
+  Accepted home();
+  /// Moves the tool tip (arm base frame) in a synchronised straight line;
+  /// `speed` > 0 limits the tool's speed (m/s), else the joint limits rule.
+  Accepted moveTo(const Eigen::Vector3d& tool, double speed = 0.0);
+  Accepted massage(const PressRequest& request);
+  /// Stops the motion: a press in contact retracts; anything else quick-stops
+  /// and re-enables. In fault / e-stop there is nothing to stop: done at once.
+  Accepted stop(const std::string& why = "stop requested");
+  /// Clears faults and the e-stop latch (input released), fault-resets and enables the drives.
+  Accepted resetFault();
+  /// The e-stop input (true = pressed). Pressing latches at once.
+  void setEstop(bool pressed);
+  /// Feeds the command watchdog.
+  void keepAlive();
+  /// The running massage's target cannot be trusted any more (tf lost / stale).
+  void abortMassage(const std::string& reason);
+
+  CommandResult result(std::uint64_t id) const;
+  ArmStatus status() const;
+  Mode mode() const;
+
+  // --- hooks -----------------------------------------------------------------------------------
+  /// Every event and decision as a text line (called under the master's lock: do not call back).
+  void setLog(Log log);
+  /// Called at the start of every cycle (under the lock).
+  void setCycleObserver(CycleObserver observer);
+  /// Sees every frame the master sends (TapBus).
+  void setFrameObserver(TapBus::Observer observer) { tap_.setObserver(std::move(observer)); }
+
+ private:
+  struct Action {
+    enum class Kind { kEnableAll, kQuickStopAll, kFaultResetAll, kHome, kStep };
+    explicit Action(Kind k = Kind::kStep, unsigned m = 0b111) : kind(k), mask(m) {}
+    Kind kind = Kind::kStep;
+    unsigned mask = 0b111;  ///< axes (kHome)
+    Step step;
+  };
+  enum class Phase { kStart, kProfiles, kRunning };
+
+  void tick(can::TimePoint now);
+  void cycle(can::TimePoint now);
+  void handleEvents();
+  void checkFaults();
+  void fault(const std::string& why);
+  void runQueue(can::TimePoint now);
+  bool startAction(Action& a, can::TimePoint now);  // false: failed (fault raised)
+  /// true when done (ok), false when running; faults on failure.
+  bool tickAction(Action& a, can::TimePoint now);
+  bool waitOps(const std::string& what);  // ops of started_ axes: true when all done ok
+  void startMove(const Step& s);
+  Accepted begin(Mode mode, std::deque<Action> actions, const std::string& what);
+  void finish(bool success, const std::string& message);
+  void setResult(std::uint64_t id, bool success, const std::string& message);
+  Accepted refuse(const std::string& why);
+  std::string refusal(bool needs_homed) const;
+  void quickStopAll();
+  void stopAndReenable(const std::string& why);
+  void retract(const std::string& why);
+  Eigen::Vector3d joints() const;
+  bool allHomed() const;
+  void log(const std::string& text);
+
+  ArmConfig config_;
+  const can::Clock& clock_;
+  TapBus tap_;
+  std::unique_ptr<can::Master> master_;
+  std::array<std::unique_ptr<can::Cia402Axis>, 3> axes_;
+  int tick_id_ = 0;
+  can::TimePoint next_cycle_{};  ///< mirrors the master's SYNC schedule
+  std::uint64_t cycles_ = 0;
+
+  Mode mode_ = Mode::kStarting;
+  can::TimePoint start_time_{};
+  bool started_ = false;
+  bool estop_input_ = false, estop_latched_ = false;
+  std::vector<std::string> faults_;
+  std::string last_error_;
+  can::BusState bus_state_ = can::BusState::kErrorActive;
+
+  // Running command.
+  std::deque<Action> queue_;
+  std::optional<Action> current_;
+  Phase phase_ = Phase::kStart;
+  can::TimePoint action_start_{};
+  unsigned started_axes_ = 0;
+  int sdo_pending_ = 0;
+  std::string sdo_error_;
+  unsigned sdo_generation_ = 0;
+  std::array<std::int32_t, 3> goal_counts_{};
+  std::array<std::optional<std::array<std::uint32_t, 3>>, 3> written_profile_;  // 0x6081/83/84 last written
+  SyncProfile profile_;
+  std::uint64_t command_ = 0, next_id_ = 1;
+  std::string command_what_;
+  std::string abort_reason_;  ///< set when the command is being aborted (it then fails with this)
+  bool aborting_ = false;
+  int presses_done_ = 0;
+  can::TimePoint last_keepalive_{};
+  std::map<std::uint64_t, CommandResult> results_;
+
+  Log log_;
+  CycleObserver cycle_observer_;
+};
+
+}  // namespace massage_cell::arm

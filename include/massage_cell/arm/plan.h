@@ -1,0 +1,76 @@
+// Motion plans of the arm, ROS-free and CAN-free (so they are unit-tested on
+// their own): the envelope / joint-limit check of a tool position, and the
+// press routine expanded into steps. A press over one target:
+//   travel at the safe height over the approach point -> down to the
+//   approach point (target + approach_height * n) -> [descend along -n to
+//   target - depth * n -> hold (knead: circles in the tangent plane at
+//   depth) -> retract to the approach point] x repeats -> up to the safe height,
+// n being the outward surface normal (default +z: a vertical press). Every
+// point a plan visits is inside the workspace envelope and the joint limits,
+// and no point is deeper than the target's region allows — or the plan is
+// refused with a message naming the target and the problem.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "massage_cell/arm/config.h"
+
+namespace massage_cell::arm {
+
+enum class Technique { kPress, kKnead };
+const char* toString(Technique t);
+
+/// One surface point to press, in the arm base frame.
+struct PressTarget {
+  std::string name;    ///< for messages (acupoint name, or "point 2")
+  std::string region;  ///< region key (config regions); empty: the default region
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();          ///< on the skin, m
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();        ///< outward surface normal
+};
+
+struct PressRequest {
+  std::vector<PressTarget> targets;  ///< pressed in this order
+  Technique technique = Technique::kPress;
+  double depth = 0.0;   ///< m past the surface point; 0: each region's default depth
+  double hold = -1.0;   ///< s at depth; < 0: config default
+  double speed = 0.0;   ///< m/s approach / descent; 0: config default
+  int repeats = 1;      ///< presses per target
+};
+
+/// One step of a plan.
+struct Step {
+  enum class Kind { kMove, kHold };
+  Kind kind = Kind::kMove;
+  Eigen::Vector3d tool = Eigen::Vector3d::Zero();  ///< goal of a move (tool tip, arm base frame)
+  double speed = 0.0;     ///< m/s along the path (0: joint limits only)
+  double accel = 0.0;     ///< m/s^2 along the path (0: joint limits only)
+  double duration = 0.0;  ///< s, of a hold
+  std::string label;      ///< "press 1/2 BL23_L: descend"
+  bool contact = false;   ///< the tool is below the approach point: an abort retracts first
+  bool retract = false;   ///< part of a retraction (never aborted, not watchdog-guarded)
+  int target = -1;        ///< index into the request's targets
+  bool press_done = false;  ///< finishing this step completes one press (the retract after a hold)
+  Eigen::Vector3d retreat = Eigen::Vector3d::Zero();  ///< where an abort during a contact step retracts to
+};
+
+/// Empty when `tool` is inside the workspace envelope and its joints inside
+/// the joint limits; otherwise why not ("(0.9, 0.1, 0.2) m is outside the
+/// workspace envelope: x above 0.76 m").
+std::string checkTool(const ArmConfig& config, const Eigen::Vector3d& tool);
+
+/// Expands a massage request into steps starting from tool position `from`;
+/// returns the refusal (empty when planned).
+std::string planMassage(const ArmConfig& config, const Eigen::Vector3d& from, const PressRequest& request,
+                        std::vector<Step>* steps);
+
+/// The steps that take the tool out of contact from a contact step: back to
+/// its retreat point, then up to the travel height.
+std::vector<Step> retractSteps(const ArmConfig& config, const Step& from_step);
+
+/// Formats a point "(x, y, z) m" with mm resolution.
+std::string formatPoint(const Eigen::Vector3d& p);
+
+}  // namespace massage_cell::arm

@@ -1,0 +1,55 @@
+// The arm on simulated drives, in-process and on the real clock: a
+// VirtualBus, one SimDrive per configured CAN axis (each polled in its own
+// thread), the Controller's master in its own thread. What the arm node runs
+// with can_interface "sim" and what arm_bench measures.
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "massage_cell/arm/controller.h"
+#include "massage_cell/can/sim_drive.h"
+#include "massage_cell/can/virtual_bus.h"
+
+namespace massage_cell::arm {
+
+/// Puts the calling thread under SCHED_FIFO with `priority` (1..99); threads
+/// it creates afterwards inherit it (the master's and the drives' threads when
+/// called before SimCell::start / Master::start). Empty on success, else why
+/// not (e.g. "Operation not permitted": needs CAP_SYS_NICE / an rtprio limit).
+std::string useRealtimeScheduling(int priority);
+
+class SimCell {
+ public:
+  explicit SimCell(ArmConfig config);
+  ~SimCell();
+  SimCell(const SimCell&) = delete;
+  SimCell& operator=(const SimCell&) = delete;
+
+  /// Powers the drives, starts the threads and the controller's bring-up.
+  void start();
+  /// Stops the threads (the destructor does too).
+  void stop();
+
+  Controller& controller() { return *controller_; }
+  can::VirtualBus& bus() { return bus_; }
+  /// The simulated drive of arm joint i (0 = x, 1 = y, 2 = z).
+  can::SimDrive& drive(int i) { return *drives_.at(static_cast<std::size_t>(joint_drive_[i])); }
+  /// The endpoint the master uses (fault injection: VirtualBus::setBusOff).
+  can::VirtualBus::Endpoint& masterEndpoint() { return *master_ep_; }
+
+ private:
+  can::VirtualBus bus_;
+  std::shared_ptr<can::VirtualBus::Endpoint> master_ep_;
+  std::vector<std::shared_ptr<can::VirtualBus::Endpoint>> drive_eps_;
+  std::vector<std::unique_ptr<can::SimDrive>> drives_;
+  std::array<int, 3> joint_drive_{};
+  std::unique_ptr<Controller> controller_;
+  std::atomic<bool> stop_{false};
+  std::vector<std::thread> threads_;
+  bool running_ = false;
+};
+
+}  // namespace massage_cell::arm

@@ -1,0 +1,327 @@
+// Arm configuration loading and validation (see config.h).
+#include "massage_cell/arm/config.h"
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <yaml-cpp/yaml.h>
+
+namespace massage_cell::arm {
+
+namespace {
+
+std::string num(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+/// Field access with messages naming the file and the field path.
+class Reader {
+ public:
+  Reader(std::string source) : source_(std::move(source)) {}
+
+  [[noreturn]] void fail(const std::string& path, const std::string& what) const {
+    throw ArmConfigError(source_ + ": " + path + ": " + what);
+  }
+
+  void checkKeys(const YAML::Node& node, const std::string& path, const std::set<std::string>& allowed) const {
+    if (!node.IsMap()) fail(path.empty() ? "(top level)" : path, "expected a mapping");
+    for (const auto& kv : node) {
+      const std::string key = kv.first.as<std::string>();
+      if (!allowed.count(key)) {
+        std::string list;
+        for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+        fail(join(path, key), "unknown field (known: " + list + ")");
+      }
+    }
+  }
+
+  static std::string join(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
+
+  double number(const YAML::Node& node, const std::string& path, double fallback, bool required = false) const {
+    if (!node) {
+      if (required) fail(path, "missing");
+      return fallback;
+    }
+    try {
+      const double v = node.as<double>();
+      if (!std::isfinite(v)) fail(path, "not a finite number");
+      return v;
+    } catch (const YAML::Exception&) {
+      fail(path, "expected a number, got '" + scalarText(node) + "'");
+    }
+  }
+
+  int integer(const YAML::Node& node, const std::string& path, int fallback) const {
+    if (!node) return fallback;
+    try {
+      return node.as<int>();
+    } catch (const YAML::Exception&) {
+      fail(path, "expected an integer, got '" + scalarText(node) + "'");
+    }
+  }
+
+  std::string text(const YAML::Node& node, const std::string& path, const std::string& fallback,
+                   bool required = false) const {
+    if (!node) {
+      if (required) fail(path, "missing");
+      return fallback;
+    }
+    if (!node.IsScalar()) fail(path, "expected a string");
+    return node.as<std::string>();
+  }
+
+  Eigen::Vector3d vec3(const YAML::Node& node, const std::string& path, const Eigen::Vector3d& fallback,
+                       bool required = false) const {
+    if (!node) {
+      if (required) fail(path, "missing");
+      return fallback;
+    }
+    if (!node.IsSequence() || node.size() != 3) fail(path, "expected a list of 3 numbers [x, y, z]");
+    Eigen::Vector3d v;
+    for (int i = 0; i < 3; ++i) v[i] = number(node[i], path + "[" + std::to_string(i) + "]", 0.0, true);
+    return v;
+  }
+
+  static std::string scalarText(const YAML::Node& node) {
+    if (node.IsScalar()) return node.Scalar();
+    std::ostringstream s;
+    s << node;
+    return s.str();
+  }
+
+ private:
+  std::string source_;
+};
+
+std::string resolve(const std::string& base_dir, const std::string& path) {
+  if (path.empty() || path[0] == '/' || base_dir.empty()) return path;
+  return base_dir + "/" + path;
+}
+
+std::string dirOf(const std::string& path) {
+  const auto slash = path.find_last_of('/');
+  if (slash == std::string::npos) return ".";
+  return slash == 0 ? "/" : path.substr(0, slash);
+}
+
+std::string readFile(const std::string& path, const std::string& what) {
+  std::ifstream in(path);
+  if (!in) throw ArmConfigError(what + " '" + path + "' cannot be read (missing file?)");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+}  // namespace
+
+const can::AxisConfig& ArmConfig::axis(int i) const {
+  const can::AxisConfig* a = can.findAxis(axis_names.at(static_cast<std::size_t>(i)));
+  if (!a) throw ArmConfigError(source + ": axes: CAN axis '" + axis_names.at(i) + "' is not in " + can_config_path);
+  return *a;
+}
+
+const RegionLimits& ArmConfig::limitsOf(const std::string& region) const {
+  const auto it = regions.find(region);
+  if (it != regions.end()) return it->second;
+  return regions.at(default_region);
+}
+
+std::string ArmConfig::regionOf(const std::string& acupoint) const {
+  const auto it = acupoint_regions.find(acupoint);
+  return it == acupoint_regions.end() ? std::string() : it->second;
+}
+
+std::map<std::string, std::string> loadAcupointRegions(const std::string& path) {
+  const std::string text = readFile(path, "acupoint model");
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw ArmConfigError(path + ": not valid YAML: " + e.what());
+  }
+  const YAML::Node points = root["points"];
+  if (!points || !points.IsSequence()) throw ArmConfigError(path + ": points: missing or not a list");
+  std::map<std::string, std::string> out;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const std::string where = path + ": points[" + std::to_string(i) + "]";
+    if (!points[i].IsMap() || !points[i]["name"] || !points[i]["region"]) {
+      throw ArmConfigError(where + ": needs a name and a region");
+    }
+    out[points[i]["name"].as<std::string>()] = points[i]["region"].as<std::string>();
+  }
+  return out;
+}
+
+ArmConfig parseArmConfig(const std::string& yaml_text, const std::string& source, const std::string& base_dir) {
+  Reader r(source);
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    throw ArmConfigError(source + ": not valid YAML: " + e.what());
+  }
+  r.checkKeys(root, "",
+              {"can_config", "axes", "joint_names", "joints", "tool_offset", "workspace", "watchdog_timeout",
+               "bringup_timeout", "position_tolerance", "press", "regions", "default_region", "acupoints",
+               "node"});  // node: the ROS node's settings (read by the node)
+  ArmConfig c;
+  c.source = source;
+  c.can_config_path = resolve(base_dir, r.text(root["can_config"], "can_config", "", true));
+  try {
+    c.can = can::loadCanConfig(c.can_config_path);
+  } catch (const can::ConfigError& e) {
+    r.fail("can_config", e.what());
+  }
+  for (const char* key : {"axes", "joint_names"}) {
+    const YAML::Node n = root[key];
+    if (!n) {
+      if (std::string(key) == "axes") r.fail(key, "missing (the CAN axis names of x, y, z, e.g. [X, Y, Z])");
+      continue;
+    }
+    if (!n.IsSequence() || n.size() != 3) r.fail(key, "expected a list of 3 names (x, y, z)");
+    auto& out = std::string(key) == "axes" ? c.axis_names : c.joint_names;
+    for (std::size_t i = 0; i < 3; ++i) out[i] = r.text(n[i], std::string(key) + "[" + std::to_string(i) + "]", "", true);
+  }
+  const YAML::Node joints = root["joints"];
+  if (!joints) r.fail("joints", "missing");
+  r.checkKeys(joints, "joints", {c.axis_names[0], c.axis_names[1], c.axis_names[2]});
+  for (int i = 0; i < 3; ++i) {
+    const std::string path = "joints." + c.axis_names[i];
+    const YAML::Node j = joints[c.axis_names[i]];
+    if (!j) r.fail(path, "missing");
+    r.checkKeys(j, path, {"min", "max", "max_velocity", "max_acceleration"});
+    JointLimits& l = c.joints[i];
+    l.min = r.number(j["min"], path + ".min", 0.0, true);
+    l.max = r.number(j["max"], path + ".max", 0.0, true);
+    l.max_velocity = r.number(j["max_velocity"], path + ".max_velocity", 0.0, true);
+    l.max_acceleration = r.number(j["max_acceleration"], path + ".max_acceleration", 0.0, true);
+  }
+  c.tool_offset = r.vec3(root["tool_offset"], "tool_offset", c.tool_offset);
+  const YAML::Node ws = root["workspace"];
+  if (!ws) r.fail("workspace", "missing");
+  r.checkKeys(ws, "workspace", {"min", "max"});
+  c.workspace_min = r.vec3(ws["min"], "workspace.min", {}, true);
+  c.workspace_max = r.vec3(ws["max"], "workspace.max", {}, true);
+  c.watchdog_timeout = r.number(root["watchdog_timeout"], "watchdog_timeout", c.watchdog_timeout);
+  c.bringup_timeout = r.number(root["bringup_timeout"], "bringup_timeout", c.bringup_timeout);
+  c.position_tolerance = r.number(root["position_tolerance"], "position_tolerance", c.position_tolerance);
+
+  if (const YAML::Node p = root["press"]) {
+    r.checkKeys(p, "press",
+                {"approach_height", "travel_height", "speed", "max_speed", "acceleration", "retract_speed", "hold",
+                 "max_hold", "max_repeats", "max_normal_tilt_deg", "knead_radius", "knead_period", "knead_segments"});
+    PressConfig& pc = c.press;
+    pc.approach_height = r.number(p["approach_height"], "press.approach_height", pc.approach_height);
+    pc.travel_height = r.number(p["travel_height"], "press.travel_height", pc.travel_height);
+    pc.speed = r.number(p["speed"], "press.speed", pc.speed);
+    pc.max_speed = r.number(p["max_speed"], "press.max_speed", pc.max_speed);
+    pc.acceleration = r.number(p["acceleration"], "press.acceleration", pc.acceleration);
+    pc.retract_speed = r.number(p["retract_speed"], "press.retract_speed", pc.retract_speed);
+    pc.hold = r.number(p["hold"], "press.hold", pc.hold);
+    pc.max_hold = r.number(p["max_hold"], "press.max_hold", pc.max_hold);
+    pc.max_repeats = r.integer(p["max_repeats"], "press.max_repeats", pc.max_repeats);
+    pc.max_normal_tilt =
+        r.number(p["max_normal_tilt_deg"], "press.max_normal_tilt_deg", pc.max_normal_tilt * 180.0 / M_PI) * M_PI /
+        180.0;
+    pc.knead_radius = r.number(p["knead_radius"], "press.knead_radius", pc.knead_radius);
+    pc.knead_period = r.number(p["knead_period"], "press.knead_period", pc.knead_period);
+    pc.knead_segments = r.integer(p["knead_segments"], "press.knead_segments", pc.knead_segments);
+  }
+  const YAML::Node regions = root["regions"];
+  if (!regions || !regions.IsMap() || regions.size() == 0) r.fail("regions", "missing or empty (region: {max_depth, default_depth})");
+  for (const auto& kv : regions) {
+    const std::string name = kv.first.as<std::string>();
+    const std::string path = "regions." + name;
+    r.checkKeys(kv.second, path, {"max_depth", "default_depth"});
+    RegionLimits l;
+    l.max_depth = r.number(kv.second["max_depth"], path + ".max_depth", 0.0, true);
+    l.default_depth = r.number(kv.second["default_depth"], path + ".default_depth", 0.0, true);
+    c.regions[name] = l;
+  }
+  c.default_region = r.text(root["default_region"], "default_region", c.default_region);
+  const std::string acupoints = r.text(root["acupoints"], "acupoints", "");
+  if (!acupoints.empty()) {
+    c.acupoints_path = resolve(base_dir, acupoints);
+    try {
+      c.acupoint_regions = loadAcupointRegions(c.acupoints_path);
+    } catch (const ArmConfigError& e) {
+      r.fail("acupoints", e.what());
+    }
+  }
+  validate(c);
+  return c;
+}
+
+ArmConfig loadArmConfig(const std::string& path) {
+  return parseArmConfig(readFile(path, "arm configuration"), path, dirOf(path));
+}
+
+void validate(const ArmConfig& c) {
+  const std::string& s = c.source;
+  auto fail = [&](const std::string& path, const std::string& what) { throw ArmConfigError(s + ": " + path + ": " + what); };
+  std::set<std::string> seen;
+  for (int i = 0; i < 3; ++i) {
+    if (!seen.insert(c.axis_names[i]).second) fail("axes", "axis '" + c.axis_names[i] + "' given twice");
+    const can::AxisConfig* a = c.can.findAxis(c.axis_names[i]);
+    if (!a) fail("axes[" + std::to_string(i) + "]", "CAN axis '" + c.axis_names[i] + "' is not in " + c.can_config_path);
+    const JointLimits& l = c.joints[i];
+    const std::string path = "joints." + c.axis_names[i];
+    if (!(l.min < l.max)) fail(path, "min " + num(l.min) + " m must be below max " + num(l.max) + " m");
+    if (l.min < a->min_position) {
+      fail(path + ".min", num(l.min) + " m is beyond the drive's software limit " + num(a->min_position) + " m");
+    }
+    if (l.max > a->max_position) {
+      fail(path + ".max", num(l.max) + " m is beyond the drive's software limit " + num(a->max_position) + " m");
+    }
+    if (!(l.max_velocity > 0.0) || l.max_velocity > a->sim.max_velocity) {
+      fail(path + ".max_velocity", "must be in (0, " + num(a->sim.max_velocity) + "] m/s, got " + num(l.max_velocity));
+    }
+    if (!(l.max_acceleration > 0.0)) fail(path + ".max_acceleration", "must be > 0, got " + num(l.max_acceleration));
+  }
+  for (int k = 0; k < 3; ++k) {
+    const char axis = "xyz"[k];
+    if (!(c.workspace_min[k] < c.workspace_max[k])) fail("workspace", std::string("min.") + axis + " must be below max." + axis);
+    const double lo = c.joints[k].min + c.tool_offset[k], hi = c.joints[k].max + c.tool_offset[k];
+    if (c.workspace_min[k] < lo - 1e-12 || c.workspace_max[k] > hi + 1e-12) {
+      fail("workspace", std::string("the ") + axis + " range [" + num(c.workspace_min[k]) + ", " +
+                            num(c.workspace_max[k]) + "] m is not inside what the joint limits reach with the tool (" +
+                            num(lo) + ", " + num(hi) + ") m");
+    }
+  }
+  if (c.watchdog_timeout < 0.0) fail("watchdog_timeout", "must be >= 0 (0: off)");
+  if (!(c.bringup_timeout > 0.0)) fail("bringup_timeout", "must be > 0");
+  if (!(c.position_tolerance > 0.0)) fail("position_tolerance", "must be > 0");
+  const PressConfig& p = c.press;
+  if (!(p.approach_height > 0.0)) fail("press.approach_height", "must be > 0");
+  if (p.travel_height < c.workspace_min.z() || p.travel_height > c.workspace_max.z()) {
+    fail("press.travel_height", num(p.travel_height) + " m is outside the workspace's z range");
+  }
+  if (!(p.speed > 0.0) || !(p.max_speed >= p.speed)) fail("press.speed", "must be > 0 and <= press.max_speed");
+  if (!(p.acceleration > 0.0)) fail("press.acceleration", "must be > 0");
+  if (!(p.retract_speed > 0.0)) fail("press.retract_speed", "must be > 0");
+  if (!(p.hold >= 0.0) || !(p.max_hold >= p.hold)) fail("press.hold", "must be >= 0 and <= press.max_hold");
+  if (p.max_repeats < 1) fail("press.max_repeats", "must be >= 1");
+  if (!(p.max_normal_tilt >= 0.0) || p.max_normal_tilt > M_PI / 2) fail("press.max_normal_tilt_deg", "must be in [0, 90]");
+  if (!(p.knead_radius >= 0.0) || !(p.knead_period > 0.0) || p.knead_segments < 3) {
+    fail("press", "knead_radius >= 0, knead_period > 0 and knead_segments >= 3 required");
+  }
+  for (const auto& [name, l] : c.regions) {
+    if (!(l.max_depth > 0.0)) fail("regions." + name + ".max_depth", "must be > 0");
+    if (!(l.default_depth > 0.0) || l.default_depth > l.max_depth) {
+      fail("regions." + name + ".default_depth", "must be > 0 and <= max_depth " + num(l.max_depth));
+    }
+  }
+  if (!c.regions.count(c.default_region)) fail("default_region", "'" + c.default_region + "' is not one of regions");
+  for (const auto& [point, region] : c.acupoint_regions) {
+    if (!c.regions.count(region)) {
+      fail("acupoints", "point " + point + " of " + c.acupoints_path + " has region '" + region +
+                            "', which regions does not list");
+    }
+  }
+}
+
+}  // namespace massage_cell::arm

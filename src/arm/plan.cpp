@@ -1,0 +1,212 @@
+// Press planning and envelope checks (see plan.h).
+#include "massage_cell/arm/plan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include <Eigen/Geometry>
+
+namespace massage_cell::arm {
+
+namespace {
+
+std::string mm(double metres) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f mm", metres * 1000.0);
+  return buf;
+}
+
+std::string m3(double metres) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", metres);
+  return buf;
+}
+
+/// Two unit vectors spanning the plane perpendicular to n.
+void tangentBasis(const Eigen::Vector3d& n, Eigen::Vector3d* u, Eigen::Vector3d* v) {
+  const Eigen::Vector3d ref = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  *u = n.cross(ref).normalized();
+  *v = n.cross(*u).normalized();
+}
+
+}  // namespace
+
+const char* toString(Technique t) { return t == Technique::kKnead ? "knead" : "press"; }
+
+std::string formatPoint(const Eigen::Vector3d& p) {
+  return "(" + m3(p.x()) + ", " + m3(p.y()) + ", " + m3(p.z()) + ") m";
+}
+
+std::string checkTool(const ArmConfig& c, const Eigen::Vector3d& tool) {
+  if (!tool.allFinite()) return "the position is not finite";
+  for (int k = 0; k < 3; ++k) {
+    const char axis = "xyz"[k];
+    if (tool[k] < c.workspace_min[k]) {
+      return formatPoint(tool) + " is outside the workspace envelope: " + axis + " below " + m3(c.workspace_min[k]) + " m";
+    }
+    if (tool[k] > c.workspace_max[k]) {
+      return formatPoint(tool) + " is outside the workspace envelope: " + axis + " above " + m3(c.workspace_max[k]) + " m";
+    }
+  }
+  const Eigen::Vector3d q = c.jointsOf(tool);
+  for (int k = 0; k < 3; ++k) {
+    if (q[k] < c.joints[k].min || q[k] > c.joints[k].max) {
+      return formatPoint(tool) + " needs joint " + c.axis_names[k] + " at " + m3(q[k]) + " m, outside its limits [" +
+             m3(c.joints[k].min) + ", " + m3(c.joints[k].max) + "] m";
+    }
+  }
+  return "";
+}
+
+std::vector<Step> retractSteps(const ArmConfig& c, const Step& from) {
+  std::vector<Step> out;
+  Step back;
+  back.tool = from.retreat;
+  back.speed = c.press.retract_speed;
+  back.accel = c.press.acceleration;
+  back.label = "retract";
+  back.retract = true;
+  back.contact = true;
+  back.target = from.target;
+  back.retreat = from.retreat;
+  out.push_back(back);
+  Step up = back;
+  up.tool.z() = std::max(from.retreat.z(), c.press.travel_height);
+  up.speed = 0.0;
+  up.accel = 0.0;
+  up.contact = false;
+  up.label = "retract: up to the travel height";
+  out.push_back(up);
+  return out;
+}
+
+std::string planMassage(const ArmConfig& c, const Eigen::Vector3d& from, const PressRequest& req,
+                        std::vector<Step>* steps) {
+  steps->clear();
+  const PressConfig& pc = c.press;
+  if (req.targets.empty()) return "no target given";
+  const double hold = req.hold < 0.0 ? pc.hold : req.hold;
+  if (!std::isfinite(hold) || hold > pc.max_hold) {
+    return "hold " + m3(hold) + " s is beyond the limit " + m3(pc.max_hold) + " s";
+  }
+  if (req.repeats < 1 || req.repeats > pc.max_repeats) {
+    return "repeats must be 1.." + std::to_string(pc.max_repeats) + ", got " + std::to_string(req.repeats);
+  }
+  const double speed = req.speed == 0.0 ? pc.speed : req.speed;
+  if (!(speed > 0.0) || speed > pc.max_speed) {
+    return "speed " + m3(speed) + " m/s must be in (0, " + m3(pc.max_speed) + "] m/s";
+  }
+  if (!std::isfinite(req.depth) || req.depth < 0.0) return "depth must be >= 0 m (0: the region's default)";
+  // The current position may sit on the envelope's border by a count or two
+  // (homing ends at a limit): within position_tolerance it counts as inside.
+  const Eigen::Vector3d inside = from.cwiseMax(c.workspace_min).cwiseMin(c.workspace_max);
+  if (!from.allFinite() || (inside - from).norm() > c.position_tolerance) {
+    return "the tool's current position " + checkTool(c, from);
+  }
+
+  std::vector<Step> out;
+  Eigen::Vector3d at = from;
+  auto move = [&](const Eigen::Vector3d& goal, double v, const std::string& label, bool contact, bool retract, int target,
+                  const Eigen::Vector3d& retreat) {
+    Step s;
+    s.kind = Step::Kind::kMove;
+    s.tool = goal;
+    s.speed = v;
+    s.accel = v > 0.0 ? pc.acceleration : 0.0;
+    s.label = label;
+    s.contact = contact;
+    s.retract = retract;
+    s.target = target;
+    s.retreat = retreat;
+    out.push_back(s);
+    at = goal;
+  };
+  const int n_targets = static_cast<int>(req.targets.size());
+  for (int i = 0; i < n_targets; ++i) {
+    const PressTarget& t = req.targets[i];
+    const std::string who = t.name.empty() ? "target " + std::to_string(i + 1) : t.name;
+    const std::string prefix = "press " + std::to_string(i + 1) + "/" + std::to_string(n_targets) + " " + who + ": ";
+    if (!t.point.allFinite()) return who + ": the point is not finite";
+    if (!t.normal.allFinite() || !(t.normal.norm() > 1e-9)) return who + ": the surface normal is zero or not finite";
+    const Eigen::Vector3d n = t.normal.normalized();
+    const double tilt = std::acos(std::clamp(n.z(), -1.0, 1.0));
+    if (tilt > pc.max_normal_tilt + 1e-9) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "%s: the surface normal is %.1f deg from vertical (limit %.1f deg)", who.c_str(),
+                    tilt * 180.0 / M_PI, pc.max_normal_tilt * 180.0 / M_PI);
+      return buf;
+    }
+    const std::string region = t.region.empty() ? c.default_region : t.region;
+    if (!c.regions.count(region)) {
+      std::string known;
+      for (const auto& kv : c.regions) known += (known.empty() ? "" : ", ") + kv.first;
+      return who + ": unknown region '" + region + "' (known: " + known + ")";
+    }
+    const RegionLimits& lim = c.regions.at(region);
+    const double depth = req.depth > 0.0 ? req.depth : lim.default_depth;
+    if (depth > lim.max_depth + 1e-12) {
+      return who + ": depth " + mm(depth) + " is deeper than the " + region + " limit " + mm(lim.max_depth);
+    }
+    const Eigen::Vector3d approach = t.point + pc.approach_height * n;
+    const Eigen::Vector3d bottom = t.point - depth * n;
+    const double travel_z = std::max(pc.travel_height, approach.z());
+    struct Named {
+      const char* what;
+      Eigen::Vector3d p;
+    };
+    std::vector<Named> visit = {{"travel point", Eigen::Vector3d(approach.x(), approach.y(), travel_z)},
+                                {"approach point", approach},
+                                {"press end point", bottom}};
+    // Kneading: circles of knead_radius around the pressed point, in the tangent plane.
+    std::vector<Eigen::Vector3d> circle;
+    int circles = 0;
+    if (req.technique == Technique::kKnead && pc.knead_radius > 0.0) {
+      Eigen::Vector3d u, v;
+      tangentBasis(n, &u, &v);
+      for (int k = 0; k <= pc.knead_segments; ++k) {
+        const double a = 2.0 * M_PI * k / pc.knead_segments;
+        circle.push_back(bottom + pc.knead_radius * (std::cos(a) * u + std::sin(a) * v));
+      }
+      circles = std::max(1, static_cast<int>(std::lround(hold / pc.knead_period)));
+      for (const auto& p : circle) visit.push_back({"knead point", p});
+    }
+    for (const Named& v : visit) {
+      if (std::string bad = checkTool(c, v.p); !bad.empty()) return who + ": the " + v.what + " " + bad;
+    }
+    // Up from where we are, over, down to the approach point.
+    if (at.z() < travel_z - 1e-9) move(Eigen::Vector3d(at.x(), at.y(), travel_z), 0.0, prefix + "up to the travel height", false, false, i, approach);
+    move(Eigen::Vector3d(approach.x(), approach.y(), travel_z), 0.0, prefix + "travel", false, false, i, approach);
+    move(approach, 0.0, prefix + "approach", false, false, i, approach);
+    for (int r = 0; r < req.repeats; ++r) {
+      const std::string rep = req.repeats > 1 ? " (" + std::to_string(r + 1) + "/" + std::to_string(req.repeats) + ")" : "";
+      move(bottom, speed, prefix + "descend" + rep, true, false, i, approach);
+      if (req.technique == Technique::kKnead && !circle.empty()) {
+        const double seg_len = (circle[1] - circle[0]).norm();
+        const double knead_speed = std::min(pc.max_speed, seg_len * pc.knead_segments / pc.knead_period);
+        move(circle[0], speed, prefix + "knead" + rep, true, false, i, approach);
+        for (int k = 0; k < circles; ++k) {
+          for (std::size_t s = 1; s < circle.size(); ++s) move(circle[s], knead_speed, prefix + "knead" + rep, true, false, i, approach);
+        }
+        move(bottom, speed, prefix + "knead" + rep, true, false, i, approach);
+      } else {
+        Step h;
+        h.kind = Step::Kind::kHold;
+        h.tool = bottom;
+        h.duration = hold;
+        h.label = prefix + "hold" + rep;
+        h.contact = true;
+        h.target = i;
+        h.retreat = approach;
+        out.push_back(h);
+      }
+      move(approach, pc.retract_speed, prefix + "retract" + rep, true, true, i, approach);
+      out.back().press_done = true;
+    }
+    move(Eigen::Vector3d(approach.x(), approach.y(), travel_z), 0.0, prefix + "up to the travel height", false, true, i, approach);
+  }
+  *steps = std::move(out);
+  return "";
+}
+
+}  // namespace massage_cell::arm

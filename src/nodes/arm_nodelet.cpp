@@ -1,0 +1,404 @@
+#include "arm_nodelet.h"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include <geometry_msgs/TransformStamped.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/package.h>
+#include <sensor_msgs/JointState.h>
+#include <tf2/exceptions.h>
+#include <tf2_geometry_msgs/tf2_geometry_msgs.h>
+#include <yaml-cpp/yaml.h>
+
+#include "massage_cell/ArmState.h"
+
+namespace massage_cell::nodes {
+
+namespace {
+
+Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
+Eigen::Vector3d toEigen(const geometry_msgs::Vector3& v) { return {v.x, v.y, v.z}; }
+
+std::string fmt(const char* format, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, format, v);
+  return buf;
+}
+
+}  // namespace
+
+ArmNodelet::~ArmNodelet() {
+  timer_.stop();
+  if (spinner_) spinner_->stop();
+  if (sim_) sim_->stop();
+  if (real_controller_) real_controller_->master().stop();
+}
+
+void ArmNodelet::readParameters() {
+  ros::NodeHandle& pnh = getPrivateNodeHandle();
+  config_path_ = ros::package::getPath("massage_cell") + "/config/arm.yaml";
+  pnh.param<std::string>("config", config_path_, config_path_);
+  // Defaults from the file's node: section, then the private parameters.
+  try {
+    const YAML::Node node = YAML::LoadFile(config_path_)["node"];
+    if (node) {
+      if (node["can_interface"]) can_interface_ = node["can_interface"].as<std::string>();
+      if (node["base_frame"]) base_frame_ = node["base_frame"].as<std::string>();
+      if (node["publish_rate"]) publish_rate_ = node["publish_rate"].as<double>();
+      if (node["max_target_age"]) max_target_age_ = node["max_target_age"].as<double>();
+      if (node["tf_timeout"]) tf_timeout_ = node["tf_timeout"].as<double>();
+      if (node["acupoint_prefix"]) acupoint_prefix_ = node["acupoint_prefix"].as<std::string>();
+      if (node["command_timeout"]) command_timeout_ = node["command_timeout"].as<double>();
+    }
+  } catch (const YAML::Exception& e) {
+    throw arm::ArmConfigError(config_path_ + ": node: " + e.what());
+  }
+  pnh.param("can_interface", can_interface_, can_interface_);
+  pnh.param("base_frame", base_frame_, base_frame_);
+  pnh.param("publish_rate", publish_rate_, publish_rate_);
+  pnh.param("max_target_age", max_target_age_, max_target_age_);
+  pnh.param("tf_timeout", tf_timeout_, tf_timeout_);
+  pnh.param("acupoint_prefix", acupoint_prefix_, acupoint_prefix_);
+  pnh.param("command_timeout", command_timeout_, command_timeout_);
+  if (!(publish_rate_ > 0.0)) throw arm::ArmConfigError("publish_rate must be > 0, got " + fmt("%g", publish_rate_));
+  if (!(max_target_age_ > 0.0)) throw arm::ArmConfigError("max_target_age must be > 0, got " + fmt("%g", max_target_age_));
+  if (!(tf_timeout_ >= 0.0)) throw arm::ArmConfigError("tf_timeout must be >= 0");
+  if (!(command_timeout_ > 0.0)) throw arm::ArmConfigError("command_timeout must be > 0");
+  if (can_interface_.empty()) throw arm::ArmConfigError("can_interface must be 'sim' or an interface name (can0)");
+}
+
+void ArmNodelet::onInit() {
+  try {
+    readParameters();
+    config_ = arm::loadArmConfig(config_path_);
+    if (can_interface_ == "sim") {
+      sim_ = std::make_unique<arm::SimCell>(config_);
+      controller_ = &sim_->controller();
+    } else {
+      can::SocketCanOptions options;
+      options.interface = can_interface_;
+      socket_bus_ = std::make_unique<can::SocketCanBus>(options);
+      real_controller_ = std::make_unique<arm::Controller>(*socket_bus_, can::SteadyClock::instance(), config_);
+      controller_ = real_controller_.get();
+    }
+  } catch (const std::exception& e) {
+    NODELET_FATAL_STREAM("arm: " << e.what());
+    throw;
+  }
+  controller_->setLog([this](const std::string& text) {
+    if (text.rfind("FAULT", 0) == 0 || text.rfind("E-STOP", 0) == 0) {
+      NODELET_ERROR_STREAM("arm: " << text);
+    } else if (text.rfind("refused", 0) == 0 || text.find("failed") != std::string::npos) {
+      NODELET_WARN_STREAM("arm: " << text);
+    } else {
+      NODELET_INFO_STREAM("arm: " << text);
+    }
+  });
+
+  ros::NodeHandle nh(getNodeHandle());
+  ros::NodeHandle pnh(getPrivateNodeHandle());
+  nh.setCallbackQueue(&queue_);
+  pnh.setCallbackQueue(&queue_);
+  tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
+  tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, getNodeHandle());
+  joint_pub_ = nh.advertise<sensor_msgs::JointState>("joint_states", 10);
+  state_pub_ = pnh.advertise<massage_cell::ArmState>("state", 10);
+  estop_sub_ = pnh.subscribe("estop", 10, &ArmNodelet::estopCb, this);
+  if (sim_) fault_sub_ = pnh.subscribe("sim/inject_fault", 10, &ArmNodelet::injectFaultCb, this);
+  home_srv_ = pnh.advertiseService("home", &ArmNodelet::home, this);
+  stop_srv_ = pnh.advertiseService("stop", &ArmNodelet::stop, this);
+  reset_srv_ = pnh.advertiseService("reset_fault", &ArmNodelet::resetFault, this);
+  move_srv_ = pnh.advertiseService("move_to", &ArmNodelet::moveTo, this);
+  massage_srv_ = pnh.advertiseService("massage", &ArmNodelet::massage, this);
+  updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
+  updater_->setHardwareID(can_interface_ == "sim" ? "simulated drives (virtual CAN bus)" : "CAN " + can_interface_);
+  updater_->add("arm", this, &ArmNodelet::diagnose);
+  timer_ = pnh.createWallTimer(ros::WallDuration(1.0 / publish_rate_), &ArmNodelet::onTimer, this);
+  spinner_ = std::make_unique<ros::AsyncSpinner>(4, &queue_);
+  spinner_->start();
+
+  if (sim_) {
+    sim_->start();
+  } else {
+    real_controller_->master().start();
+    real_controller_->start();
+  }
+  NODELET_INFO_STREAM("arm: " << (sim_ ? "simulated drives on the virtual bus" : "CAN interface " + can_interface_)
+                              << ", config " << config_path_ << ", base frame " << base_frame_);
+}
+
+// --------------------------------------------------------------- periodic --
+
+void ArmNodelet::onTimer(const ros::WallTimerEvent&) {
+  controller_->keepAlive();  // the command watchdog: this node is alive
+  checkPressTarget();
+  publishState();
+  updater_->update();
+}
+
+void ArmNodelet::publishState() {
+  const arm::ArmStatus s = controller_->status();
+  const ros::Time now = ros::Time::now();
+  sensor_msgs::JointState js;
+  js.header.stamp = now;
+  massage_cell::ArmState st;
+  st.header.stamp = now;
+  st.header.frame_id = base_frame_;
+  st.mode = arm::toString(s.mode);
+  st.homed = s.homed;
+  st.estop_active = s.estop_input;
+  st.estop_latched = s.estop_latched;
+  for (int i = 0; i < 3; ++i) {
+    js.name.push_back(config_.joint_names[i]);
+    js.position.push_back(s.axes[i].position);
+    st.axis_names.push_back(s.axes[i].name);
+    st.position.push_back(s.axes[i].position);
+    st.axis_state.push_back(can::toString(s.axes[i].state));
+    st.node_state.push_back(can::toString(s.axes[i].node));
+    st.axis_homed.push_back(s.axes[i].homed);
+  }
+  st.tool.x = s.tool.x();
+  st.tool.y = s.tool.y();
+  st.tool.z = s.tool.z();
+  st.faults = s.faults;
+  st.activity = s.activity;
+  st.last_error = s.last_error;
+  st.bus_state = can::toString(s.bus);
+  joint_pub_.publish(js);
+  state_pub_.publish(st);
+}
+
+void ArmNodelet::checkPressTarget() {
+  std::string frame;
+  {
+    std::lock_guard<std::mutex> lock(targets_mutex_);
+    if (massage_command_ == 0 || controller_->result(massage_command_).done) return;
+    const int index = controller_->status().target;
+    for (const FrameTarget& t : frame_targets_) {
+      if (t.index == index) frame = t.frame;
+    }
+  }
+  if (frame.empty()) return;
+  geometry_msgs::TransformStamped t;
+  std::string error;
+  if (!lookup(frame, ros::Time(0), &t, &error)) controller_->abortMassage("acupoint frame " + error);
+}
+
+bool ArmNodelet::lookup(const std::string& frame, const ros::Time& stamp, geometry_msgs::TransformStamped* out,
+                        std::string* error) {
+  try {
+    *out = tf_buffer_->lookupTransform(base_frame_, frame, stamp, ros::Duration(tf_timeout_));
+  } catch (const tf2::TransformException& e) {
+    *error = "'" + frame + "' is unknown or not connected to " + base_frame_ + " (" + e.what() + ")";
+    return false;
+  }
+  // A chain of static transforms has stamp 0: never stale.
+  if (!out->header.stamp.isZero()) {
+    const double age = (ros::Time::now() - out->header.stamp).toSec();
+    if (age > max_target_age_) {
+      *error = "'" + frame + "' is stale: its transform is " + fmt("%.2f", age) + " s old (limit " +
+               fmt("%.2f", max_target_age_) + " s)";
+      return false;
+    }
+  }
+  return true;
+}
+
+// --------------------------------------------------------------- inputs --
+
+void ArmNodelet::estopCb(const std_msgs::BoolConstPtr& msg) { controller_->setEstop(msg->data); }
+
+void ArmNodelet::injectFaultCb(const std_msgs::StringConstPtr& msg) {
+  std::istringstream in(msg->data);
+  std::string axis, code_text;
+  in >> axis >> code_text;
+  int joint = -1;
+  for (int i = 0; i < 3; ++i) {
+    if (config_.axis_names[i] == axis) joint = i;
+  }
+  unsigned long code = 0;
+  try {
+    code = std::stoul(code_text, nullptr, 0);
+  } catch (const std::exception&) {
+    joint = -1;
+  }
+  if (joint < 0 || code == 0 || code > 0xFFFF) {
+    NODELET_ERROR_STREAM("arm: ~sim/inject_fault wants '<axis> <EMCY code>', e.g. 'Y 0x2310'; got '" << msg->data << "'");
+    return;
+  }
+  NODELET_WARN_STREAM("arm: simulator: injecting fault " << code_text << " into axis " << axis);
+  sim_->drive(joint).injectFault(static_cast<std::uint16_t>(code));
+}
+
+// --------------------------------------------------------------- services --
+
+bool ArmNodelet::wait(const arm::Accepted& accepted, std::string* message) {
+  if (!accepted) {
+    *message = accepted.error;
+    return false;
+  }
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(command_timeout_);
+  arm::CommandResult r = controller_->result(accepted.id);
+  while (!r.done && ros::WallTime::now() < deadline && ros::ok()) {
+    ros::WallDuration(0.01).sleep();
+    r = controller_->result(accepted.id);
+  }
+  if (!r.done) {
+    *message = "no result within " + fmt("%.0f", command_timeout_) + " s (the command goes on; see ~state)";
+    return false;
+  }
+  *message = r.message;
+  return r.success;
+}
+
+bool ArmNodelet::home(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  res.success = wait(controller_->home(), &res.message);
+  return true;
+}
+
+bool ArmNodelet::stop(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  const arm::Accepted a = controller_->stop("stopped by ~stop");
+  std::string message;
+  const bool ended_ok = wait(a, &message);
+  // The stop succeeded once the command it ended is over, whatever that command's outcome.
+  res.success = controller_->result(a.id).done;
+  res.message = ended_ok ? message : "stopped: " + message;
+  return true;
+}
+
+bool ArmNodelet::resetFault(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  res.success = wait(controller_->resetFault(), &res.message);
+  return true;
+}
+
+bool ArmNodelet::moveTo(massage_cell::MoveTo::Request& req, massage_cell::MoveTo::Response& res) {
+  geometry_msgs::TransformStamped t;
+  std::string error;
+  const std::string frame = req.target.header.frame_id;
+  if (frame.empty()) {
+    res.success = false;
+    res.message = "move_to refused: the target has no frame_id";
+    return true;
+  }
+  if (!lookup(frame, req.target.header.stamp, &t, &error)) {
+    res.success = false;
+    res.message = "move_to refused: the target frame " + error;
+    NODELET_WARN_STREAM("arm: " << res.message);
+    return true;
+  }
+  geometry_msgs::Point p;
+  tf2::doTransform(req.target.point, p, t);
+  res.success = wait(controller_->moveTo(toEigen(p), req.speed), &res.message);
+  return true;
+}
+
+bool ArmNodelet::massage(massage_cell::Massage::Request& req, massage_cell::Massage::Response& res) {
+  res.success = false;
+  auto refuse = [&](const std::string& why) {
+    res.message = "massage refused: " + why;
+    NODELET_WARN_STREAM("arm: " << res.message);
+    return true;
+  };
+  const std::size_t n = req.frames.size() + req.points.size();
+  if (n == 0) return refuse("no target (frames or points) given");
+  if (!req.regions.empty() && req.regions.size() != n) {
+    return refuse("regions has " + std::to_string(req.regions.size()) + " entries for " + std::to_string(n) + " targets");
+  }
+  if (!req.normals.empty() && req.normals.size() != n) {
+    return refuse("normals has " + std::to_string(req.normals.size()) + " entries for " + std::to_string(n) + " targets");
+  }
+  arm::PressRequest press;
+  if (req.technique.empty() || req.technique == "press") {
+    press.technique = arm::Technique::kPress;
+  } else if (req.technique == "knead") {
+    press.technique = arm::Technique::kKnead;
+  } else {
+    return refuse("unknown technique '" + req.technique + "' (press or knead)");
+  }
+  press.depth = req.depth;
+  press.hold = req.hold == 0.0 ? -1.0 : std::max(0.0, req.hold);
+  press.speed = req.speed;
+  press.repeats = req.repeats == 0 ? 1 : req.repeats;
+  std::vector<FrameTarget> frames;
+  for (std::size_t i = 0; i < n; ++i) {
+    arm::PressTarget target;
+    geometry_msgs::TransformStamped t;
+    std::string error;
+    if (i < req.frames.size()) {
+      const std::string& frame = req.frames[i];
+      if (!lookup(frame, ros::Time(0), &t, &error)) return refuse("target " + std::to_string(i + 1) + ": the frame " + error);
+      target.name = frame.rfind(acupoint_prefix_, 0) == 0 ? frame.substr(acupoint_prefix_.size()) : frame;
+      target.point = {t.transform.translation.x, t.transform.translation.y, t.transform.translation.z};
+      target.region = config_.regionOf(target.name);
+      frames.push_back({static_cast<int>(i), frame});
+    } else {
+      const geometry_msgs::PointStamped& ps = req.points[i - req.frames.size()];
+      target.name = "point " + std::to_string(i - req.frames.size() + 1);
+      if (ps.header.frame_id.empty()) return refuse(target.name + " has no frame_id");
+      if (!lookup(ps.header.frame_id, ps.header.stamp, &t, &error)) {
+        return refuse(target.name + ": the frame " + error);
+      }
+      geometry_msgs::Point p;
+      tf2::doTransform(ps.point, p, t);
+      target.point = toEigen(p);
+    }
+    if (!req.regions.empty() && !req.regions[i].empty()) target.region = req.regions[i];
+    if (!req.normals.empty()) {
+      const geometry_msgs::Vector3Stamped& ns = req.normals[i];
+      if (!lookup(ns.header.frame_id.empty() ? base_frame_ : ns.header.frame_id, ros::Time(0), &t, &error)) {
+        return refuse(target.name + ": the normal's frame " + error);
+      }
+      geometry_msgs::Vector3 v;
+      tf2::doTransform(ns.vector, v, t);
+      target.normal = toEigen(v);
+    }
+    press.targets.push_back(target);
+  }
+  const arm::Accepted accepted = controller_->massage(press);
+  if (accepted) {
+    std::lock_guard<std::mutex> lock(targets_mutex_);
+    massage_command_ = accepted.id;
+    frame_targets_ = frames;
+  }
+  res.success = wait(accepted, &res.message);
+  res.presses_done = accepted ? controller_->status().presses_done : 0;
+  return true;
+}
+
+// --------------------------------------------------------------- diagnostics --
+
+void ArmNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
+  const arm::ArmStatus s = controller_->status();
+  using diagnostic_msgs::DiagnosticStatus;
+  if (s.mode == arm::Mode::kFault) {
+    std::string f;
+    for (const auto& x : s.faults) f += (f.empty() ? "" : "; ") + x;
+    status.summary(DiagnosticStatus::ERROR, "fault: " + f);
+  } else if (s.mode == arm::Mode::kEstop) {
+    status.summary(DiagnosticStatus::ERROR, "e-stop latched");
+  } else if (!s.homed || s.mode == arm::Mode::kStarting) {
+    status.summary(DiagnosticStatus::WARN, std::string(arm::toString(s.mode)) + ": not homed");
+  } else {
+    status.summary(DiagnosticStatus::OK, arm::toString(s.mode));
+  }
+  status.add("mode", arm::toString(s.mode));
+  status.add("homed", s.homed);
+  status.add("e-stop input", s.estop_input);
+  status.add("e-stop latched", s.estop_latched);
+  status.add("CAN interface", can_interface_);
+  status.add("bus state", can::toString(s.bus));
+  for (const auto& a : s.axes) {
+    status.add("axis " + a.name, fmt("%.6f m", a.position) + ", " + can::toString(a.state) + ", node " +
+                                     can::toString(a.node) + (a.homed ? ", homed" : ", not homed"));
+  }
+  status.add("tool (" + base_frame_ + ")", arm::formatPoint(s.tool));
+  status.add("activity", s.activity);
+  status.add("last error", s.last_error);
+  status.add("controller cycles", s.cycles);
+}
+
+}  // namespace massage_cell::nodes
+
+PLUGINLIB_EXPORT_CLASS(massage_cell::nodes::ArmNodelet, nodelet::Nodelet)

@@ -1,0 +1,112 @@
+// The `massage_cell/arm` nodelet: the three-axis massage arm (issue 7), a
+// thin ROS wrapper of the ROS-free controller (include/massage_cell/arm/):
+//  - `can_interface`: "sim" runs simulated CiA 402 drives on an in-process
+//    virtual bus (arm::SimCell, the default on machines without CAN), any
+//    other name opens that SocketCAN interface (can0);
+//  - publishes `joint_states` (for robot_state_publisher and urdf/), `~state`
+//    (massage_cell/ArmState) and diagnostics;
+//  - services `~home`, `~stop`, `~reset_fault` (std_srvs/Trigger), `~move_to`
+//    (massage_cell/MoveTo: a PointStamped in any frame, tf2 into the arm base
+//    frame) and `~massage` (massage_cell/Massage: acupoint frames and points,
+//    refused with a message when outside the envelope, too deep for the
+//    region, in an unknown frame or stale);
+//  - topic `~estop` (std_msgs/Bool: true latches the e-stop; false releases
+//    the input, the latch holds until ~reset_fault);
+//  - in sim mode `~sim/inject_fault` (std_msgs/String "Y 0x2310": that axis's
+//    drive faults with that EMCY code), the simulator's test hook.
+// Service calls block until their command ends (or command_timeout), so they
+// run on the nodelet's own callback queue with several threads; a timer at
+// publish_rate publishes, feeds the controller's command watchdog, and
+// checks the acupoint frame of the press under way: lost or stale -> the
+// controller retracts.
+#pragma once
+
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <nodelet/nodelet.h>
+#include <ros/callback_queue.h>
+#include <ros/ros.h>
+#include <std_msgs/Bool.h>
+#include <std_msgs/String.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+
+#include "massage_cell/Massage.h"
+#include "massage_cell/MoveTo.h"
+#include "massage_cell/arm/controller.h"
+#include "massage_cell/arm/sim_cell.h"
+#include "massage_cell/can/socketcan_bus.h"
+
+namespace massage_cell::nodes {
+
+class ArmNodelet : public nodelet::Nodelet {
+ public:
+  ArmNodelet() = default;
+  ~ArmNodelet() override;
+
+ private:
+  /// A target of the running massage that is a tf frame (monitored while pressed).
+  struct FrameTarget {
+    int index = -1;
+    std::string frame;
+  };
+
+  void onInit() override;
+  void readParameters();
+  void onTimer(const ros::WallTimerEvent& event);
+  void publishState();
+  void checkPressTarget();
+  void estopCb(const std_msgs::BoolConstPtr& msg);
+  void injectFaultCb(const std_msgs::StringConstPtr& msg);
+  bool home(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool stop(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool resetFault(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool moveTo(massage_cell::MoveTo::Request& req, massage_cell::MoveTo::Response& res);
+  bool massage(massage_cell::Massage::Request& req, massage_cell::Massage::Response& res);
+  /// Waits for the command: its success, and its message in `message`.
+  bool wait(const arm::Accepted& accepted, std::string* message);
+  /// The transform base_frame <- frame at `stamp` (0: latest); the problem in `error` when unusable.
+  bool lookup(const std::string& frame, const ros::Time& stamp, geometry_msgs::TransformStamped* out,
+              std::string* error);
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
+
+  // Parameters.
+  std::string config_path_;
+  std::string can_interface_ = "sim";
+  std::string base_frame_ = "arm_base_link";
+  double publish_rate_ = 50.0;
+  double max_target_age_ = 0.5;
+  double tf_timeout_ = 0.2;
+  std::string acupoint_prefix_ = "acupoint/";
+  double command_timeout_ = 300.0;
+
+  // The controller and what it runs on.
+  std::unique_ptr<arm::SimCell> sim_;
+  std::unique_ptr<can::SocketCanBus> socket_bus_;
+  std::unique_ptr<arm::Controller> real_controller_;
+  arm::Controller* controller_ = nullptr;
+  arm::ArmConfig config_;
+
+  // ROS.
+  ros::CallbackQueue queue_;
+  std::unique_ptr<ros::AsyncSpinner> spinner_;
+  ros::Publisher joint_pub_, state_pub_;
+  ros::Subscriber estop_sub_, fault_sub_;
+  ros::ServiceServer home_srv_, stop_srv_, reset_srv_, move_srv_, massage_srv_;
+  ros::WallTimer timer_;
+  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  std::unique_ptr<diagnostic_updater::Updater> updater_;
+
+  // The running massage's frame targets (guarded by targets_mutex_).
+  std::mutex targets_mutex_;
+  std::uint64_t massage_command_ = 0;
+  std::vector<FrameTarget> frame_targets_;
+};
+
+}  // namespace massage_cell::nodes

@@ -1,0 +1,104 @@
+// config/arm.yaml loads; every kind of mistake is an ArmConfigError naming the field.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <regex>
+
+#include "massage_cell/arm/config.h"
+
+#ifndef MASSAGE_CELL_SOURCE_DIR
+#define MASSAGE_CELL_SOURCE_DIR "."
+#endif
+
+namespace {
+
+using namespace massage_cell::arm;
+
+const std::string kConfigDir = std::string(MASSAGE_CELL_SOURCE_DIR) + "/config";
+
+std::string fileText() {
+  std::ifstream in(kConfigDir + "/arm.yaml");
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// The shipped file with one line replaced (regex on the whole text).
+std::string edited(const std::string& pattern, const std::string& replacement) {
+  const std::string text = fileText();
+  const std::string out = std::regex_replace(text, std::regex(pattern), replacement);
+  EXPECT_NE(out, text) << "pattern not found: " << pattern;
+  return out;
+}
+
+std::string errorOf(const std::string& text) {
+  try {
+    parseArmConfig(text, "arm.yaml", kConfigDir);
+  } catch (const ArmConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(ArmConfig, ShippedFileLoads) {
+  const ArmConfig c = loadArmConfig(kConfigDir + "/arm.yaml");
+  EXPECT_EQ(c.axis_names[0], "X");
+  EXPECT_EQ(c.axis_names[2], "Z");
+  EXPECT_EQ(c.joint_names[1], "arm_y_joint");
+  EXPECT_DOUBLE_EQ(c.joints[0].max, 0.78);
+  EXPECT_DOUBLE_EQ(c.joints[2].max_velocity, 0.05);
+  EXPECT_EQ(c.axis(1).node_id, 2);
+  EXPECT_EQ(c.regions.size(), 4u);
+  EXPECT_DOUBLE_EQ(c.limitsOf("midline").max_depth, 0.002);
+  EXPECT_DOUBLE_EQ(c.limitsOf("no such region").max_depth, 0.002);  // the default region's
+  EXPECT_NEAR(c.press.max_normal_tilt, M_PI / 4, 1e-12);
+  // The acupoint model's regions.
+  EXPECT_EQ(c.regionOf("BL23_L"), "lower_back");
+  EXPECT_EQ(c.regionOf("BL13_R"), "upper_back");
+  EXPECT_EQ(c.regionOf("GV4"), "midline");
+  EXPECT_EQ(c.regionOf("GB21_L"), "shoulder");
+  EXPECT_EQ(c.regionOf("XX1"), "");
+  EXPECT_GT(c.acupoint_regions.size(), 50u);
+  // Tool offset: forward and inverse.
+  const Eigen::Vector3d q(0.1, 0.2, 0.3);
+  EXPECT_TRUE(c.jointsOf(c.toolOf(q)).isApprox(q));
+}
+
+TEST(ArmConfig, MistakesAreNamed) {
+  EXPECT_NE(errorOf(edited("watchdog_timeout: 0.5", "watchdog_timeout: 0.5\nwatchdog: 1")).find("watchdog: unknown field"),
+            std::string::npos);
+  EXPECT_NE(errorOf(edited("X: \\{min: 0.0, max: 0.78", "X: {min: 0.0, max: 0.85")).find(
+                "joints.X.max: 0.85 m is beyond the drive's software limit 0.8 m"),
+            std::string::npos)
+      << errorOf(edited("X: \\{min: 0.0, max: 0.78", "X: {min: 0.0, max: 0.85"));
+  EXPECT_NE(errorOf(edited("max: \\[0.76, 0.46, 0.30\\]", "max: [0.76, 0.49, 0.30]")).find(
+                "workspace: the y range [0, 0.49] m is not inside what the joint limits reach"),
+            std::string::npos);
+  EXPECT_NE(errorOf(edited("default_region: midline", "default_region: neck")).find(
+                "default_region: 'neck' is not one of regions"),
+            std::string::npos);
+  EXPECT_NE(errorOf(edited("lower_back: \\{max_depth: 0.012, default_depth: 0.008\\}",
+                           "lower_back: {max_depth: 0.012, default_depth: 0.02}"))
+                .find("regions.lower_back.default_depth: must be > 0 and <= max_depth"),
+            std::string::npos);
+  // acupoints.yaml names lower_back: removing that region from the table is caught.
+  EXPECT_NE(errorOf(edited("  lower_back: \\{max_depth: 0.012, default_depth: 0.008\\}.*\n", "")).find(
+                "has region 'lower_back', which regions does not list"),
+            std::string::npos);
+  EXPECT_NE(errorOf(edited("can_config: can_axes.yaml", "can_config: nowhere.yaml")).find("can_config: "),
+            std::string::npos);
+  EXPECT_NE(errorOf(edited("axes: \\[X, Y, Z\\]", "axes: [X, Y, W]")).find("W"), std::string::npos);
+  EXPECT_NE(errorOf(edited("speed: 0.01 ", "speed: fast ")).find("press.speed: expected a number, got 'fast'"),
+            std::string::npos);
+  EXPECT_NE(errorOf(edited("travel_height: 0.28", "travel_height: 0.5")).find("press.travel_height"),
+            std::string::npos);
+  EXPECT_NE(errorOf("joints: [").find("not valid YAML"), std::string::npos);
+  EXPECT_THROW(loadArmConfig("/nonexistent/arm.yaml"), ArmConfigError);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}

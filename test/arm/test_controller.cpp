@@ -1,0 +1,597 @@
+// The arm controller against three simulated CiA 402 drives on a VirtualBus,
+// on a VirtualClock (each step = 1 ms: the drives poll, then the master and
+// with it the controller's cycle, once per SYNC). A sniffer endpoint records
+// every RPDO1 (controlword + target) the master sends.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include <random>
+
+#include "massage_cell/arm/controller.h"
+#include "massage_cell/can/sim_drive.h"
+#include "massage_cell/can/virtual_bus.h"
+
+#ifndef MASSAGE_CELL_SOURCE_DIR
+#define MASSAGE_CELL_SOURCE_DIR "."
+#endif
+
+namespace {
+
+using namespace massage_cell;
+using namespace massage_cell::arm;
+using namespace std::chrono_literals;
+using can::Cia402State;
+
+ArmConfig exampleConfig() { return loadArmConfig(std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/arm.yaml"); }
+
+struct Rpdo {
+  can::TimePoint stamp;
+  std::uint8_t node;
+  std::uint16_t controlword;
+  std::int32_t target;
+};
+
+struct Rig {
+  explicit Rig(ArmConfig c = exampleConfig()) : config(std::move(c)) {
+    for (const can::AxisConfig& a : config.can.axes) {
+      eps.push_back(bus.open("drive " + a.name));
+      drives.push_back(std::make_unique<can::SimDrive>(*eps.back(), clock, a));
+    }
+    controller = std::make_unique<Controller>(*master_ep, clock, config);
+    controller->setLog([this](const std::string& s) { log += s + "\n"; });
+  }
+  void step() {
+    clock.advance(1ms);
+    for (auto& d : drives) d->poll();
+    controller->master().poll();
+    while (auto f = sniffer->receive(can::Duration::zero())) {
+      const canid_t id = f->frame.can_id;
+      if (id > 0x200 && id < 0x280 && f->frame.can_dlc == 6) {
+        const auto* b = f->frame.data;
+        rpdos.push_back({f->stamp, static_cast<std::uint8_t>(id - 0x200), static_cast<std::uint16_t>(b[0] | b[1] << 8),
+                         static_cast<std::int32_t>(b[2] | b[3] << 8 | b[4] << 16 | static_cast<std::uint32_t>(b[5]) << 24)});
+      }
+    }
+    if (keep_alive) controller->keepAlive();
+    if (observer) observer();
+  }
+  bool runUntil(const std::function<bool()>& pred, can::Duration limit) {
+    for (can::Duration t{}; t < limit; t += 1ms) {
+      if (pred()) return true;
+      step();
+    }
+    return pred();
+  }
+  void run(can::Duration d) { runUntil([] { return false; }, d); }
+  bool start() {
+    for (auto& d : drives) d->powerOn();
+    step();
+    controller->start();
+    return runUntil([&] { return controller->mode() != Mode::kStarting; }, 5s) && controller->mode() == Mode::kReady;
+  }
+  /// Runs until the command is done; true when it succeeded.
+  bool finish(const Accepted& a, can::Duration limit = 60s) {
+    if (!a) return false;
+    runUntil([&] { return controller->result(a.id).done; }, limit);
+    return controller->result(a.id).success;
+  }
+  std::string message(const Accepted& a) const { return a ? controller->result(a.id).message : a.error; }
+  bool home() { return finish(controller->home()); }
+  Eigen::Vector3d drivePositions() const {
+    Eigen::Vector3d q;
+    for (int i = 0; i < 3; ++i) q[i] = config.axis(i).toMetres(drives[i]->position());
+    return q;
+  }
+  Eigen::Vector3d tool() const { return config.toolOf(drivePositions()); }
+  bool allStill() const {
+    for (const auto& d : drives)
+      if (d->velocity() != 0.0) return false;
+    return true;
+  }
+
+  can::VirtualClock clock;
+  can::VirtualBus bus{clock};
+  std::shared_ptr<can::VirtualBus::Endpoint> master_ep = bus.open("master");
+  std::shared_ptr<can::VirtualBus::Endpoint> sniffer = bus.open("sniffer");
+  ArmConfig config;
+  std::vector<std::shared_ptr<can::VirtualBus::Endpoint>> eps;
+  std::vector<std::unique_ptr<can::SimDrive>> drives;
+  std::unique_ptr<Controller> controller;
+  std::vector<Rpdo> rpdos;
+  bool keep_alive = true;
+  std::function<void()> observer;
+  std::string log;
+};
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+// --- start-up, homing, cycle ----------------------------------------------------------------------
+
+TEST(Controller, CycleRunsOncePerSync) {
+  Rig r;
+  ASSERT_TRUE(r.start()) << r.log;
+  const std::uint64_t c0 = r.controller->status().cycles, s0 = r.controller->master().stats().syncs;
+  r.run(1000ms);
+  EXPECT_EQ(r.controller->status().cycles - c0, r.controller->master().stats().syncs - s0);
+  EXPECT_NEAR(static_cast<double>(r.controller->status().cycles - c0), 100.0, 1.0);
+}
+
+TEST(Controller, NoMotionBeforeHoming) {
+  Rig r;
+  ASSERT_TRUE(r.start()) << r.log;
+  const Eigen::Vector3d before = r.drivePositions();
+  const Accepted move = r.controller->moveTo({0.4, 0.2, 0.25});
+  EXPECT_FALSE(move);
+  EXPECT_EQ(move.error, "move refused: not homed: call home first (no motion before homing)");
+  PressRequest req;
+  PressTarget t;
+  t.point = {0.4, 0.2, 0.18};
+  req.targets = {t};
+  const Accepted m = r.controller->massage(req);
+  EXPECT_FALSE(m);
+  EXPECT_TRUE(contains(m.error, "not homed")) << m.error;
+  r.run(500ms);
+  EXPECT_TRUE(r.drivePositions().isApprox(before));
+  for (const auto& d : r.drives) EXPECT_EQ(d->state(), Cia402State::kSwitchOnDisabled);  // never even enabled
+  for (const Rpdo& p : r.rpdos) EXPECT_FALSE(p.controlword & can::cw::kNewSetPoint);
+}
+
+TEST(Controller, HomingZFirstThenXY) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  double x_moved_at = -1, z_homed_at = -1;
+  const std::int32_t x0 = r.drives[0]->position();
+  const can::TimePoint t0 = r.clock.now();
+  r.observer = [&] {
+    const double t = std::chrono::duration<double>(r.clock.now() - t0).count();
+    if (x_moved_at < 0 && r.drives[0]->position() != x0) x_moved_at = t;
+    if (z_homed_at < 0 && r.drives[2]->homed()) z_homed_at = t;
+  };
+  const Accepted h = r.controller->home();
+  ASSERT_TRUE(h);
+  EXPECT_EQ(r.controller->mode(), Mode::kHoming);
+  ASSERT_TRUE(r.finish(h)) << r.message(h) << "\n" << r.log;
+  EXPECT_GT(z_homed_at, 0.0);
+  EXPECT_GT(x_moved_at, z_homed_at);  // the tool goes up before anything moves sideways
+  const ArmStatus s = r.controller->status();
+  EXPECT_TRUE(s.homed);
+  EXPECT_EQ(s.mode, Mode::kIdle);
+  EXPECT_TRUE(s.joints.isApprox(Eigen::Vector3d(0.0, 0.0, 0.30), 1e-6)) << s.joints.transpose();
+  EXPECT_TRUE(contains(r.message(h), "homed; tool at (0.000, 0.000, 0.300) m")) << r.message(h);
+}
+
+// --- moves ---------------------------------------------------------------------------------------------
+
+TEST(Controller, SynchronisedMoveArrivesTogetherOnTheLine) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  const Eigen::Vector3d start = r.tool(), goal(0.5, 0.3, 0.15);
+  std::array<double, 3> arrived{-1, -1, -1};
+  double off_line = 0.0;
+  std::array<double, 3> top_speed{0, 0, 0};
+  const can::TimePoint t0 = r.clock.now();
+  r.observer = [&] {
+    const Eigen::Vector3d p = r.tool();
+    const Eigen::Vector3d dir = (goal - start).normalized();
+    off_line = std::max(off_line, ((p - start) - dir.dot(p - start) * dir).norm());
+    for (int i = 0; i < 3; ++i) {
+      const double v = std::abs(r.drives[i]->velocity()) / r.config.axis(i).counts_per_metre;
+      top_speed[i] = std::max(top_speed[i], v);
+      if (arrived[i] < 0 && std::abs(p[i] - goal[i]) < 1e-6) arrived[i] = std::chrono::duration<double>(r.clock.now() - t0).count();
+    }
+  };
+  const Accepted m = r.controller->moveTo(goal);
+  ASSERT_TRUE(r.finish(m)) << r.message(m) << r.log;
+  const double first = *std::min_element(arrived.begin(), arrived.end());
+  const double last = *std::max_element(arrived.begin(), arrived.end());
+  EXPECT_GT(first, 0.0);
+  EXPECT_LT(last - first, 0.02) << arrived[0] << " " << arrived[1] << " " << arrived[2];  // within two cycles
+  EXPECT_LT(off_line, 0.5e-3);  // the tool stays on the straight line
+  for (int i = 0; i < 3; ++i) EXPECT_LE(top_speed[i], r.config.joints[i].max_velocity * 1.01) << i;
+  // X, 0.5 m at 0.1 m/s and 0.5 m/s^2, is the slowest: 5.2 s; Y and Z scale to it.
+  EXPECT_GT(top_speed[0], 0.099);
+  EXPECT_NEAR(top_speed[2], 0.15 / 0.5 * 0.1, 0.001);
+  EXPECT_NEAR(last, 5.2, 0.1);
+  EXPECT_LE((r.tool() - goal).norm(), 1e-6);
+  EXPECT_LE((r.controller->status().tool - goal).norm(), 1e-6);
+  EXPECT_EQ(r.controller->mode(), Mode::kIdle);
+}
+
+TEST(Controller, SoftLimitsHoldWhateverTheCommand) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  // Largest excursion beyond a joint limit seen on a drive. Homing (the
+  // drive's own run to its switch) may end a count past Z's limit at 0.30 m:
+  // that is the baseline no command may add to.
+  auto excursion = [&](const Eigen::Vector3d& q) {
+    double e = 0.0;
+    for (int i = 0; i < 3; ++i) e = std::max({e, r.config.joints[i].min - q[i], q[i] - r.config.joints[i].max});
+    return e;
+  };
+  const double baseline = excursion(r.drivePositions());
+  EXPECT_LE(baseline, 1e-6);
+  double worst = baseline;
+  r.observer = [&] {
+    const Eigen::Vector3d q = r.drivePositions();
+    for (int i = 0; i < 3; ++i) {
+      worst = std::max(worst, r.config.joints[i].min - q[i]);
+      worst = std::max(worst, q[i] - r.config.joints[i].max);
+    }
+  };
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> x(-0.1, 0.9), y(-0.1, 0.6), z(0.0, 0.4);
+  int accepted = 0, refused = 0;
+  for (int k = 0; k < 24; ++k) {
+    const Eigen::Vector3d goal(x(rng), y(rng), z(rng));
+    const Accepted a = r.controller->moveTo(goal);
+    if (!a) {
+      ++refused;
+      EXPECT_NE(checkTool(r.config, goal), "");
+      EXPECT_TRUE(contains(a.error, "outside the workspace envelope")) << a.error;
+      continue;
+    }
+    ++accepted;
+    EXPECT_EQ(checkTool(r.config, goal), "");
+    // While moving, another command is refused; then stop half of them early.
+    const Accepted busy = r.controller->moveTo({0.3, 0.3, 0.2});
+    EXPECT_FALSE(busy);
+    EXPECT_TRUE(contains(busy.error, "busy: moving")) << busy.error;
+    if (k % 2) {
+      r.run(300ms);
+      const Accepted s = r.controller->stop();
+      ASSERT_TRUE(s);
+      r.finish(s);
+      EXPECT_TRUE(contains(r.message(s), "stop requested")) << r.message(s);
+      EXPECT_EQ(r.controller->mode(), Mode::kIdle);
+    } else {
+      EXPECT_TRUE(r.finish(a)) << r.message(a);
+    }
+  }
+  EXPECT_GT(accepted, 3);
+  EXPECT_GT(refused, 3);
+  EXPECT_LE(worst, baseline);
+  EXPECT_FALSE(r.controller->moveTo({0.4, 0.2, 0.25}, -1.0));
+}
+
+// --- presses -------------------------------------------------------------------------------------------
+
+PressTarget target(const std::string& name, const std::string& region, Eigen::Vector3d p,
+                   Eigen::Vector3d n = Eigen::Vector3d::UnitZ()) {
+  PressTarget t;
+  t.name = name;
+  t.region = region;
+  t.point = p;
+  t.normal = n.normalized();
+  return t;
+}
+
+TEST(Controller, PressSequenceReachesButNeverExceedsItsDepth) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  PressRequest req;
+  req.targets = {target("BL23_L", "lower_back", {0.55, 0.18, 0.18}),
+                 target("BL13_R", "upper_back", {0.25, 0.32, 0.2}, {0.2, -0.1, 1.0})};
+  req.depth = 0.005;
+  req.hold = 0.5;
+  req.repeats = 2;
+  std::array<double, 2> deepest{1, 1};
+  std::array<double, 2> at_depth_s{0, 0};
+  r.observer = [&] {
+    const Eigen::Vector3d p = r.tool();
+    for (int i = 0; i < 2; ++i) {
+      const PressTarget& t = req.targets[i];
+      if ((p - t.point).cross(t.normal).norm() > 1e-3) continue;  // not on this target's normal
+      const double d = (p - t.point).dot(t.normal);
+      deepest[i] = std::min(deepest[i], d);
+      if (d < -0.005 + 1e-6) at_depth_s[i] += 0.001;
+    }
+  };
+  const Accepted m = r.controller->massage(req);
+  ASSERT_TRUE(m) << m.error;
+  EXPECT_EQ(r.controller->mode(), Mode::kMassaging);
+  ASSERT_TRUE(r.finish(m, 120s)) << r.message(m) << "\n" << r.log;
+  EXPECT_EQ(r.message(m), "massage done: 4 presses");
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_NEAR(deepest[i], -0.005, 1e-6) << i;  // reached the depth (1 count = 0.25..0.5 um)
+    EXPECT_GE(deepest[i], -0.005 - 1e-6) << i;   // and not one count deeper
+    EXPECT_GE(at_depth_s[i], 2 * 0.5) << i;      // held twice for 0.5 s
+    EXPECT_LT(at_depth_s[i], 2 * 0.5 + 0.2) << i;
+  }
+  EXPECT_NEAR(r.tool().z(), r.config.press.travel_height, 1e-6);
+  EXPECT_TRUE(contains(r.log, "press 2/2 BL13_R: descend (2/2)"));
+}
+
+TEST(Controller, KneadStaysAtDepth) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  PressRequest req;
+  req.technique = Technique::kKnead;
+  req.targets = {target("BL25_L", "lower_back", {0.6, 0.2, 0.18})};
+  req.depth = 0.008;
+  req.hold = 1.0;
+  double deepest = 1, widest = 0;
+  r.observer = [&] {
+    const Eigen::Vector3d rel = r.tool() - req.targets[0].point;
+    deepest = std::min(deepest, rel.z());
+    if (rel.z() < -0.0079) widest = std::max(widest, rel.head<2>().norm());
+  };
+  const Accepted m = r.controller->massage(req);
+  ASSERT_TRUE(r.finish(m, 120s)) << r.message(m);
+  EXPECT_GE(deepest, -0.008 - 1e-6);
+  EXPECT_NEAR(widest, r.config.press.knead_radius, 1e-5);
+}
+
+TEST(Controller, RefusalsNameTheProblem) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  PressRequest req;
+  req.targets = {target("GV4", "midline", {0.5, 0.25, 0.19})};
+  req.depth = 0.003;
+  Accepted a = r.controller->massage(req);
+  EXPECT_EQ(a.error, "massage refused: GV4: depth 3.0 mm is deeper than the midline limit 2.0 mm");
+  req.depth = 0;
+  req.targets[0].point = {0.9, 0.25, 0.19};
+  a = r.controller->massage(req);
+  EXPECT_TRUE(contains(a.error, "massage refused: GV4: the travel point (0.900, 0.250, 0.280) m is outside the workspace envelope"))
+      << a.error;
+  EXPECT_EQ(r.controller->status().last_error, a.error);
+  r.run(200ms);
+  EXPECT_TRUE(r.allStill());
+}
+
+TEST(Controller, TargetLostDuringAPressRetracts) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  PressRequest req;
+  req.targets = {target("BL23_L", "lower_back", {0.55, 0.18, 0.18})};
+  req.depth = 0.006;
+  req.hold = 5.0;
+  const Accepted m = r.controller->massage(req);
+  ASSERT_TRUE(m);
+  ASSERT_TRUE(r.runUntil([&] { return contains(r.controller->status().activity, "hold"); }, 60s)) << r.log;
+  r.run(500ms);
+  r.controller->abortMassage("acupoint frame acupoint/BL23_L lost");
+  ASSERT_TRUE(r.runUntil([&] { return r.controller->result(m.id).done; }, 20s));
+  const CommandResult res = r.controller->result(m.id);
+  EXPECT_FALSE(res.success);
+  EXPECT_TRUE(contains(res.message, "massage aborted: acupoint frame acupoint/BL23_L lost; tool retracted to (0.550, 0.180, 0.280) m"))
+      << res.message;
+  EXPECT_TRUE(contains(r.log, "retract"));
+  EXPECT_NEAR(r.tool().z(), 0.28, 1e-6);
+  EXPECT_EQ(r.controller->mode(), Mode::kIdle);  // a lost target is not a fault
+}
+
+TEST(Controller, WatchdogRetractsAPressAndStopsAMove) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  PressRequest req;
+  req.targets = {target("BL23_L", "lower_back", {0.55, 0.18, 0.18})};
+  req.hold = 10.0;
+  const Accepted m = r.controller->massage(req);
+  ASSERT_TRUE(r.runUntil([&] { return contains(r.controller->status().activity, "hold"); }, 60s));
+  r.keep_alive = false;  // the supervisor goes silent while the tool is in contact
+  const can::TimePoint t0 = r.clock.now();
+  ASSERT_TRUE(r.runUntil([&] { return contains(r.controller->status().activity, "retract"); }, 2s));
+  const double reacted = std::chrono::duration<double>(r.clock.now() - t0).count();
+  EXPECT_GT(reacted, 0.5);
+  EXPECT_LT(reacted, 0.53);
+  ASSERT_TRUE(r.runUntil([&] { return r.controller->result(m.id).done; }, 20s));
+  EXPECT_TRUE(contains(r.controller->result(m.id).message, "command watchdog: no keep-alive for 0.5"))
+      << r.controller->result(m.id).message;
+  EXPECT_NEAR(r.tool().z(), 0.28, 1e-6);  // retracted without keep-alives
+  // A move without keep-alives stops (quick stop, re-enabled), short of its goal.
+  const Accepted mv = r.controller->moveTo({0.7, 0.4, 0.28});
+  r.finish(mv);
+  EXPECT_FALSE(r.controller->result(mv.id).success);
+  EXPECT_TRUE(contains(r.controller->result(mv.id).message, "command watchdog")) << r.controller->result(mv.id).message;
+  EXPECT_GT((r.tool() - Eigen::Vector3d(0.7, 0.4, 0.28)).norm(), 0.05);
+  EXPECT_EQ(r.controller->mode(), Mode::kIdle);
+  EXPECT_TRUE(r.allStill());
+  // With keep-alives the same move completes.
+  r.keep_alive = true;
+  EXPECT_TRUE(r.finish(r.controller->moveTo({0.7, 0.4, 0.28})));
+}
+
+// --- e-stop ----------------------------------------------------------------------------------------------
+
+TEST(Controller, EstopQuickStopsAtOnceAndLatches) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  const Accepted m = r.controller->moveTo({0.6, 0.4, 0.2});
+  r.run(1234ms);
+  ASSERT_FALSE(r.allStill());
+  r.rpdos.clear();
+  const can::TimePoint pressed = r.clock.now();
+  r.controller->setEstop(true);
+  r.step();
+  // The quick-stop controlword is on the bus for every drive at once (before the next SYNC).
+  std::array<bool, 3> seen{false, false, false};
+  for (const Rpdo& p : r.rpdos) {
+    if (p.stamp - pressed <= 1ms && p.controlword == can::cw::kQuickStop) seen[p.node - 1] = true;
+  }
+  EXPECT_TRUE(seen[0] && seen[1] && seen[2]);
+  // ... and stays: no RPDO after the e-stop carries anything else.
+  r.run(500ms);
+  for (const Rpdo& p : r.rpdos) EXPECT_EQ(p.controlword, can::cw::kQuickStop) << int(p.node);
+  // The drives acted at the next SYNC: in quick stop within one period (+ the statusword).
+  EXPECT_TRUE(r.controller->result(m.id).done);
+  EXPECT_FALSE(r.controller->result(m.id).success);
+  EXPECT_EQ(r.controller->result(m.id).message, "e-stop pressed");
+  EXPECT_TRUE(r.allStill());
+  EXPECT_EQ(r.drives[2]->state(), Cia402State::kQuickStopActive);  // Z holds (option 6)
+  EXPECT_EQ(r.drives[0]->state(), Cia402State::kSwitchOnDisabled);  // X, Y: option 2
+  EXPECT_EQ(r.controller->mode(), Mode::kEstop);
+  // Latched: refused while pressed, and after release until reset.
+  EXPECT_TRUE(contains(r.controller->moveTo({0.3, 0.3, 0.25}).error, "e-stop is latched"));
+  EXPECT_TRUE(contains(r.controller->resetFault().error, "e-stop is still pressed"));
+  r.controller->setEstop(false);
+  r.run(100ms);
+  EXPECT_EQ(r.controller->mode(), Mode::kEstop);
+  EXPECT_TRUE(contains(r.controller->home().error, "e-stop is latched"));
+  const Accepted reset = r.controller->resetFault();
+  ASSERT_TRUE(r.finish(reset)) << r.message(reset) << r.log;
+  EXPECT_EQ(r.controller->mode(), Mode::kIdle);
+  EXPECT_TRUE(r.controller->status().homed);  // the drives kept their reference
+  EXPECT_TRUE(r.finish(r.controller->moveTo({0.6, 0.4, 0.2})));
+}
+
+TEST(Controller, EstopTimingIsIndependentOfTheCyclePhase) {
+  // Whatever the phase within the SYNC period, the frame leaves in the same
+  // poll and the drive is stopping by the next SYNC.
+  for (int offset = 0; offset < 10; offset += 3) {
+    Rig r;
+    ASSERT_TRUE(r.start());
+    ASSERT_TRUE(r.home());
+    r.controller->moveTo({0.6, 0.4, 0.2});
+    r.run(std::chrono::milliseconds(800 + offset));
+    r.rpdos.clear();
+    const can::TimePoint pressed = r.clock.now();
+    r.controller->setEstop(true);
+    r.step();
+    ASSERT_FALSE(r.rpdos.empty());
+    EXPECT_EQ(r.rpdos.front().controlword, can::cw::kQuickStop);
+    EXPECT_LE(r.rpdos.front().stamp - pressed, 1ms);
+    ASSERT_TRUE(r.runUntil([&] { return r.drives[0]->state() != Cia402State::kOperationEnabled; }, 50ms));
+    EXPECT_LE(r.clock.now() - pressed, 11ms) << offset;
+  }
+}
+
+// --- faults ------------------------------------------------------------------------------------------------
+
+/// Common checks once a fault has been raised during a move (`unreachable`:
+/// a drive that hears nothing, which CAN cannot stop).
+void expectFaultStopped(Rig& r, const Accepted& move, const std::string& why, int unreachable = -1) {
+  ASSERT_TRUE(r.runUntil([&] { return r.controller->mode() == Mode::kFault; }, 2s)) << r.log;
+  const ArmStatus s = r.controller->status();
+  std::string all;
+  for (const auto& f : s.faults) all += f + "\n";
+  EXPECT_TRUE(contains(all, why)) << all;
+  EXPECT_TRUE(r.controller->result(move.id).done);
+  EXPECT_FALSE(r.controller->result(move.id).success);
+  EXPECT_TRUE(contains(r.controller->result(move.id).message, "aborted by a fault"));
+  r.run(300ms);
+  for (int i = 0; i < 3; ++i) {
+    if (i == unreachable) continue;
+    if (r.drives[i]->state() == Cia402State::kOperationEnabled) ADD_FAILURE() << "axis " << i << " still enabled";
+    EXPECT_EQ(r.drives[i]->velocity(), 0.0) << "axis " << i;
+  }
+  const Accepted refused = r.controller->moveTo({0.3, 0.3, 0.25});
+  EXPECT_TRUE(contains(refused.error, "the arm is in fault (")) << refused.error;
+  EXPECT_TRUE(contains(refused.error, "call reset_fault"));
+  EXPECT_FALSE(r.controller->home());
+  EXPECT_FALSE(r.controller->massage(PressRequest{}));
+}
+
+void expectResetWorks(Rig& r) {
+  const Accepted reset = r.controller->resetFault();
+  ASSERT_TRUE(reset) << reset.error;
+  ASSERT_TRUE(r.finish(reset)) << r.message(reset) << "\n" << r.log;
+  EXPECT_EQ(r.controller->mode(), Mode::kIdle);
+  EXPECT_TRUE(r.controller->status().faults.empty());
+  const Accepted again = r.controller->moveTo({0.3, 0.3, 0.25});
+  EXPECT_TRUE(r.finish(again)) << r.message(again);
+}
+
+TEST(Controller, HeartbeatLossStopsAllAxes) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  const Accepted m = r.controller->moveTo({0.6, 0.4, 0.2});
+  r.run(800ms);
+  r.drives[1]->setSilent(true);
+  expectFaultStopped(r, m, "node 2 (Y): no heartbeat for 300 ms", 1);
+  // Refused while the node is lost, with the reason.
+  const Accepted early = r.controller->resetFault();
+  EXPECT_FALSE(early);
+  EXPECT_TRUE(contains(early.error, "axis Y (node 2) is lost")) << early.error;
+  r.drives[1]->setSilent(false);
+  ASSERT_TRUE(r.runUntil([&] { return r.controller->master().nodeState(2) == can::NodeState::kOperational; }, 1s));
+  expectResetWorks(r);
+}
+
+TEST(Controller, EmcyFaultStopsAllAxes) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  const Accepted m = r.controller->moveTo({0.6, 0.4, 0.2});
+  r.run(800ms);
+  r.drives[0]->injectFault(0x2310);
+  expectFaultStopped(r, m, "EMCY 0x2310 continuous over-current");
+  EXPECT_EQ(r.drives[0]->state(), Cia402State::kFault);
+  expectResetWorks(r);
+  EXPECT_EQ(r.drives[0]->state(), Cia402State::kOperationEnabled);
+}
+
+TEST(Controller, BusOffStopsAllAxes) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  const Accepted m = r.controller->moveTo({0.6, 0.4, 0.2});
+  r.run(800ms);
+  r.bus.setBusOff(*r.master_ep, 400ms);
+  EXPECT_TRUE(r.runUntil([&] { return r.controller->mode() == Mode::kFault; }, 11ms));  // the next cycle
+  const Accepted early = r.controller->resetFault();
+  EXPECT_TRUE(contains(early.error, "is still bus-off")) << early.error;
+  // After the bus recovers the drives (which kept their heartbeats) report again.
+  r.run(1s);
+  expectFaultStopped(r, m, "bus-off");
+  ASSERT_TRUE(r.runUntil([&] { return r.controller->master().allOperational(); }, 2s));
+  expectResetWorks(r);
+}
+
+TEST(Controller, SdoTimeoutIsAFault) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  r.drives[2]->dropSdoResponses(1);  // the profile write before the next Z move is never answered
+  const Accepted m = r.controller->moveTo({0.3, 0.3, 0.2});
+  ASSERT_TRUE(m);
+  expectFaultStopped(r, m, "SDO write of the move profile failed");
+  std::string all;
+  for (const auto& f : r.controller->status().faults) all += f;
+  EXPECT_TRUE(contains(all, "timed out")) << all;
+  expectResetWorks(r);
+}
+
+TEST(Controller, DriveFaultOutsideAMoveAndResetWithoutFault) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  const Accepted nothing = r.controller->resetFault();
+  ASSERT_TRUE(nothing);
+  EXPECT_TRUE(r.controller->result(nothing.id).success);
+  EXPECT_TRUE(contains(r.controller->result(nothing.id).message, "nothing to reset"));
+  ASSERT_TRUE(r.home());
+  r.drives[2]->injectFault(0x4310);  // standing still
+  ASSERT_TRUE(r.runUntil([&] { return r.controller->mode() == Mode::kFault; }, 1s));
+  const Accepted stop = r.controller->stop();
+  EXPECT_TRUE(r.controller->result(stop.id).success);  // nothing to stop
+  EXPECT_TRUE(contains(r.controller->status().faults.front(), "EMCY 0x4310")) << r.controller->status().faults.front();
+  expectResetWorks(r);
+}
+
+TEST(Controller, BringUpTimeoutIsAFault) {
+  Rig r;
+  r.drives[1]->setSilent(true);
+  for (auto& d : r.drives) d->powerOn();
+  r.controller->start();
+  ASSERT_TRUE(r.runUntil([&] { return r.controller->mode() != Mode::kStarting; }, 10s));
+  EXPECT_EQ(r.controller->mode(), Mode::kFault);
+  EXPECT_TRUE(contains(r.controller->status().faults.front(), "node 2")) << r.controller->status().faults.front();
+  EXPECT_TRUE(contains(r.controller->home().error, "in fault"));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}

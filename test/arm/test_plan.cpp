@@ -1,0 +1,214 @@
+// Press plans: the routine's steps, depth limits per region, the envelope,
+// normals, kneading, refusals with messages naming the target.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include "massage_cell/arm/plan.h"
+
+#ifndef MASSAGE_CELL_SOURCE_DIR
+#define MASSAGE_CELL_SOURCE_DIR "."
+#endif
+
+namespace {
+
+using namespace massage_cell::arm;
+
+ArmConfig config() { return loadArmConfig(std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/arm.yaml"); }
+
+PressTarget target(const std::string& name, const std::string& region, Eigen::Vector3d p,
+                   Eigen::Vector3d n = Eigen::Vector3d::UnitZ()) {
+  PressTarget t;
+  t.name = name;
+  t.region = region;
+  t.point = p;
+  t.normal = n;
+  return t;
+}
+
+const Eigen::Vector3d kHome(0.0, 0.0, 0.30);  // where homing leaves the tool
+
+/// Deepest signed position along the target's normal over every step of it.
+double deepest(const std::vector<Step>& steps, const PressTarget& t, int index) {
+  double d = 1e9;
+  for (const Step& s : steps) {
+    if (s.target == index) d = std::min(d, (s.tool - t.point).dot(t.normal.normalized()));
+  }
+  return d;
+}
+
+TEST(Plan, CheckToolNamesTheViolatedBound) {
+  const ArmConfig c = config();
+  EXPECT_EQ(checkTool(c, {0.4, 0.2, 0.2}), "");
+  EXPECT_NE(checkTool(c, {0.9, 0.2, 0.2}).find("outside the workspace envelope: x above 0.760 m"), std::string::npos);
+  EXPECT_NE(checkTool(c, {0.4, -0.01, 0.2}).find("y below 0.000 m"), std::string::npos);
+  EXPECT_NE(checkTool(c, {0.4, 0.2, 0.05}).find("z below 0.080 m"), std::string::npos);
+  EXPECT_NE(checkTool(c, {0.4, 0.2, NAN}).find("not finite"), std::string::npos);
+}
+
+TEST(Plan, VerticalPressSequence) {
+  const ArmConfig c = config();
+  PressRequest r;
+  r.targets = {target("BL23_L", "lower_back", {0.5, 0.2, 0.18})};
+  r.depth = 0.006;
+  r.hold = 1.5;
+  std::vector<Step> steps;
+  ASSERT_EQ(planMassage(c, kHome, r, &steps), "");
+  // up (already at 0.30 > travel 0.28: no), travel, approach, descend, hold, retract, up.
+  std::vector<std::string> kinds;
+  for (const Step& s : steps) kinds.push_back(s.label.substr(s.label.find(": ") + 2));
+  EXPECT_EQ(kinds, (std::vector<std::string>{"travel", "approach", "descend", "hold", "retract", "up to the travel height"}));
+  EXPECT_TRUE(steps[0].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.28)));
+  EXPECT_TRUE(steps[1].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.21)));   // 3 cm above the skin
+  EXPECT_TRUE(steps[2].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.174)));  // 6 mm in
+  EXPECT_DOUBLE_EQ(steps[2].speed, c.press.speed);
+  EXPECT_EQ(steps[3].kind, Step::Kind::kHold);
+  EXPECT_DOUBLE_EQ(steps[3].duration, 1.5);
+  EXPECT_TRUE(steps[3].contact);
+  EXPECT_TRUE(steps[4].press_done);
+  EXPECT_TRUE(steps[4].retract);
+  EXPECT_FALSE(steps[1].contact);
+  for (const Step& s : steps) EXPECT_EQ(checkTool(c, s.tool), "") << s.label;
+  EXPECT_NEAR(deepest(steps, r.targets[0], 0), -0.006, 1e-12);
+  // From below the travel height the plan goes up first.
+  ASSERT_EQ(planMassage(c, {0.1, 0.1, 0.2}, r, &steps), "");
+  EXPECT_TRUE(steps[0].tool.isApprox(Eigen::Vector3d(0.1, 0.1, 0.28)));
+}
+
+TEST(Plan, DepthLimitedPerRegion) {
+  const ArmConfig c = config();
+  PressRequest r;
+  std::vector<Step> steps;
+  // Default depths.
+  r.targets = {target("GV4", "midline", {0.5, 0.25, 0.19}), target("BL13_L", "upper_back", {0.25, 0.2, 0.2}),
+               target("p", "", {0.4, 0.3, 0.19})};
+  ASSERT_EQ(planMassage(c, kHome, r, &steps), "");
+  EXPECT_NEAR(deepest(steps, r.targets[0], 0), -0.001, 1e-12);
+  EXPECT_NEAR(deepest(steps, r.targets[1], 1), -0.003, 1e-12);
+  EXPECT_NEAR(deepest(steps, r.targets[2], 2), -0.001, 1e-12);  // no region: the default (midline)
+  // A depth one region allows and another does not: refused naming the target and the limit.
+  r.depth = 0.004;
+  EXPECT_EQ(planMassage(c, kHome, r, &steps), "GV4: depth 4.0 mm is deeper than the midline limit 2.0 mm");
+  EXPECT_TRUE(steps.empty());
+  r.targets = {target("BL13_L", "upper_back", {0.25, 0.2, 0.2})};
+  EXPECT_EQ(planMassage(c, kHome, r, &steps), "");
+  r.depth = 0.0051;
+  EXPECT_EQ(planMassage(c, kHome, r, &steps), "BL13_L: depth 5.1 mm is deeper than the upper_back limit 5.0 mm");
+  r.targets = {target("BL25_L", "lower_back", {0.6, 0.2, 0.18})};
+  r.depth = 0.012;
+  EXPECT_EQ(planMassage(c, kHome, r, &steps), "");
+  r.depth = 0.013;
+  EXPECT_NE(planMassage(c, kHome, r, &steps).find("deeper than the lower_back limit 12.0 mm"), std::string::npos);
+  r.targets[0].region = "neck";
+  r.depth = 0.0;
+  EXPECT_NE(planMassage(c, kHome, r, &steps).find("BL25_L: unknown region 'neck'"), std::string::npos);
+}
+
+TEST(Plan, PressAlongTheSurfaceNormal) {
+  const ArmConfig c = config();
+  PressRequest r;
+  const Eigen::Vector3d n = Eigen::Vector3d(0.3, -0.2, 1.0).normalized();
+  r.targets = {target("BL23_R", "lower_back", {0.5, 0.3, 0.18}, n)};
+  r.depth = 0.01;
+  std::vector<Step> steps;
+  ASSERT_EQ(planMassage(c, kHome, r, &steps), "");
+  const Step* descend = nullptr;
+  for (const Step& s : steps) {
+    if (s.label.find("descend") != std::string::npos) descend = &s;
+  }
+  ASSERT_NE(descend, nullptr);
+  EXPECT_TRUE(descend->tool.isApprox(r.targets[0].point - 0.01 * n, 1e-12));
+  EXPECT_TRUE(descend->retreat.isApprox(r.targets[0].point + c.press.approach_height * n, 1e-12));
+  // Too steep a surface (60 deg) is refused.
+  r.targets[0].normal = Eigen::Vector3d(std::sin(M_PI / 3), 0, std::cos(M_PI / 3));
+  EXPECT_EQ(planMassage(c, kHome, r, &steps), "BL23_R: the surface normal is 60.0 deg from vertical (limit 45.0 deg)");
+  r.targets[0].normal = Eigen::Vector3d::Zero();
+  EXPECT_NE(planMassage(c, kHome, r, &steps).find("normal is zero"), std::string::npos);
+}
+
+TEST(Plan, EnvelopeRefusals) {
+  const ArmConfig c = config();
+  PressRequest r;
+  std::vector<Step> steps;
+  r.targets = {target("high", "lower_back", {0.5, 0.2, 0.29})};  // approach point 3 cm higher: above 0.30
+  EXPECT_NE(planMassage(c, kHome, r, &steps).find("high: the travel point (0.500, 0.200, 0.320) m is outside the workspace envelope: z above 0.300 m"),
+            std::string::npos)
+      << planMassage(c, kHome, r, &steps);
+  r.targets = {target("low", "lower_back", {0.5, 0.2, 0.085})};  // 8 mm in: below z 0.08
+  r.depth = 0.008;
+  EXPECT_NE(planMassage(c, kHome, r, &steps).find("low: the press end point"), std::string::npos);
+  r.targets = {target("far", "lower_back", {0.9, 0.2, 0.18})};
+  EXPECT_NE(planMassage(c, kHome, r, &steps).find("far: the travel point"), std::string::npos);
+  r.targets = {};
+  EXPECT_EQ(planMassage(c, kHome, r, &steps), "no target given");
+}
+
+TEST(Plan, RequestLimits) {
+  const ArmConfig c = config();
+  PressRequest r;
+  r.targets = {target("a", "lower_back", {0.5, 0.2, 0.18})};
+  std::vector<Step> steps;
+  r.hold = 31;
+  EXPECT_NE(planMassage(c, kHome, r, &steps).find("hold 31.000 s is beyond the limit 30.000 s"), std::string::npos);
+  r.hold = 1;
+  r.repeats = 0;
+  EXPECT_NE(planMassage(c, kHome, r, &steps).find("repeats must be 1..10"), std::string::npos);
+  r.repeats = 3;
+  r.speed = 0.05;
+  EXPECT_NE(planMassage(c, kHome, r, &steps).find("speed 0.050 m/s must be in (0, 0.030]"), std::string::npos);
+  r.speed = 0.02;
+  r.depth = -0.001;
+  EXPECT_NE(planMassage(c, kHome, r, &steps).find("depth must be >= 0"), std::string::npos);
+  r.depth = 0;
+  ASSERT_EQ(planMassage(c, kHome, r, &steps), "");
+  int presses = 0;
+  for (const Step& s : steps) presses += s.press_done;
+  EXPECT_EQ(presses, 3);
+  EXPECT_NE(planMassage(c, {0.9, 0.2, 0.2}, r, &steps).find("the tool's current position"), std::string::npos);
+}
+
+TEST(Plan, KneadCirclesAtDepthInTheTangentPlane) {
+  const ArmConfig c = config();
+  PressRequest r;
+  r.technique = Technique::kKnead;
+  const Eigen::Vector3d n = Eigen::Vector3d(0.0, 0.3, 1.0).normalized();
+  r.targets = {target("BL25_L", "lower_back", {0.6, 0.2, 0.18}, n)};
+  r.depth = 0.008;
+  r.hold = 2.0;  // 2 circles of 1 s
+  std::vector<Step> steps;
+  ASSERT_EQ(planMassage(c, kHome, r, &steps), "");
+  int knead = 0;
+  for (const Step& s : steps) {
+    if (s.label.find("knead") == std::string::npos) continue;
+    ++knead;
+    const Eigen::Vector3d rel = s.tool - r.targets[0].point;
+    EXPECT_NEAR(rel.dot(n), -0.008, 1e-12);  // exactly at depth, never deeper
+    const double radial = (rel - rel.dot(n) * n).norm();
+    EXPECT_TRUE(std::abs(radial - c.press.knead_radius) < 1e-12 || radial < 1e-12) << radial;
+    EXPECT_TRUE(s.contact);
+  }
+  EXPECT_EQ(knead, 1 + 2 * c.press.knead_segments + 1);
+  EXPECT_NEAR(deepest(steps, r.targets[0], 0), -0.008, 1e-12);
+}
+
+TEST(Plan, RetractStepsGoBackToTheApproachPointThenUp) {
+  const ArmConfig c = config();
+  Step s;
+  s.tool = {0.5, 0.2, 0.17};
+  s.retreat = {0.5, 0.2, 0.21};
+  s.contact = true;
+  s.target = 0;
+  const std::vector<Step> r = retractSteps(c, s);
+  ASSERT_EQ(r.size(), 2u);
+  EXPECT_TRUE(r[0].tool.isApprox(s.retreat));
+  EXPECT_TRUE(r[0].retract);
+  EXPECT_DOUBLE_EQ(r[0].speed, c.press.retract_speed);
+  EXPECT_TRUE(r[1].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.28)));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}

@@ -1,0 +1,394 @@
+// rostest of the arm node with simulated drives (test/ros/arm.test): the URDF
+// and robot_state_publisher's tf tree, homing, move_to with a PointStamped in
+// the camera's optical frame, a massage over two acupoint frames this node
+// publishes, each refusal (envelope, depth, unknown frame, stale frame), an
+// e-stop mid-move and its reset, an injected drive fault and its reset, and an
+// acupoint frame lost during a press (the tool retracts).
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <future>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include <geometry_msgs/TransformStamped.h>
+#include <ros/ros.h>
+#include <sensor_msgs/JointState.h>
+#include <std_msgs/Bool.h>
+#include <std_msgs/String.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <tf2_ros/transform_listener.h>
+#include <urdf/model.h>
+
+#include "massage_cell/ArmState.h"
+#include "massage_cell/Massage.h"
+#include "massage_cell/MoveTo.h"
+#include "massage_cell/arm/config.h"
+
+#ifndef MASSAGE_CELL_SOURCE_DIR
+#define MASSAGE_CELL_SOURCE_DIR "."
+#endif
+
+namespace {
+
+const std::string kOptical = "stereo_left_optical_frame";
+const std::string kBase = "arm_base_link";
+
+struct Fixture {
+  ros::NodeHandle nh;
+  tf2_ros::Buffer buffer;
+  tf2_ros::TransformListener listener{buffer};
+  tf2_ros::TransformBroadcaster broadcaster;
+  std::mutex mutex;
+  massage_cell::ArmState state;
+  bool have_state = false;
+  sensor_msgs::JointState joints;
+  std::map<std::string, Eigen::Vector3d> live;  // acupoint frames published with the current stamp (in the base frame)
+  std::map<std::string, Eigen::Vector3d> old;   // ... published 2 s in the past
+  ros::Subscriber state_sub = nh.subscribe<massage_cell::ArmState>("/arm/state", 10, [this](const auto& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    state = *m;
+    have_state = true;
+  });
+  ros::Subscriber joint_sub = nh.subscribe<sensor_msgs::JointState>("/joint_states", 10, [this](const auto& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    joints = *m;
+  });
+  ros::Publisher estop_pub = nh.advertise<std_msgs::Bool>("/arm/estop", 1, true);
+  ros::Publisher fault_pub = nh.advertise<std_msgs::String>("/arm/sim/inject_fault", 1, true);
+  std::atomic<bool> stop{false};
+  std::thread publisher;
+  massage_cell::arm::ArmConfig config =
+      massage_cell::arm::loadArmConfig(std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/arm.yaml");
+
+  Fixture() {
+    publisher = std::thread([this] {
+      ros::WallRate rate(20.0);
+      while (!stop && ros::ok()) {
+        publishFrames();
+        rate.sleep();
+      }
+    });
+  }
+  ~Fixture() {
+    stop = true;
+    publisher.join();
+  }
+
+  /// Acupoint frames as the CECT node would: children of the left optical frame.
+  void publishFrames() {
+    geometry_msgs::TransformStamped base_to_optical;
+    try {
+      base_to_optical = buffer.lookupTransform(kOptical, kBase, ros::Time(0));
+    } catch (const tf2::TransformException&) {
+      return;  // robot_state_publisher not up yet
+    }
+    const Eigen::Isometry3d T = tf2::transformToEigen(base_to_optical);
+    std::vector<geometry_msgs::TransformStamped> out;
+    std::lock_guard<std::mutex> lock(mutex);
+    const ros::Time now = ros::Time::now();
+    for (auto* set : {&live, &old}) {
+      for (const auto& [name, p] : *set) {
+        geometry_msgs::TransformStamped t;
+        t.header.stamp = set == &live ? now : now - ros::Duration(2.0);
+        t.header.frame_id = kOptical;
+        t.child_frame_id = name;
+        const Eigen::Vector3d q = T * p;
+        t.transform.translation.x = q.x();
+        t.transform.translation.y = q.y();
+        t.transform.translation.z = q.z();
+        t.transform.rotation.w = 1.0;
+        out.push_back(t);
+      }
+    }
+    if (!out.empty()) broadcaster.sendTransform(out);
+  }
+
+  massage_cell::ArmState latest() {
+    std::lock_guard<std::mutex> lock(mutex);
+    return state;
+  }
+  Eigen::Vector3d jointPositions() {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (joints.position.size() != 3) return Eigen::Vector3d::Constant(NAN);
+    return {joints.position[0], joints.position[1], joints.position[2]};
+  }
+  bool waitFor(const std::function<bool()>& pred, double seconds) {
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+    while (ros::WallTime::now() < end) {
+      if (pred()) return true;
+      ros::WallDuration(0.02).sleep();
+    }
+    return pred();
+  }
+  std_srvs::Trigger::Response trigger(const std::string& name) {
+    std_srvs::Trigger srv;
+    EXPECT_TRUE(ros::service::waitForService(name, ros::Duration(30.0))) << name;
+    EXPECT_TRUE(ros::service::call(name, srv)) << name;
+    return srv.response;
+  }
+  massage_cell::MoveTo::Response moveTo(const std::string& frame, const Eigen::Vector3d& p, double speed = 0.0) {
+    massage_cell::MoveTo srv;
+    srv.request.target.header.frame_id = frame;
+    srv.request.target.point.x = p.x();
+    srv.request.target.point.y = p.y();
+    srv.request.target.point.z = p.z();
+    srv.request.speed = speed;
+    EXPECT_TRUE(ros::service::call("/arm/move_to", srv));
+    return srv.response;
+  }
+  /// A base-frame point expressed in the optical frame (through the tf tree).
+  Eigen::Vector3d inOptical(const Eigen::Vector3d& p) {
+    const auto t = buffer.lookupTransform(kOptical, kBase, ros::Time(0), ros::Duration(5.0));
+    return tf2::transformToEigen(t) * p;
+  }
+  massage_cell::Massage::Response massage(massage_cell::Massage::Request req) {
+    massage_cell::Massage srv;
+    srv.request = std::move(req);
+    EXPECT_TRUE(ros::service::call("/arm/massage", srv));
+    return srv.response;
+  }
+  void addFrame(const std::string& name, const Eigen::Vector3d& base_point, bool stale = false) {
+    std::lock_guard<std::mutex> lock(mutex);
+    (stale ? old : live)[name] = base_point;
+  }
+  void removeFrame(const std::string& name) {
+    std::lock_guard<std::mutex> lock(mutex);
+    live.erase(name);
+    old.erase(name);
+  }
+};
+
+Fixture* F = nullptr;
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+TEST(ArmNode, UrdfParsesAndRobotStatePublisherPublishesEveryLink) {
+  urdf::Model model;
+  ASSERT_TRUE(model.initParam("robot_description"));
+  EXPECT_EQ(model.getRoot()->name, "table");
+  std::vector<urdf::LinkSharedPtr> links;
+  model.getLinks(links);
+  EXPECT_EQ(links.size(), 10u);  // table, gantry (5), press_tool, tool_tip, camera mount, 2 optical frames
+  for (const auto& link : links) {
+    EXPECT_TRUE(F->buffer.canTransform("table", link->name, ros::Time(0), ros::Duration(10.0))) << link->name;
+  }
+  // The URDF's joint limits are the configured soft limits.
+  for (int i = 0; i < 3; ++i) {
+    const auto joint = model.getJoint(F->config.joint_names[i]);
+    ASSERT_TRUE(joint) << F->config.joint_names[i];
+    EXPECT_EQ(joint->type, urdf::Joint::PRISMATIC);
+    EXPECT_DOUBLE_EQ(joint->limits->lower, F->config.joints[i].min);
+    EXPECT_DOUBLE_EQ(joint->limits->upper, F->config.joints[i].max);
+  }
+}
+
+TEST(ArmNode, RefusesMotionBeforeHoming) {
+  ASSERT_TRUE(F->waitFor([] { return F->latest().mode == "ready (not homed)"; }, 20.0)) << F->latest().mode;
+  ASSERT_TRUE(ros::service::waitForService("/arm/move_to", ros::Duration(10.0)));
+  const auto r = F->moveTo(kBase, {0.4, 0.2, 0.25});
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "not homed")) << r.message;
+}
+
+TEST(ArmNode, Homes) {
+  const auto r = F->trigger("/arm/home");
+  ASSERT_TRUE(r.success) << r.message;
+  ASSERT_TRUE(F->waitFor([] { return F->latest().homed && F->latest().mode == "idle"; }, 5.0));
+  EXPECT_TRUE(F->waitFor([] { return (F->jointPositions() - Eigen::Vector3d(0, 0, 0.3)).norm() < 1e-5; }, 2.0))
+      << F->jointPositions().transpose();
+}
+
+TEST(ArmNode, MoveToPointInTheCameraOpticalFrame) {
+  const Eigen::Vector3d goal(0.4, 0.2, 0.25);
+  const Eigen::Vector3d p = F->inOptical(goal);
+  EXPECT_GT(p.z(), 0.5);  // in front of the camera, looking down
+  const auto r = F->moveTo(kOptical, p);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_TRUE(F->waitFor([&] { return (F->jointPositions() - goal).norm() < 1e-4; }, 2.0))
+      << F->jointPositions().transpose();
+  // robot_state_publisher: the tool tip is there in tf too.
+  EXPECT_TRUE(F->waitFor([&] {
+    try {
+      const auto t = F->buffer.lookupTransform(kBase, "tool_tip", ros::Time(0));
+      return (Eigen::Vector3d(t.transform.translation.x, t.transform.translation.y, t.transform.translation.z) - goal)
+                 .norm() < 1e-4;
+    } catch (const tf2::TransformException&) {
+      return false;
+    }
+  }, 2.0));
+}
+
+TEST(ArmNode, MassageOverTwoAcupointFrames) {
+  F->addFrame("acupoint/BL23_L", {0.5, 0.18, 0.18});
+  F->addFrame("acupoint/BL25_R", {0.6, 0.3, 0.17});
+  ASSERT_TRUE(F->buffer.canTransform(kBase, "acupoint/BL25_R", ros::Time(0), ros::Duration(5.0)));
+  double lowest = 1.0;
+  std::atomic<bool> watching{true};
+  std::thread watch([&] {
+    while (watching) {
+      lowest = std::min(lowest, F->latest().tool.z);
+      ros::WallDuration(0.005).sleep();
+    }
+  });
+  massage_cell::Massage::Request req;
+  req.frames = {"acupoint/BL23_L", "acupoint/BL25_R"};
+  req.hold = 0.3;
+  req.speed = 0.03;
+  const auto r = F->massage(req);
+  watching = false;
+  watch.join();
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_EQ(r.presses_done, 2);
+  EXPECT_EQ(r.message, "massage done: 2 presses");
+  // lower_back (from the acupoint model by name): default depth 8 mm below 0.17 m at the deepest.
+  EXPECT_GE(lowest, 0.17 - 0.008 - 1e-5);
+  EXPECT_LT(lowest, 0.17 - 0.006);  // the ~state samples (50 Hz) saw it at depth
+  EXPECT_NEAR(F->latest().tool.z, F->config.press.travel_height, 1e-4);
+}
+
+TEST(ArmNode, RefusalsNameTheProblem) {
+  const Eigen::Vector3d before = F->jointPositions();
+  // Outside the envelope.
+  auto m = F->moveTo(kBase, {1.5, 0.2, 0.2});
+  EXPECT_FALSE(m.success);
+  EXPECT_TRUE(contains(m.message, "outside the workspace envelope: x above 0.760 m")) << m.message;
+  massage_cell::Massage::Request req;
+  geometry_msgs::PointStamped far;
+  far.header.frame_id = kBase;
+  far.point.x = 0.5;
+  far.point.y = 0.9;
+  far.point.z = 0.18;
+  req.points = {far};
+  auto r = F->massage(req);
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "point 1: the travel point") && contains(r.message, "outside the workspace envelope"))
+      << r.message;
+  // Deeper than the region allows (lower_back 12 mm; GV4 is midline: 2 mm).
+  F->addFrame("acupoint/GV4", {0.55, 0.25, 0.19});
+  ASSERT_TRUE(F->buffer.canTransform(kBase, "acupoint/GV4", ros::Time(0), ros::Duration(5.0)));
+  req = {};
+  req.frames = {"acupoint/BL23_L"};
+  req.depth = 0.02;
+  r = F->massage(req);
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "BL23_L: depth 20.0 mm is deeper than the lower_back limit 12.0 mm")) << r.message;
+  req.frames = {"acupoint/GV4"};
+  req.depth = 0.003;
+  r = F->massage(req);
+  EXPECT_TRUE(contains(r.message, "GV4: depth 3.0 mm is deeper than the midline limit 2.0 mm")) << r.message;
+  // Unknown frame.
+  req.frames = {"acupoint/NOPE"};
+  req.depth = 0;
+  r = F->massage(req);
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "the frame 'acupoint/NOPE' is unknown")) << r.message;
+  m = F->moveTo("no_such_frame", {0, 0, 0});
+  EXPECT_FALSE(m.success);
+  EXPECT_TRUE(contains(m.message, "'no_such_frame' is unknown")) << m.message;
+  // Stale: the frame's latest transform is 2 s old.
+  F->addFrame("acupoint/BL21_L", {0.45, 0.18, 0.18}, true);
+  ASSERT_TRUE(F->buffer.canTransform(kOptical, "acupoint/BL21_L", ros::Time(0), ros::Duration(5.0)));
+  req.frames = {"acupoint/BL21_L"};
+  r = F->massage(req);
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "'acupoint/BL21_L' is stale: its transform is 2.") &&
+              contains(r.message, "limit 0.50 s"))
+      << r.message;
+  // Nothing moved.
+  EXPECT_LT((F->jointPositions() - before).norm(), 1e-6);
+  EXPECT_EQ(F->latest().mode, "idle");
+}
+
+TEST(ArmNode, EstopMidMoveAndReset) {
+  auto move = std::async(std::launch::async, [] { return F->moveTo(kBase, {0.1, 0.4, 0.25}); });
+  ASSERT_TRUE(F->waitFor([] { return F->latest().mode == "moving"; }, 5.0));
+  ros::WallDuration(0.5).sleep();
+  std_msgs::Bool on;
+  on.data = true;
+  F->estop_pub.publish(on);
+  const auto r = move.get();
+  EXPECT_FALSE(r.success);
+  EXPECT_EQ(r.message, "e-stop pressed");
+  ASSERT_TRUE(F->waitFor([] { return F->latest().mode == "e-stop"; }, 2.0));
+  EXPECT_TRUE(F->latest().estop_latched);
+  ros::WallDuration(0.2).sleep();  // the quick-stop ramp: 0.1 m/s at 2 m/s^2 is 50 ms
+  const Eigen::Vector3d stopped = F->jointPositions();
+  ros::WallDuration(0.5).sleep();
+  EXPECT_LT((F->jointPositions() - stopped).norm(), 1e-6);  // standing
+  auto reset = F->trigger("/arm/reset_fault");
+  EXPECT_FALSE(reset.success);
+  EXPECT_TRUE(contains(reset.message, "e-stop is still pressed")) << reset.message;
+  std_msgs::Bool off;
+  off.data = false;
+  F->estop_pub.publish(off);
+  ASSERT_TRUE(F->waitFor([] { return !F->latest().estop_active; }, 2.0));
+  EXPECT_TRUE(F->latest().estop_latched);  // latched until reset
+  const auto refused = F->moveTo(kBase, {0.3, 0.3, 0.25});
+  EXPECT_FALSE(refused.success);
+  EXPECT_TRUE(contains(refused.message, "e-stop is latched")) << refused.message;
+  reset = F->trigger("/arm/reset_fault");
+  ASSERT_TRUE(reset.success) << reset.message;
+  ASSERT_TRUE(F->waitFor([] { return F->latest().mode == "idle"; }, 2.0));
+  EXPECT_TRUE(F->latest().homed);
+  EXPECT_TRUE(F->moveTo(kBase, {0.3, 0.3, 0.25}).success);
+}
+
+TEST(ArmNode, InjectedDriveFaultAndReset) {
+  auto move = std::async(std::launch::async, [] { return F->moveTo(kBase, {0.6, 0.1, 0.25}); });
+  ASSERT_TRUE(F->waitFor([] { return F->latest().mode == "moving"; }, 5.0));
+  ros::WallDuration(0.3).sleep();
+  std_msgs::String fault;
+  fault.data = "Y 0x2310";
+  F->fault_pub.publish(fault);
+  const auto r = move.get();
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "aborted by a fault")) << r.message;
+  ASSERT_TRUE(F->waitFor([] { return F->latest().mode == "fault"; }, 2.0));
+  std::string faults;
+  for (const auto& f : F->latest().faults) faults += f + "\n";
+  EXPECT_TRUE(contains(faults, "EMCY 0x2310 continuous over-current")) << faults;
+  EXPECT_TRUE(F->waitFor([] { return F->latest().axis_state.at(1) == "fault"; }, 2.0)) << F->latest().axis_state.at(1);
+  const auto refused = F->moveTo(kBase, {0.3, 0.3, 0.25});
+  EXPECT_TRUE(contains(refused.message, "the arm is in fault")) << refused.message;
+  const auto reset = F->trigger("/arm/reset_fault");
+  ASSERT_TRUE(reset.success) << reset.message;
+  EXPECT_TRUE(F->latest().faults.empty() || F->waitFor([] { return F->latest().faults.empty(); }, 1.0));
+  EXPECT_TRUE(F->moveTo(kBase, {0.3, 0.3, 0.25}).success);
+}
+
+TEST(ArmNode, LostAcupointFrameDuringAPressRetracts) {
+  F->addFrame("acupoint/BL22_L", {0.45, 0.2, 0.18});
+  ASSERT_TRUE(F->buffer.canTransform(kBase, "acupoint/BL22_L", ros::Time(0), ros::Duration(5.0)));
+  massage_cell::Massage::Request req;
+  req.frames = {"acupoint/BL22_L"};
+  req.hold = 20.0;
+  req.speed = 0.03;
+  auto call = std::async(std::launch::async, [&] { return F->massage(req); });
+  ASSERT_TRUE(F->waitFor([] { return contains(F->latest().activity, "hold"); }, 60.0)) << F->latest().activity;
+  F->removeFrame("acupoint/BL22_L");  // the subject moved away: the frame is no longer refreshed
+  const auto r = call.get();
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "massage aborted: acupoint frame 'acupoint/BL22_L' is stale")) << r.message;
+  EXPECT_TRUE(contains(r.message, "tool retracted to")) << r.message;
+  EXPECT_NEAR(F->latest().tool.z, F->config.press.travel_height, 1e-4);
+  EXPECT_EQ(r.presses_done, 0);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_arm_node");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  Fixture fixture;
+  F = &fixture;
+  const int result = RUN_ALL_TESTS();
+  F = nullptr;
+  return result;
+}
