@@ -11,6 +11,8 @@
 #include <sensor_msgs/image_encodings.h>
 #include <tf2_eigen/tf2_eigen.h>
 
+#include "calibration_msg.h"
+
 namespace massage_cell::nodes {
 
 using camera::ConfigError;
@@ -86,26 +88,6 @@ std::string calibrationPath(const std::string& url_in, const std::string& camera
     return root + (slash == std::string::npos ? "" : rest.substr(slash));
   }
   throw ConfigError("camera_info_url '" + url_in + "' is not a file:// or package:// URL");
-}
-
-camera::CameraCalibration toCalibration(const sensor_msgs::CameraInfo& info) {
-  camera::CameraCalibration c;
-  c.width = static_cast<int>(info.width);
-  c.height = static_cast<int>(info.height);
-  c.distortion_model = info.distortion_model;
-  c.D = info.D;
-  std::copy(info.K.begin(), info.K.end(), c.K.begin());
-  std::copy(info.R.begin(), info.R.end(), c.R.begin());
-  std::copy(info.P.begin(), info.P.end(), c.P.begin());
-  return c;
-}
-
-void fromCalibration(const camera::CameraCalibration& c, sensor_msgs::CameraInfo& info) {
-  info.distortion_model = c.distortion_model;
-  info.D = c.D;
-  std::copy(c.K.begin(), c.K.end(), info.K.begin());
-  std::copy(c.R.begin(), c.R.end(), info.R.begin());
-  std::copy(c.P.begin(), c.P.end(), info.P.begin());
 }
 
 std::string encodingOf(const cv::Mat& image) {

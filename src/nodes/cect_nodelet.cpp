@@ -1,14 +1,11 @@
 #include "cect_nodelet.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
-#include <functional>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
 
-#include <boost/any.hpp>
 #include <cv_bridge/cv_bridge.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <opencv2/imgproc.hpp>
@@ -19,70 +16,21 @@
 #include <tf2_geometry_msgs/tf2_geometry_msgs.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include "calibration_msg.h"
 #include "massage_cell/AcupointArray.h"
-#include "massage_cell/camera/calibration.h"
+#include "start_parameters.h"
 
 namespace massage_cell::nodes {
 
 namespace {
 
 namespace enc = sensor_msgs::image_encodings;
-using Clock = std::chrono::steady_clock;
 
 constexpr double kLogPeriod = 5.0;       // s between two logs naming the same problem
-constexpr double kRateWindow = 10.0;     // s of completions the processing rate is taken over
 constexpr double kTfWait = 0.1;          // s (wall) ~get_acupoint waits for the transform at the estimate's stamp
 constexpr double kMarkerLifetime = 1.0;  // s
 constexpr int kDebugWidth = 960;         // px: ~debug_image is scaled up to at least this width
 const double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-/// A problem with one input pair: logged (throttled), counted, the pair skipped.
-struct BadInput : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-double msSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
-std::string sizeText(unsigned width, unsigned height) { return std::to_string(width) + "x" + std::to_string(height); }
-
-camera::CameraCalibration toCalibration(const sensor_msgs::CameraInfo& info) {
-  camera::CameraCalibration c;
-  c.width = static_cast<int>(info.width);
-  c.height = static_cast<int>(info.height);
-  c.distortion_model = info.distortion_model;
-  c.D = info.D;
-  std::copy(info.K.begin(), info.K.end(), c.K.begin());
-  std::copy(info.R.begin(), info.R.end(), c.R.begin());
-  std::copy(info.P.begin(), info.P.end(), c.P.begin());
-  return c;
-}
-
-/// Everything a calibration change affects, to detect changes cheaply.
-void appendKey(std::vector<double>& key, const sensor_msgs::CameraInfo& info) {
-  key.push_back(info.width);
-  key.push_back(info.height);
-  key.push_back(static_cast<double>(std::hash<std::string>{}(info.distortion_model)));
-  key.push_back(static_cast<double>(info.D.size()));
-  key.insert(key.end(), info.D.begin(), info.D.end());
-  key.insert(key.end(), info.K.begin(), info.K.end());
-  key.insert(key.end(), info.R.begin(), info.R.end());
-  key.insert(key.end(), info.P.begin(), info.P.end());
-}
-
-/// Throws BadInput when the image does not have the size its camera_info
-/// declares or uses binning / a region of interest.
-void checkInfo(const sensor_msgs::CameraInfo& info, const sensor_msgs::Image& image, const std::string& which) {
-  if (info.width != image.width || info.height != image.height) {
-    throw BadInput(which + " image is " + sizeText(image.width, image.height) + " but its camera_info says " +
-                   sizeText(info.width, info.height));
-  }
-  if (info.binning_x > 1 || info.binning_y > 1 || (info.roi.width != 0 && info.roi.width != info.width) ||
-      (info.roi.height != 0 && info.roi.height != info.height)) {
-    throw BadInput(which + " camera_info uses binning or a region of interest, which this node does not support");
-  }
-}
 
 /// The image as 8-bit BGR (CECT finds the back by its colour).
 cv::Mat toBgr(const sensor_msgs::ImageConstPtr& msg, const std::string& which) {
@@ -175,19 +123,15 @@ std::string joined(const std::vector<std::string>& names) {
 
 // ------------------------------------------------------------- set-up --
 
+CectNodelet::CectNodelet() : log_throttle_(kLogPeriod) {}
+
 CectNodelet::~CectNodelet() {
-  {
-    std::lock_guard<std::mutex> lock(slot_mutex_);
-    stopping_ = true;
-  }
-  slot_cv_.notify_all();
-  if (worker_.joinable()) worker_.join();
+  if (input_) input_->stop();  // before the state its worker uses goes
 }
 
 void CectNodelet::onInit() {
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& pnh = getPrivateNodeHandle();
-  it_ = std::make_unique<image_transport::ImageTransport>(nh);
 
   // The acupoint model: a configuration error ends the node (logged FATAL, rethrown).
   loadModel();
@@ -196,27 +140,13 @@ void CectNodelet::onInit() {
     frame_prefix_.erase(0, 1);  // tf2 ids have no leading '/'
 
   // Synchronised inputs, as stereo_image_proc: exact stamps by default.
-  int queue_size = 5;
-  bool approximate = false;
-  pnh.param("queue_size", queue_size, queue_size);
-  pnh.param("approximate_sync", approximate, approximate);
-  if (queue_size < 1) {
-    NODELET_ERROR_STREAM("parameter ~queue_size must be >= 1 (got " << queue_size << "): using 5");
-    queue_size = 5;
-  }
-  if (approximate) {
-    approximate_sync_ = std::make_unique<message_filters::Synchronizer<ApproximatePolicy>>(
-        ApproximatePolicy(queue_size), left_image_sub_, left_info_sub_, right_image_sub_, right_info_sub_);
-    approximate_sync_->registerCallback(&CectNodelet::pairCb, this);
-  } else {
-    exact_sync_ = std::make_unique<message_filters::Synchronizer<ExactPolicy>>(
-        ExactPolicy(queue_size), left_image_sub_, left_info_sub_, right_image_sub_, right_info_sub_);
-    exact_sync_->registerCallback(&CectNodelet::pairCb, this);
-  }
+  const SyncOptions sync = SyncOptions::fromParameters(pnh);
+  if (!sync.problem.empty()) NODELET_ERROR_STREAM(sync.problem);
+  input_ = std::make_unique<StereoPairInput>(nh, pnh, sync, [this](const StereoPair& pair) { onPair(pair); });
 
   // Parameters: log what dynamic_reconfigure would clamp silently, then serve them.
   config_ = Config::__getDefault__();
-  checkStartParameters();
+  for (const std::string& problem : startParameterProblems<Config>(pnh)) NODELET_ERROR_STREAM(problem);
   reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<Config>>(config_mutex_, pnh);
   reconfigure_server_->setCallback([this](Config& config, uint32_t level) { configCb(config, level); });
   {
@@ -244,16 +174,11 @@ void CectNodelet::onInit() {
   acupoint_service_ = pnh.advertiseService("get_acupoint", &CectNodelet::getAcupoint, this);
 
   // Inputs, subscribed from the start (tf frames and services have no
-  // subscriber count). Queue size 1: the synchroniser's queue is the one that matters.
-  worker_ = std::thread([this] { workLoop(); });
-  const image_transport::TransportHints hints("raw", ros::TransportHints(), pnh);
-  left_image_sub_.subscribe(*it_, "left/image_raw", 1, hints);
-  left_info_sub_.subscribe(nh, "left/camera_info", 1);
-  right_image_sub_.subscribe(*it_, "right/image_raw", 1, hints);
-  right_info_sub_.subscribe(nh, "right/camera_info", 1);
+  // subscriber count).
+  input_->subscribe();
   NODELET_INFO_STREAM("acupoints (" << model_.points.size() << " from " << model_path_ << ") on "
                                     << nh.resolveName("left/image_raw") << " + " << nh.resolveName("right/image_raw")
-                                    << (approximate ? " (approximate sync)" : " (exact sync)") << "; tf frames "
+                                    << (sync.approximate ? " (approximate sync)" : " (exact sync)") << "; tf frames "
                                     << frame_prefix_ << "<name>");
 }
 
@@ -282,36 +207,6 @@ void CectNodelet::loadModel() {
   for (const auto& point : model_.points) estimates_[point.name].reason = "no stereo pair analysed yet";
 }
 
-void CectNodelet::checkStartParameters() {
-  // dynamic_reconfigure reads these from the parameter server and clamps them
-  // without a word; say so when a value of the parameter file is outside.
-  const ros::NodeHandle& pnh = getPrivateNodeHandle();
-  const Config min = Config::__getMin__(), max = Config::__getMax__();
-  for (const auto& description : Config::__getParamDescriptions__()) {
-    const bool integer = description->type == "int";
-    if (!integer && description->type != "double") continue;
-    XmlRpc::XmlRpcValue v;
-    if (!pnh.getParam(description->name, v)) continue;
-    const auto type = v.getType();
-    const bool is_int = type == XmlRpc::XmlRpcValue::TypeInt;
-    if (!is_int && (integer || type != XmlRpc::XmlRpcValue::TypeDouble)) {
-      NODELET_ERROR_STREAM("parameter ~" << description->name << " must be " << (integer ? "an integer" : "a number")
-                                         << ": ignored, using the default");
-      continue;
-    }
-    boost::any lo_any, hi_any;
-    description->getValue(min, lo_any);
-    description->getValue(max, hi_any);
-    const double lo = integer ? boost::any_cast<int>(lo_any) : boost::any_cast<double>(lo_any);
-    const double hi = integer ? boost::any_cast<int>(hi_any) : boost::any_cast<double>(hi_any);
-    const double value = is_int ? static_cast<int>(v) : static_cast<double>(v);
-    if (value < lo || value > hi) {
-      NODELET_ERROR_STREAM("parameter ~" << description->name << " = " << value << " is outside [" << lo << ", " << hi
-                                         << "]: clamped to " << std::min(std::max(value, lo), hi));
-    }
-  }
-}
-
 void CectNodelet::configCb(Config& config, uint32_t /*level*/) {
   // Runs with config_mutex_ held (dynamic_reconfigure::Server locks it).
   // Combinations the ranges of cfg/CECT.cfg cannot rule out are rejected
@@ -338,77 +233,35 @@ void CectNodelet::configCb(Config& config, uint32_t /*level*/) {
                                    << config.max_age << " s");
 }
 
-// ------------------------------------------------------------- inputs --
-
-void CectNodelet::pairCb(const sensor_msgs::ImageConstPtr& left_image, const sensor_msgs::CameraInfoConstPtr& left_info,
-                         const sensor_msgs::ImageConstPtr& right_image,
-                         const sensor_msgs::CameraInfoConstPtr& right_info) {
-  bool dropped = false;
-  {
-    std::lock_guard<std::mutex> lock(slot_mutex_);
-    dropped = slot_.has_value();  // the worker is busy and never took the previous pair
-    slot_ = Pair{left_image, right_image, left_info, right_info};
-  }
-  slot_cv_.notify_one();
-  std::lock_guard<std::mutex> lock(status_mutex_);
-  ++received_;
-  if (dropped) ++dropped_;
-}
-
 // ------------------------------------------------------------- worker --
 
-void CectNodelet::workLoop() {
-  while (true) {
-    Pair pair;
-    {
-      std::unique_lock<std::mutex> lock(slot_mutex_);
-      slot_cv_.wait(lock, [this] { return stopping_ || slot_.has_value(); });
-      if (stopping_) return;
-      pair = std::move(*slot_);
-      slot_.reset();
-    }
-    Config config;
-    {
-      boost::recursive_mutex::scoped_lock lock(config_mutex_);
-      config = config_;
-    }
-    try {
-      process(pair, config);
-    } catch (const BadInput& e) {
-      badPair(e.what());
-    } catch (const std::exception& e) {  // the library's std::invalid_argument, OpenCV, ...
-      badPair(e.what());
-    }
+void CectNodelet::onPair(const StereoPair& pair) {
+  Config config;
+  {
+    boost::recursive_mutex::scoped_lock lock(config_mutex_);
+    config = config_;
   }
-}
-
-bool CectNodelet::logDue(const std::string& problem) {
-  // Throttled per problem, so a second kind of problem is not hidden by the first.
-  const ros::WallTime now = ros::WallTime::now();
-  if (last_logged_.size() > 100) last_logged_.clear();
-  ros::WallTime& last = last_logged_[problem];
-  if (!last.isZero() && (now - last).toSec() < kLogPeriod) return false;
-  last = now;
-  return true;
+  try {
+    process(pair, config);
+  } catch (const std::exception& e) {  // BadInput, the library's std::invalid_argument, OpenCV, ...
+    badPair(e.what());
+  }
 }
 
 void CectNodelet::badPair(const std::string& problem) {
   std::uint64_t bad = 0;
   {
     std::lock_guard<std::mutex> lock(status_mutex_);
-    bad = ++bad_;
-    last_pair_bad_ = true;
-    last_error_ = problem;
-    last_error_time_ = ros::WallTime::now();
+    bad = stats_.badOne(problem);
   }
-  if (logDue(problem))
+  if (log_throttle_.due(problem))
     NODELET_ERROR_STREAM("skipped a stereo pair: " << problem << " (" << bad << " bad pairs so far)");
 }
 
 void CectNodelet::updateGeometry(const CameraInfo& left, const CameraInfo& right) {
   std::vector<double> key;
-  appendKey(key, left);
-  appendKey(key, right);
+  appendCalibrationKey(key, left);
+  appendCalibrationKey(key, right);
   if (key != geometry_key_) {
     geometry_key_ = key;
     geometry_.reset();
@@ -430,14 +283,14 @@ void CectNodelet::updateGeometry(const CameraInfo& left, const CameraInfo& right
   if (!geometry_) throw BadInput(geometry_error_);
 }
 
-void CectNodelet::process(const Pair& pair, const Config& config) {
+void CectNodelet::process(const StereoPair& pair, const Config& config) {
   const auto start = Clock::now();
   const CameraInfo& li = *pair.left_info;
   const CameraInfo& ri = *pair.right_info;
 
   // 1. Inputs: every problem names itself and skips the pair.
-  checkInfo(li, *pair.left_image, "left");
-  checkInfo(ri, *pair.right_image, "right");
+  checkImageSize(li, *pair.left_image, "left");
+  checkImageSize(ri, *pair.right_image, "right");
   updateGeometry(li, ri);
   const cv::Mat left = toBgr(pair.left_image, "left");
   const cv::Mat right = toBgr(pair.right_image, "right");
@@ -523,7 +376,7 @@ void CectNodelet::process(const Pair& pair, const Config& config) {
   }
   if (!frame_problem.empty()) {
     for (auto& r : results) r.reason = frame_problem;
-    if (logDue(frame_problem)) NODELET_WARN_STREAM("no acupoints in this pair: " << frame_problem);
+    if (log_throttle_.due(frame_problem)) NODELET_WARN_STREAM("no acupoints in this pair: " << frame_problem);
   }
 
   // 4. Outputs.
@@ -537,22 +390,14 @@ void CectNodelet::process(const Pair& pair, const Config& config) {
     for (const auto& e : estimates_) valid += e.second.valid ? 1 : 0;
   }
   std::lock_guard<std::mutex> lock(status_mutex_);
-  ++processed_;
+  stats_.processedOne(elapsed);
   if (!frame_problem.empty()) ++unusable_;
-  last_pair_bad_ = false;
   last_problem_ = frame_problem;
   last_valid_ = valid;
   last_measured_ = measured;
   rejected_outliers_ = filter_.rejected();
-  last_processing_ms_ = elapsed;
   last_cect_ms_ = frame->timings().total_ms;
-  total_processing_ms_ += elapsed;
-  const ros::WallTime now = ros::WallTime::now();
-  processed_times_.push_back(now);
-  while (processed_times_.size() > 2 && (now - processed_times_.front()).toSec() > kRateWindow) {
-    processed_times_.pop_front();
-  }
-  if (processed_ == 1) {
+  if (stats_.processed() == 1) {
     NODELET_INFO_STREAM("first pair: " << valid << " of " << model_.points.size() << " acupoints valid, " << elapsed
                                        << " ms");
   }
@@ -822,21 +667,16 @@ bool CectNodelet::getAcupoint(massage_cell::GetAcupoint::Request& request,
 
 void CectNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
   using diagnostic_msgs::DiagnosticStatus;
+  const StereoPairInput::Counts input = input_->counts();
   std::lock_guard<std::mutex> lock(status_mutex_);
-  const ros::WallTime now = ros::WallTime::now();
-  double rate = 0.0;
-  if (processed_times_.size() >= 2 && (now - processed_times_.back()).toSec() < kRateWindow) {
-    rate = (processed_times_.size() - 1) / std::max(1e-6, (processed_times_.back() - processed_times_.front()).toSec());
-  }
   const int total = static_cast<int>(model_.points.size());
-  const bool recent_error = !last_error_time_.isZero() && (now - last_error_time_).toSec() < kRateWindow;
-  if (last_pair_bad_) {
-    status.summary(DiagnosticStatus::ERROR, "last pair skipped: " + last_error_);
-  } else if (processed_ > 0 && !last_problem_.empty()) {
+  if (stats_.lastPairBad()) {
+    status.summary(DiagnosticStatus::ERROR, "last pair skipped: " + stats_.lastError());
+  } else if (stats_.processed() > 0 && !last_problem_.empty()) {
     status.summary(DiagnosticStatus::WARN, last_problem_);
-  } else if (recent_error) {
+  } else if (stats_.recentError()) {
     status.summary(DiagnosticStatus::WARN, "some pairs were bad and skipped");
-  } else if (received_ == 0) {
+  } else if (input.received == 0) {
     status.summary(DiagnosticStatus::OK, "waiting for stereo pairs");
   } else if (last_valid_ < total) {
     status.summary(DiagnosticStatus::WARN,
@@ -846,21 +686,15 @@ void CectNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) 
   }
   status.add("acupoint model", model_path_);
   status.add("input", geometry_summary_);
-  status.add("pairs received", received_);
-  status.add("pairs processed", processed_);
-  status.add("dropped pairs", dropped_);
-  status.add("bad pairs", bad_);
+  stats_.addCounts(status, input);
   status.add("pairs without acupoints", unusable_);
   status.add("valid acupoints", last_valid_);
   status.add("acupoints", total);
   status.add("acupoints measured in the last pair", last_measured_);
   status.add("outliers rejected", rejected_outliers_);
-  status.add("processing rate (Hz)", rate);
-  status.add("last processing time (ms)", last_processing_ms_);
-  status.add("last CECT time (ms)", last_cect_ms_);
-  status.add("mean processing time (ms)", processed_ > 0 ? total_processing_ms_ / processed_ : 0.0);
+  stats_.addTimes(status, "last CECT time (ms)", last_cect_ms_);
   status.add("last reason", last_problem_);
-  status.add("last error", last_error_);
+  status.add("last error", stats_.lastError());
 }
 
 }  // namespace massage_cell::nodes

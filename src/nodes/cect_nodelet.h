@@ -17,25 +17,21 @@
 // all (no usable view of the back, no landmarks) invalidates every point:
 // the subject may have moved away.
 //
-// Threading: the synchroniser callback only drops the pair into a one-pair
-// slot (replacing, and counting as dropped, a pair the worker has not taken
-// yet); a worker thread analyses the newest pair. The services read what the
-// worker left behind (the latest frame, the published estimates) under their
+// Threading (StereoPairInput, stereo_pair_input.h): the synchroniser
+// callback only drops the pair into a one-pair slot (replacing, and counting
+// as dropped, a pair the worker has not taken yet); a worker thread analyses
+// the newest pair. The services read what the worker left behind (the latest frame, the published estimates) under their
 // own mutexes, so neither blocks the other for long.
 //
 // Unlike the hbds nodelet the inputs are subscribed from the start: the tf
 // frames and the services are outputs nobody "subscribes" to.
 #pragma once
 
-#include <condition_variable>
 #include <cstdint>
-#include <deque>
 #include <map>
 #include <memory>
 #include <mutex>
-#include <optional>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <Eigen/Core>
@@ -43,11 +39,6 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <image_transport/image_transport.h>
-#include <image_transport/subscriber_filter.h>
-#include <message_filters/subscriber.h>
-#include <message_filters/sync_policies/approximate_time.h>
-#include <message_filters/sync_policies/exact_time.h>
-#include <message_filters/synchronizer.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
@@ -64,26 +55,18 @@
 #include "massage_cell/cect/cect.h"
 #include "massage_cell/cect/stereo_geometry.h"
 #include "massage_cell/cect/temporal_filter.h"
+#include "stereo_pair_input.h"
 
 namespace massage_cell::nodes {
 
 class CectNodelet : public nodelet::Nodelet {
  public:
-  CectNodelet() = default;
+  CectNodelet();
   ~CectNodelet() override;
 
  private:
   using Config = massage_cell::CECTConfig;
-  using Image = sensor_msgs::Image;
   using CameraInfo = sensor_msgs::CameraInfo;
-  using ExactPolicy = message_filters::sync_policies::ExactTime<Image, CameraInfo, Image, CameraInfo>;
-  using ApproximatePolicy = message_filters::sync_policies::ApproximateTime<Image, CameraInfo, Image, CameraInfo>;
-
-  /// One synchronised input pair.
-  struct Pair {
-    sensor_msgs::ImageConstPtr left_image, right_image;
-    sensor_msgs::CameraInfoConstPtr left_info, right_info;
-  };
 
   /// The latest analysed pair (valid or not), for ~localize_pixels.
   struct Analysed {
@@ -112,29 +95,21 @@ class CectNodelet : public nodelet::Nodelet {
 
   void onInit() override;
   void loadModel();
-  void checkStartParameters();
   void configCb(Config& config, uint32_t level);
-  void pairCb(const sensor_msgs::ImageConstPtr& left_image, const sensor_msgs::CameraInfoConstPtr& left_info,
-              const sensor_msgs::ImageConstPtr& right_image, const sensor_msgs::CameraInfoConstPtr& right_info);
-  void workLoop();
-  void process(const Pair& pair, const Config& config);
+  void onPair(const StereoPair& pair);  // the input's worker thread
+  void process(const StereoPair& pair, const Config& config);
   void updateGeometry(const CameraInfo& left, const CameraInfo& right);
   void publish(const std_msgs::Header& header, const cect::CectFrame& frame, const std::vector<PointResult>& results,
                const std::string& frame_problem, const Config& config);
   void publishDebugImage(const std_msgs::Header& header, const cect::CectFrame& frame,
                          const std::vector<PointResult>& results);
   void badPair(const std::string& problem);
-  bool logDue(const std::string& problem);
   bool localizePixels(massage_cell::LocalizePixels::Request& request, massage_cell::LocalizePixels::Response& response);
   bool getAcupoint(massage_cell::GetAcupoint::Request& request, massage_cell::GetAcupoint::Response& response);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
 
-  // Inputs.
-  std::unique_ptr<image_transport::ImageTransport> it_;
-  image_transport::SubscriberFilter left_image_sub_, right_image_sub_;
-  message_filters::Subscriber<CameraInfo> left_info_sub_, right_info_sub_;
-  std::unique_ptr<message_filters::Synchronizer<ExactPolicy>> exact_sync_;
-  std::unique_ptr<message_filters::Synchronizer<ApproximatePolicy>> approximate_sync_;
+  // Inputs and the worker thread (stopped first in the destructor).
+  std::unique_ptr<StereoPairInput> input_;
 
   // Outputs and services.
   ros::Publisher acupoints_pub_, markers_pub_;
@@ -154,20 +129,13 @@ class CectNodelet : public nodelet::Nodelet {
   std::unique_ptr<dynamic_reconfigure::Server<Config>> reconfigure_server_;
   Config config_;  // the accepted configuration, guarded by config_mutex_
 
-  // The latest-pair slot between the synchroniser and the worker.
-  std::mutex slot_mutex_;
-  std::condition_variable slot_cv_;
-  std::optional<Pair> slot_;
-  bool stopping_ = false;
-  std::thread worker_;
-
   // Worker-thread state.
   std::vector<double> geometry_key_;  ///< the calibration geometry_ (or geometry_error_) is for
   std::shared_ptr<const cect::StereoGeometry> geometry_;
   std::string geometry_error_;  ///< why the calibration of geometry_key_ is unusable
   cect::TemporalFilter filter_;
   ros::Time last_stamp_;
-  std::map<std::string, ros::WallTime> last_logged_;  // per-problem log throttling
+  ProblemThrottle log_throttle_;  // per-problem log throttling
 
   // What the services read.
   std::mutex latest_mutex_;
@@ -179,15 +147,12 @@ class CectNodelet : public nodelet::Nodelet {
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostics_timer_;
   std::mutex status_mutex_;
-  std::uint64_t received_ = 0, processed_ = 0, dropped_ = 0, bad_ = 0, unusable_ = 0;
-  bool last_pair_bad_ = false;
+  PairStats stats_;
+  std::uint64_t unusable_ = 0;
   std::string last_problem_;  ///< why the last analysed pair gave no acupoints (empty: it did)
   int last_valid_ = 0, last_measured_ = 0;
   int rejected_outliers_ = 0;
-  double last_processing_ms_ = 0.0, last_cect_ms_ = 0.0, total_processing_ms_ = 0.0;
-  std::deque<ros::WallTime> processed_times_;  // recent completions, for the rate
-  std::string last_error_;
-  ros::WallTime last_error_time_;
+  double last_cect_ms_ = 0.0;
   std::string geometry_summary_;
 };
 

@@ -1,7 +1,6 @@
 #include "hbds_nodelet.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -18,25 +17,15 @@
 #include <stereo_msgs/DisparityImage.h>
 
 #include "massage_cell/stereo/pipeline.h"
+#include "start_parameters.h"
 
 namespace massage_cell::nodes {
 
 namespace {
 
 namespace enc = sensor_msgs::image_encodings;
-using Clock = std::chrono::steady_clock;
 
 constexpr double kErrorLogPeriod = 5.0;  // s between two ERRORs naming the same problem
-constexpr double kRateWindow = 10.0;     // s of completions the processing rate is taken over
-
-/// A problem with one input pair: logged (throttled), counted, the pair skipped.
-struct BadInput : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-double msSince(Clock::time_point start) { return std::chrono::duration<double, std::milli>(Clock::now() - start).count(); }
-
-std::string sizeText(unsigned width, unsigned height) { return std::to_string(width) + "x" + std::to_string(height); }
 
 // ------------------------------------------------------ camera_info checks --
 
@@ -66,14 +55,7 @@ void checkInfo(const sensor_msgs::CameraInfo& info, const sensor_msgs::Image& im
   if (!(info.K[0] > 0.0) || !(info.K[4] > 0.0) || !(info.P[0] > 0.0) || !(info.P[5] > 0.0) || info.P[10] != 1.0) {
     throw BadInput(which + " camera_info has no valid focal length (K[0], K[4], P[0], P[5] > 0 and P[10] = 1 needed)");
   }
-  if (info.width != image.width || info.height != image.height) {
-    throw BadInput(which + " image is " + sizeText(image.width, image.height) + " but its camera_info says " +
-                   sizeText(info.width, info.height));
-  }
-  if (info.binning_x > 1 || info.binning_y > 1 || (info.roi.width != 0 && info.roi.width != info.width) ||
-      (info.roi.height != 0 && info.roi.height != info.height)) {
-    throw BadInput(which + " camera_info uses binning or a region of interest, which this node does not support");
-  }
+  checkImageSize(info, image, which);
   const cv::Matx33d R(info.R.data());
   if (std::abs(cv::determinant(R) - 1.0) > 1e-3) throw BadInput(which + " camera_info R is not a rotation");
 }
@@ -98,18 +80,6 @@ cv::Mat toMat(const sensor_msgs::ImageConstPtr& msg, const std::string& which) {
     return bgr;
   }
   return cv_image->image;
-}
-
-/// Everything a calibration change affects, to detect changes cheaply.
-void appendKey(std::vector<double>& key, const sensor_msgs::CameraInfo& info) {
-  key.push_back(info.width);
-  key.push_back(info.height);
-  key.push_back(static_cast<double>(std::hash<std::string>{}(info.distortion_model)));
-  key.push_back(static_cast<double>(info.D.size()));
-  key.insert(key.end(), info.D.begin(), info.D.end());
-  key.insert(key.end(), info.K.begin(), info.K.end());
-  key.insert(key.end(), info.R.begin(), info.R.end());
-  key.insert(key.end(), info.P.begin(), info.P.end());
 }
 
 /// Undistort-and-rectify maps of one view into the frame of its P.
@@ -183,44 +153,26 @@ std::uint32_t packRgb(const cv::Mat& image, int x, int y) {
 
 // ------------------------------------------------------------- set-up --
 
+HbdsNodelet::HbdsNodelet() : log_throttle_(kErrorLogPeriod) {}
+
 HbdsNodelet::~HbdsNodelet() {
-  {
-    std::lock_guard<std::mutex> lock(slot_mutex_);
-    stopping_ = true;
-  }
-  slot_cv_.notify_all();
-  if (worker_.joinable()) worker_.join();
+  if (input_) input_->stop();  // before the state its worker uses goes
 }
 
 void HbdsNodelet::onInit() {
   stereo::retainFreedMemory();  // every pair allocates and frees its cost volume and graphs
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& pnh = getPrivateNodeHandle();
-  it_ = std::make_unique<image_transport::ImageTransport>(nh);
 
   // Synchronised inputs, as stereo_image_proc: exact stamps by default.
-  int queue_size = 5;
-  bool approximate = false;
-  pnh.param("queue_size", queue_size, queue_size);
-  pnh.param("approximate_sync", approximate, approximate);
   pnh.param("rectify", rectify_, rectify_);
-  if (queue_size < 1) {
-    NODELET_ERROR_STREAM("parameter ~queue_size must be >= 1 (got " << queue_size << "): using 5");
-    queue_size = 5;
-  }
-  if (approximate) {
-    approximate_sync_ = std::make_unique<message_filters::Synchronizer<ApproximatePolicy>>(
-        ApproximatePolicy(queue_size), left_image_sub_, left_info_sub_, right_image_sub_, right_info_sub_);
-    approximate_sync_->registerCallback(&HbdsNodelet::pairCb, this);
-  } else {
-    exact_sync_ = std::make_unique<message_filters::Synchronizer<ExactPolicy>>(
-        ExactPolicy(queue_size), left_image_sub_, left_info_sub_, right_image_sub_, right_info_sub_);
-    exact_sync_->registerCallback(&HbdsNodelet::pairCb, this);
-  }
+  const SyncOptions sync = SyncOptions::fromParameters(pnh);
+  if (!sync.problem.empty()) NODELET_ERROR_STREAM(sync.problem);
+  input_ = std::make_unique<StereoPairInput>(nh, pnh, sync, [this](const StereoPair& pair) { onPair(pair); });
 
   // Parameters: log what dynamic_reconfigure would clamp silently, then serve them.
   config_ = Config::__getDefault__();
-  checkStartParameters();
+  for (const std::string& problem : startParameterProblems<Config>(pnh)) NODELET_ERROR_STREAM(problem);
   reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<Config>>(config_mutex_, pnh);
   reconfigure_server_->setCallback([this](Config& config, uint32_t level) { configCb(config, level); });
 
@@ -240,55 +192,14 @@ void HbdsNodelet::onInit() {
     const image_transport::SubscriberStatusCallback it_connect =
         [this](const image_transport::SingleSubscriberPublisher&) { connectCb(); };
     disparity_pub_ = nh.advertise<stereo_msgs::DisparityImage>("disparity", 1, connect, connect);
-    depth_pub_ = it_->advertise("depth", 1, it_connect, it_connect);
+    image_transport::ImageTransport it(nh);
+    depth_pub_ = it.advertise("depth", 1, it_connect, it_connect);
     depth_info_pub_ = nh.advertise<sensor_msgs::CameraInfo>("depth/camera_info", 1, connect, connect);
     points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points2", 1, connect, connect);
   }
-  worker_ = std::thread([this] { workLoop(); });
   NODELET_INFO_STREAM("dense stereo on " << nh.resolveName("left/image_raw") << " + " << nh.resolveName("right/image_raw")
-                                         << (approximate ? " (approximate sync)" : " (exact sync)")
+                                         << (sync.approximate ? " (approximate sync)" : " (exact sync)")
                                          << (rectify_ ? "" : ", images taken as rectified"));
-}
-
-void HbdsNodelet::checkStartParameters() {
-  // dynamic_reconfigure reads these from the parameter server and clamps them
-  // without a word; say so when a value of the parameter file is outside.
-  const ros::NodeHandle& pnh = getPrivateNodeHandle();
-  const Config min = Config::__getMin__(), max = Config::__getMax__();
-  struct Range {
-    std::string name;
-    double lo, hi;
-    bool integer;
-  };
-  const std::vector<Range> ranges{{"min_disparity", double(min.min_disparity), double(max.min_disparity), true},
-                                  {"disparity_range", double(min.disparity_range), double(max.disparity_range), true},
-                                  {"eta", min.eta, max.eta, false},
-                                  {"ncc_window", double(min.ncc_window), double(max.ncc_window), true},
-                                  {"gradient_saturation", min.gradient_saturation, max.gradient_saturation, false},
-                                  {"tau", min.tau, max.tau, false},
-                                  {"u_min", min.u_min, max.u_min, false},
-                                  {"u_max", min.u_max, max.u_max, false},
-                                  {"overlap", double(min.overlap), double(max.overlap), true},
-                                  {"polish_window", double(min.polish_window), double(max.polish_window), true},
-                                  {"refine_window", double(min.refine_window), double(max.refine_window), true},
-                                  {"threads", double(min.threads), double(max.threads), true},
-                                  {"downsample", double(min.downsample), double(max.downsample), true}};
-  for (const Range& r : ranges) {
-    XmlRpc::XmlRpcValue v;
-    if (!pnh.getParam(r.name, v)) continue;
-    const auto type = v.getType();
-    const bool is_int = type == XmlRpc::XmlRpcValue::TypeInt;
-    if (!is_int && (r.integer || type != XmlRpc::XmlRpcValue::TypeDouble)) {
-      NODELET_ERROR_STREAM("parameter ~" << r.name << " must be " << (r.integer ? "an integer" : "a number")
-                                         << ": ignored, using the default");
-      continue;
-    }
-    const double value = is_int ? static_cast<int>(v) : static_cast<double>(v);
-    if (value < r.lo || value > r.hi) {
-      NODELET_ERROR_STREAM("parameter ~" << r.name << " = " << value << " is outside [" << r.lo << ", " << r.hi
-                                         << "]: clamped to " << std::min(std::max(value, r.lo), r.hi));
-    }
-  }
 }
 
 void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
@@ -348,63 +259,29 @@ HbdsNodelet::Outputs HbdsNodelet::wantedOutputs() {
 
 void HbdsNodelet::connectCb() {
   std::lock_guard<std::mutex> lock(connect_mutex_);
-  if (!wantedOutputs().any()) {
-    left_image_sub_.unsubscribe();
-    left_info_sub_.unsubscribe();
-    right_image_sub_.unsubscribe();
-    right_info_sub_.unsubscribe();
-  } else if (!left_image_sub_.getSubscriber()) {
-    ros::NodeHandle& nh = getNodeHandle();
-    // Queue size 1: the synchroniser's queue is the one that matters.
-    const image_transport::TransportHints hints("raw", ros::TransportHints(), getPrivateNodeHandle());
-    left_image_sub_.subscribe(*it_, "left/image_raw", 1, hints);
-    left_info_sub_.subscribe(nh, "left/camera_info", 1);
-    right_image_sub_.subscribe(*it_, "right/image_raw", 1, hints);
-    right_info_sub_.subscribe(nh, "right/camera_info", 1);
+  if (wantedOutputs().any()) {
+    input_->subscribe();
+  } else {
+    input_->unsubscribe();
   }
-}
-
-void HbdsNodelet::pairCb(const sensor_msgs::ImageConstPtr& left_image, const sensor_msgs::CameraInfoConstPtr& left_info,
-                         const sensor_msgs::ImageConstPtr& right_image,
-                         const sensor_msgs::CameraInfoConstPtr& right_info) {
-  bool dropped = false;
-  {
-    std::lock_guard<std::mutex> lock(slot_mutex_);
-    dropped = slot_.has_value();  // the worker is busy and never took the previous pair
-    slot_ = Pair{left_image, right_image, left_info, right_info};
-  }
-  slot_cv_.notify_one();
-  std::lock_guard<std::mutex> lock(status_mutex_);
-  ++received_;
-  if (dropped) ++dropped_;
 }
 
 // ------------------------------------------------------------- worker --
 
-void HbdsNodelet::workLoop() {
-  while (true) {
-    Pair pair;
-    {
-      std::unique_lock<std::mutex> lock(slot_mutex_);
-      slot_cv_.wait(lock, [this] { return stopping_ || slot_.has_value(); });
-      if (stopping_) return;
-      pair = std::move(*slot_);
-      slot_.reset();
-    }
-    Config config;
-    {
-      boost::recursive_mutex::scoped_lock lock(config_mutex_);
-      config = config_;
-    }
-    const Outputs wanted = wantedOutputs();
-    if (!wanted.any()) continue;  // the last subscriber left meanwhile
-    try {
-      process(pair, config, wanted);
-    } catch (const BadInput& e) {
-      badPair(e.what());
-    } catch (const std::exception& e) {  // the library's std::invalid_argument, OpenCV, ...
-      badPair(std::string("stereo matching failed: ") + e.what());
-    }
+void HbdsNodelet::onPair(const StereoPair& pair) {
+  Config config;
+  {
+    boost::recursive_mutex::scoped_lock lock(config_mutex_);
+    config = config_;
+  }
+  const Outputs wanted = wantedOutputs();
+  if (!wanted.any()) return;  // the last subscriber left meanwhile
+  try {
+    process(pair, config, wanted);
+  } catch (const BadInput& e) {
+    badPair(e.what());
+  } catch (const std::exception& e) {  // the library's std::invalid_argument, OpenCV, ...
+    badPair(std::string("stereo matching failed: ") + e.what());
   }
 }
 
@@ -412,25 +289,16 @@ void HbdsNodelet::badPair(const std::string& problem) {
   std::uint64_t bad = 0;
   {
     std::lock_guard<std::mutex> lock(status_mutex_);
-    bad = ++bad_;
-    last_pair_bad_ = true;
-    last_error_ = problem;
-    last_error_time_ = ros::WallTime::now();
+    bad = stats_.badOne(problem);
   }
-  // Throttled per problem, so a second kind of error is not hidden by the first.
-  const ros::WallTime now = ros::WallTime::now();
-  if (last_logged_.size() > 100) last_logged_.clear();
-  ros::WallTime& last = last_logged_[problem];
-  if (last.isZero() || (now - last).toSec() >= kErrorLogPeriod) {
-    last = now;
+  if (log_throttle_.due(problem))
     NODELET_ERROR_STREAM("skipped a stereo pair: " << problem << " (" << bad << " bad pairs so far)");
-  }
 }
 
 void HbdsNodelet::updateRectification(const CameraInfo& left, const CameraInfo& right) {
   std::vector<double> key{rectify_ ? 1.0 : 0.0};
-  appendKey(key, left);
-  appendKey(key, right);
+  appendCalibrationKey(key, left);
+  appendCalibrationKey(key, right);
   if (key == rectification_.key) return;
   Rectification r;
   r.key = key;
@@ -445,7 +313,7 @@ void HbdsNodelet::updateRectification(const CameraInfo& left, const CameraInfo& 
                                                                  : "rectifying both views (maps cached)"));
 }
 
-void HbdsNodelet::process(const Pair& pair, const Config& config, const Outputs& wanted) {
+void HbdsNodelet::process(const StereoPair& pair, const Config& config, const Outputs& wanted) {
   const auto start = Clock::now();
   const CameraInfo& li = *pair.left_info;
   const CameraInfo& ri = *pair.right_info;
@@ -625,16 +493,8 @@ void HbdsNodelet::process(const Pair& pair, const Config& config, const Outputs&
            << (rectification_.identity ? ", rectified input" : ", rectified here") << ", f " << g.fx << " px, baseline "
            << g.baseline << " m, disparities " << params.cost.dmin << ".." << params.cost.dmax;
   std::lock_guard<std::mutex> lock(status_mutex_);
-  ++processed_;
-  last_pair_bad_ = false;
-  last_processing_ms_ = elapsed;
+  stats_.processedOne(elapsed);
   last_matcher_ms_ = result.total_ms();
-  total_processing_ms_ += elapsed;
-  const ros::WallTime now = ros::WallTime::now();
-  processed_times_.push_back(now);
-  while (processed_times_.size() > 2 && (now - processed_times_.front()).toSec() > kRateWindow) {
-    processed_times_.pop_front();
-  }
   if (geometry_summary_.empty()) NODELET_INFO_STREAM("first pair: " << geometry.str() << ", " << elapsed << " ms");
   geometry_summary_ = geometry.str();
 }
@@ -648,18 +508,13 @@ void HbdsNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) 
     boost::recursive_mutex::scoped_lock lock(config_mutex_);
     config = config_;
   }
+  const StereoPairInput::Counts input = input_->counts();
   std::lock_guard<std::mutex> lock(status_mutex_);
-  const ros::WallTime now = ros::WallTime::now();
-  double rate = 0.0;
-  if (processed_times_.size() >= 2 && (now - processed_times_.back()).toSec() < kRateWindow) {
-    rate = (processed_times_.size() - 1) / std::max(1e-6, (processed_times_.back() - processed_times_.front()).toSec());
-  }
-  const bool recent_error = !last_error_time_.isZero() && (now - last_error_time_).toSec() < kRateWindow;
-  if (last_pair_bad_) {
-    status.summary(DiagnosticStatus::ERROR, "last pair skipped: " + last_error_);
-  } else if (recent_error) {
+  if (stats_.lastPairBad()) {
+    status.summary(DiagnosticStatus::ERROR, "last pair skipped: " + stats_.lastError());
+  } else if (stats_.recentError()) {
     status.summary(DiagnosticStatus::WARN, "some pairs were bad and skipped");
-  } else if (received_ == 0) {
+  } else if (input.received == 0) {
     status.summary(DiagnosticStatus::OK, wantedOutputs().any() ? "waiting for stereo pairs" : "idle (no subscribers)");
   } else {
     status.summary(DiagnosticStatus::OK, "processing");
@@ -669,15 +524,9 @@ void HbdsNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) 
                                                    std::to_string(config.min_disparity + config.disparity_range - 1));
   status.add("downsample", config.downsample);
   status.add("input", geometry_summary_);
-  status.add("pairs received", received_);
-  status.add("pairs processed", processed_);
-  status.add("dropped pairs", dropped_);
-  status.add("bad pairs", bad_);
-  status.add("processing rate (Hz)", rate);
-  status.add("last processing time (ms)", last_processing_ms_);
-  status.add("last matcher time (ms)", last_matcher_ms_);
-  status.add("mean processing time (ms)", processed_ > 0 ? total_processing_ms_ / processed_ : 0.0);
-  status.add("last error", last_error_);
+  stats_.addCounts(status, input);
+  stats_.addTimes(status, "last matcher time (ms)", last_matcher_ms_);
+  status.add("last error", stats_.lastError());
 }
 
 }  // namespace massage_cell::nodes

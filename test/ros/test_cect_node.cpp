@@ -27,23 +27,18 @@
 #include <vector>
 
 #include <Eigen/Core>
-#include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/Point.h>
 #include <ros/ros.h>
-#include <rosbag/bag.h>
-#include <rosbag/view.h>
 #include <sensor_msgs/CameraInfo.h>
-#include <sensor_msgs/Image.h>
-#include <tf2_msgs/TFMessage.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
-#include <yaml-cpp/yaml.h>
 
 #include "massage_cell/AcupointArray.h"
 #include "massage_cell/GetAcupoint.h"
 #include "massage_cell/LocalizePixels.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "spin_util.h"
+#include "stereo_node_test.h"
 #include "test_util.h"
 
 namespace {
@@ -52,36 +47,12 @@ using massage_cell::AcupointArray;
 using massage_cell::AcupointArrayConstPtr;
 using massage_cell::GetAcupoint;
 using massage_cell::LocalizePixels;
-using massage_cell::test::median;
-using massage_cell::test::spinUntil;
+using namespace massage_cell::test;
 
 const std::string kOptical = "stereo_left_optical_frame";
 const std::string kRightOptical = "stereo_right_optical_frame";
 
-/// Status values of one node's "acupoints (cect)" diagnostics.
-struct CectStatus {
-  bool seen = false;
-  std::map<std::string, std::string> values;
-  long count(const std::string& key) const {
-    const auto it = values.find(key);
-    return it == values.end() ? -1 : std::stol(it->second);
-  }
-  std::string text(const std::string& key) const {
-    const auto it = values.find(key);
-    return it == values.end() ? "" : it->second;
-  }
-};
-
-ros::Subscriber watchDiagnostics(ros::NodeHandle& nh, const std::string& node, CectStatus& status) {
-  return nh.subscribe<diagnostic_msgs::DiagnosticArray>(
-      "/diagnostics", 50, [&status, node](const diagnostic_msgs::DiagnosticArrayConstPtr& msg) {
-        for (const auto& s : msg->status) {
-          if (s.name != node + ": acupoints (cect)") continue;
-          status.seen = true;
-          for (const auto& kv : s.values) status.values[kv.key] = kv.value;
-        }
-      });
-}
+const std::string kDiagnostics = "acupoints (cect)";  // the node's diagnostics task
 
 int countValid(const AcupointArray& msg) {
   return static_cast<int>(
@@ -96,49 +67,29 @@ const massage_cell::Acupoint* findPoint(const AcupointArray& msg, const std::str
 
 Eigen::Vector3d vec(const geometry_msgs::Point& p) { return Eigen::Vector3d(p.x, p.y, p.z); }
 
-class CectNode : public ::testing::Test {
+class CectNode : public StereoNodeTest {
  protected:
+  CectNode() : StereoNodeTest(0.03) {}
   void SetUp() override {
-    ASSERT_TRUE(pnh_.getParam("bag", bag_path_));
-    ASSERT_TRUE(pnh_.getParam("ground_truth", ground_truth_path_));
+    ASSERT_NO_FATAL_FAILURE(StereoNodeTest::SetUp());
     std::string acupoints_path;
     ASSERT_TRUE(pnh_.getParam("acupoints", acupoints_path));
-    pnh_.param("tolerance", tolerance_, tolerance_);
     names_ = massage_cell::cect::loadAcupointModel(acupoints_path).names();
     ASSERT_FALSE(names_.empty());
   }
-  ros::NodeHandle nh_, pnh_{"~"};
-  std::string bag_path_, ground_truth_path_;
-  double tolerance_ = 0.03;
   std::vector<std::string> names_;
 };
 
 // ------------------------------------------------------------------ bag --
 
 TEST_F(CectNode, BagOutputs) {
-  // Ground truth: the acupoints per frame in the left optical frame; frame i
-  // is the bag's i-th pair (10 Hz from its first stamp).
-  const YAML::Node gt = YAML::LoadFile(ground_truth_path_);
-  const double gt_rate = gt["rate"].as<double>();
-  std::vector<std::map<std::string, Eigen::Vector3d>> truth;
-  for (const auto& frame : gt["frames"]) {
-    truth.emplace_back();
-    for (const auto& point : frame["acupoints"]) {
-      truth.back()[point.first.as<std::string>()] =
-          Eigen::Vector3d(point.second[0].as<double>(), point.second[1].as<double>(), point.second[2].as<double>());
-    }
-  }
-  ASSERT_GT(truth.size(), 10u);
+  // Ground truth: the acupoints per frame in the left optical frame.
+  GroundTruth gt;
+  ASSERT_NO_FATAL_FAILURE(loadGroundTruth(ground_truth_path_, bag_path_, &gt));
+  const auto& truth = gt.frames;
   for (const auto& name : names_) ASSERT_TRUE(truth[0].count(name)) << name << " has no ground truth";
-  ros::Time first_stamp;
-  {
-    rosbag::Bag bag(bag_path_, rosbag::bagmode::Read);
-    rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{"/stereo/left/camera_info"}));
-    ASSERT_NE(view.begin(), view.end());
-    first_stamp = view.begin()->instantiate<sensor_msgs::CameraInfo>()->header.stamp;
-  }
   auto truthAt = [&](const ros::Time& stamp) -> const std::map<std::string, Eigen::Vector3d>& {
-    const long index = std::lround((stamp - first_stamp).toSec() * gt_rate);
+    const long index = gt.index(stamp);
     EXPECT_GE(index, 0);
     EXPECT_LT(index, static_cast<long>(truth.size()));
     return truth[std::clamp<long>(index, 0, static_cast<long>(truth.size()) - 1)];
@@ -147,18 +98,13 @@ TEST_F(CectNode, BagOutputs) {
   tf2_ros::Buffer tf_buffer(ros::Duration(60.0));
   tf2_ros::TransformListener tf_listener(tf_buffer);
   std::vector<AcupointArrayConstPtr> arrays;
-  std::set<ros::Time> input_stamps;
-  CectStatus status;
-  int tf_messages = 0;  // the bag waits for a subscriber on every topic, /tf_static too
-  std::vector<ros::Subscriber> subs;
+  BagInputs bag;
+  const std::set<ros::Time>& input_stamps = bag.stamps;
+  NodeStatus status;
+  std::vector<ros::Subscriber> subs = bag.subscribe(nh_);
   subs.push_back(nh_.subscribe<AcupointArray>("/stereo/acupoints", 100,
                                               [&](const AcupointArrayConstPtr& m) { arrays.push_back(m); }));
-  subs.push_back(nh_.subscribe<sensor_msgs::CameraInfo>(
-      "/stereo/left/camera_info", 100,
-      [&](const sensor_msgs::CameraInfoConstPtr& m) { input_stamps.insert(m->header.stamp); }));
-  subs.push_back(
-      nh_.subscribe<tf2_msgs::TFMessage>("/tf_static", 10, [&](const tf2_msgs::TFMessageConstPtr&) { ++tf_messages; }));
-  subs.push_back(watchDiagnostics(nh_, "stereo/cect", status));  // the last subscriber the bag waits for
+  subs.push_back(watchDiagnostics(nh_, "stereo/cect", kDiagnostics, status));  // the last subscriber the bag waits for
 
   // 1. Acupoints with every point valid, while the bag plays (50 pairs in 5
   // s): the services below need current estimates (max_age), so go on after
@@ -335,56 +281,24 @@ TEST_F(CectNode, BagOutputs) {
   EXPECT_GE(status.count("pairs processed"), static_cast<long>(arrays.size()));
   EXPECT_EQ(status.count("pairs without acupoints"), 0) << status.text("last reason");
   EXPECT_EQ(status.count("acupoints"), static_cast<long>(n));
-  EXPECT_GT(tf_messages, 0) << "no /tf_static from the bag";
+  EXPECT_GT(bag.tf_messages, 0) << "no /tf_static from the bag";
 }
 
 // ------------------------------------------------------------ bad input --
 
-struct StereoPair {
-  sensor_msgs::Image left, right;
-  sensor_msgs::CameraInfo left_info, right_info;
-};
-
 TEST_F(CectNode, BadInputIsSkipped) {
   // A good pair from the bag, to be altered.
   StereoPair good;
-  {
-    rosbag::Bag bag(bag_path_, rosbag::bagmode::Read);
-    rosbag::View view(bag);
-    int found = 0;
-    for (const auto& m : view) {
-      if (found == 15) break;
-      const std::string& topic = m.getTopic();
-      if (topic == "/stereo/left/image_raw" && !(found & 1))
-        good.left = *m.instantiate<sensor_msgs::Image>(), found |= 1;
-      if (topic == "/stereo/right/image_raw" && !(found & 2))
-        good.right = *m.instantiate<sensor_msgs::Image>(), found |= 2;
-      if (topic == "/stereo/left/camera_info" && !(found & 4))
-        good.left_info = *m.instantiate<sensor_msgs::CameraInfo>(), found |= 4;
-      if (topic == "/stereo/right/camera_info" && !(found & 8))
-        good.right_info = *m.instantiate<sensor_msgs::CameraInfo>(), found |= 8;
-    }
-    ASSERT_EQ(found, 15) << "the bag lacks a stereo pair";
-  }
+  ASSERT_NO_FATAL_FAILURE(readFirstPair(bag_path_, &good));
 
   ros::NodeHandle ns("/bad_input");
-  ros::Publisher left_pub = ns.advertise<sensor_msgs::Image>("left/image_raw", 5);
-  ros::Publisher right_pub = ns.advertise<sensor_msgs::Image>("right/image_raw", 5);
-  ros::Publisher left_info_pub = ns.advertise<sensor_msgs::CameraInfo>("left/camera_info", 5);
-  ros::Publisher right_info_pub = ns.advertise<sensor_msgs::CameraInfo>("right/camera_info", 5);
+  PairPublisher input(ns);
   std::vector<AcupointArrayConstPtr> outputs;
   ros::Subscriber sub =
       ns.subscribe<AcupointArray>("acupoints", 10, [&](const AcupointArrayConstPtr& m) { outputs.push_back(m); });
-  CectStatus status;
-  ros::Subscriber diag = watchDiagnostics(nh_, "bad_input/cect", status);
-  ASSERT_TRUE(spinUntil(
-      [&] {
-        return left_pub.getNumSubscribers() && right_pub.getNumSubscribers() && left_info_pub.getNumSubscribers() &&
-               right_info_pub.getNumSubscribers() && status.seen;
-      },
-      15.0))
-      << "the node in /bad_input did not subscribe to its inputs (or sends no diagnostics)";
-  ros::WallDuration(0.5).sleep();  // connections of the synchronised subscribers settle
+  NodeStatus status;
+  ros::Subscriber diag = watchDiagnostics(nh_, "bad_input/cect", kDiagnostics, status);
+  ASSERT_NO_FATAL_FAILURE(waitForNode(input, status, "/bad_input"));
 
   // Before any pair, ~localize_pixels says there is nothing to localise in.
   ros::ServiceClient localize_client = ns.serviceClient<LocalizePixels>("cect/localize_pixels");
@@ -399,18 +313,6 @@ TEST_F(CectNode, BadInputIsSkipped) {
   ASSERT_EQ(early.response.valid.size(), 1u);
   EXPECT_FALSE(early.response.valid[0]);
 
-  int stamp_seconds = 1000;
-  auto publish = [&](StereoPair pair) {
-    const ros::Time stamp(++stamp_seconds, 0);
-    for (auto* header : {&pair.left.header, &pair.right.header, &pair.left_info.header, &pair.right_info.header}) {
-      header->stamp = stamp;
-    }
-    left_pub.publish(pair.left);
-    left_info_pub.publish(pair.left_info);
-    right_pub.publish(pair.right);
-    right_info_pub.publish(pair.right_info);
-    return stamp;
-  };
   auto outputFor = [&](const ros::Time& stamp) -> AcupointArrayConstPtr {
     for (const auto& m : outputs)
       if (m->header.stamp == stamp) return m;
@@ -418,30 +320,21 @@ TEST_F(CectNode, BadInputIsSkipped) {
   };
 
   // A good pair: acupoints.
-  ros::Time stamp = publish(good);
+  ros::Time stamp = input.publish(good);
   ASSERT_TRUE(spinUntil([&] { return outputFor(stamp) != nullptr; }, 15.0)) << "no acupoints for a good pair";
   EXPECT_GT(countValid(*outputFor(stamp)), static_cast<int>(names_.size()) / 2);
 
   // Each bad pair must be counted, named in the diagnostics and give no output.
   auto expectSkipped = [&](const std::string& what, const StereoPair& pair, const std::string& message) {
-    const long before = std::max(0L, status.count("bad pairs"));
-    const ros::Time bad_stamp = publish(pair);
-    EXPECT_TRUE(spinUntil([&] { return status.count("bad pairs") > before; }, 6.0)) << what << ": not counted as bad";
-    EXPECT_NE(status.text("last error").find(message), std::string::npos)
-        << what << ": last error '" << status.text("last error") << "' does not say '" << message << "'";
-    EXPECT_FALSE(outputFor(bad_stamp)) << what << ": acupoints were published";
+    EXPECT_FALSE(outputFor(publishBadPair(input, status, what, pair, message))) << what << ": acupoints were published";
   };
 
   StereoPair p = good;  // right image smaller than its camera_info
-  p.right.width /= 2;
-  p.right.height /= 2;
-  p.right.step /= 2;
-  p.right.data.resize(p.right.step * p.right.height);
+  halve(p.right);
   expectSkipped("image smaller than camera_info", p, "but its camera_info says");
 
   p = good;  // uncalibrated left camera
-  std::fill(p.left_info.K.begin(), p.left_info.K.end(), 0.0);
-  std::fill(p.left_info.P.begin(), p.left_info.P.end(), 0.0);
+  uncalibrate(p.left_info);
   expectSkipped("uncalibrated camera_info", p, "not calibrated");
 
   p = good;  // a vertical pair: the baseline in P[7] instead of P[3]
@@ -461,7 +354,7 @@ TEST_F(CectNode, BadInputIsSkipped) {
   // reason; ~localize_pixels says why; no bad pair (the input is fine).
   p = good;
   for (auto* image : {&p.left, &p.right}) image->data.assign(image->data.size(), 0xC8);  // uniform light grey
-  stamp = publish(p);
+  stamp = input.publish(p);
   ASSERT_TRUE(spinUntil([&] { return outputFor(stamp) != nullptr; }, 15.0)) << "no acupoints for a pair without a back";
   EXPECT_EQ(countValid(*outputFor(stamp)), 0);
   for (const auto& a : outputFor(stamp)->acupoints) EXPECT_FALSE(a.reason.empty()) << a.name;
@@ -474,7 +367,7 @@ TEST_F(CectNode, BadInputIsSkipped) {
       << "diagnostics: pairs without acupoints";
 
   // The node is alive and still processes a good pair.
-  stamp = publish(good);
+  stamp = input.publish(good);
   EXPECT_TRUE(spinUntil([&] { return outputFor(stamp) != nullptr; }, 15.0))
       << "no acupoints for the good pair after the bad ones";
   EXPECT_TRUE(spinUntil([&] { return status.count("pairs processed") == 3; }, 3.0)) << "diagnostics: processed pairs";

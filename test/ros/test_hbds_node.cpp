@@ -27,87 +27,36 @@
 
 #include <camera_calibration_parsers/parse.h>
 #include <cv_bridge/cv_bridge.h>
-#include <diagnostic_msgs/DiagnosticArray.h>
 #include <ros/ros.h>
-#include <rosbag/bag.h>
-#include <rosbag/view.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <stereo_msgs/DisparityImage.h>
-#include <tf2_msgs/TFMessage.h>
-#include <yaml-cpp/yaml.h>
 
 #include "spin_util.h"
+#include "stereo_node_test.h"
 #include "test_util.h"
 
 namespace {
 
-using massage_cell::test::median;
-using massage_cell::test::spinUntil;
+using namespace massage_cell::test;
 
 const float* floats(const sensor_msgs::Image& image) { return reinterpret_cast<const float*>(image.data.data()); }
 
-/// Status values of one node's "dense stereo (hbds)" diagnostics.
-struct HbdsStatus {
-  bool seen = false;
-  std::map<std::string, std::string> values;
-  long count(const std::string& key) const {
-    const auto it = values.find(key);
-    return it == values.end() ? -1 : std::stol(it->second);
-  }
-  std::string text(const std::string& key) const {
-    const auto it = values.find(key);
-    return it == values.end() ? "" : it->second;
-  }
-};
+const std::string kDiagnostics = "dense stereo (hbds)";  // the node's diagnostics task
 
-ros::Subscriber watchDiagnostics(ros::NodeHandle& nh, const std::string& node, HbdsStatus& status) {
-  return nh.subscribe<diagnostic_msgs::DiagnosticArray>(
-      "/diagnostics", 50, [&status, node](const diagnostic_msgs::DiagnosticArrayConstPtr& msg) {
-        for (const auto& s : msg->status) {
-          if (s.name != node + ": dense stereo (hbds)") continue;
-          status.seen = true;
-          for (const auto& kv : s.values) status.values[kv.key] = kv.value;
-        }
-      });
-}
-
-class HbdsNode : public ::testing::Test {
+class HbdsNode : public StereoNodeTest {
  protected:
-  void SetUp() override {
-    ASSERT_TRUE(pnh_.getParam("bag", bag_path_));
-    ASSERT_TRUE(pnh_.getParam("ground_truth", ground_truth_path_));
-    pnh_.param("tolerance", tolerance_, tolerance_);
-  }
-  ros::NodeHandle nh_, pnh_{"~"};
-  std::string bag_path_, ground_truth_path_;
-  double tolerance_ = 0.02;
+  HbdsNode() : StereoNodeTest(0.02) {}
 };
 
 // ------------------------------------------------------------------ bag --
 
 TEST_F(HbdsNode, BagOutputs) {
-  // Ground truth: acupoints per frame in the left optical frame; frame i is
-  // the bag's i-th pair (10 Hz from its first stamp).
-  const YAML::Node gt = YAML::LoadFile(ground_truth_path_);
-  const double gt_rate = gt["rate"].as<double>();
-  std::vector<std::vector<std::array<double, 3>>> acupoints;
-  for (const auto& frame : gt["frames"]) {
-    acupoints.emplace_back();
-    for (const auto& point : frame["acupoints"]) {
-      acupoints.back().push_back({point.second[0].as<double>(), point.second[1].as<double>(), point.second[2].as<double>()});
-    }
-  }
-  ASSERT_GT(acupoints.size(), 10u);
-  ros::Time first_stamp;
-  {
-    rosbag::Bag bag(bag_path_, rosbag::bagmode::Read);
-    rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{"/stereo/left/camera_info"}));
-    ASSERT_NE(view.begin(), view.end());
-    first_stamp = view.begin()->instantiate<sensor_msgs::CameraInfo>()->header.stamp;
-  }
+  // Ground truth: acupoints per frame in the left optical frame.
+  GroundTruth gt;
+  ASSERT_NO_FATAL_FAILURE(loadGroundTruth(ground_truth_path_, bag_path_, &gt));
 
   // Outputs first: the node subscribes to its inputs only then, and the bag
   // (--wait-for-subscribers) starts once every topic has a subscriber.
@@ -115,10 +64,9 @@ TEST_F(HbdsNode, BagOutputs) {
   std::vector<sensor_msgs::ImageConstPtr> depths;
   std::vector<sensor_msgs::CameraInfoConstPtr> depth_infos;
   std::vector<sensor_msgs::PointCloud2ConstPtr> clouds;
-  sensor_msgs::CameraInfoConstPtr left_info, right_info;
-  std::set<ros::Time> input_stamps;
-  HbdsStatus status;
-  int tf_messages = 0;  // the bag waits for a subscriber on every topic, /tf_static too
+  BagInputs bag;
+  const std::set<ros::Time>& input_stamps = bag.stamps;
+  NodeStatus status;
   std::vector<ros::Subscriber> subs;
   subs.push_back(nh_.subscribe<stereo_msgs::DisparityImage>(
       "/stereo/disparity", 100, [&](const stereo_msgs::DisparityImageConstPtr& m) { disparities.push_back(m); }));
@@ -128,26 +76,20 @@ TEST_F(HbdsNode, BagOutputs) {
       "/stereo/depth/camera_info", 100, [&](const sensor_msgs::CameraInfoConstPtr& m) { depth_infos.push_back(m); }));
   subs.push_back(nh_.subscribe<sensor_msgs::PointCloud2>(
       "/stereo/points2", 100, [&](const sensor_msgs::PointCloud2ConstPtr& m) { clouds.push_back(m); }));
-  subs.push_back(nh_.subscribe<sensor_msgs::CameraInfo>("/stereo/left/camera_info", 100,
-                                                        [&](const sensor_msgs::CameraInfoConstPtr& m) {
-                                                          left_info = m;
-                                                          input_stamps.insert(m->header.stamp);
-                                                        }));
-  subs.push_back(nh_.subscribe<sensor_msgs::CameraInfo>(
-      "/stereo/right/camera_info", 100, [&](const sensor_msgs::CameraInfoConstPtr& m) { right_info = m; }));
-  subs.push_back(nh_.subscribe<tf2_msgs::TFMessage>("/tf_static", 10,
-                                                    [&](const tf2_msgs::TFMessageConstPtr&) { ++tf_messages; }));
-  subs.push_back(watchDiagnostics(nh_, "stereo/hbds", status));
+  for (auto& sub : bag.subscribe(nh_)) subs.push_back(sub);
+  subs.push_back(watchDiagnostics(nh_, "stereo/hbds", kDiagnostics, status));
 
   // The bag: 50 pairs in 5 s; wait for all of them and the node's last output.
-  const std::size_t pairs = acupoints.size();
+  const std::size_t pairs = gt.frames.size();
   spinUntil([&] { return input_stamps.size() >= pairs; }, 40.0);
   ASSERT_EQ(input_stamps.size(), pairs) << "the bag did not replay every pair";
   spinUntil([&] { return disparities.size() && disparities.back()->header.stamp == *input_stamps.rbegin(); }, 5.0);
   spinUntil([] { return false; }, 1.5);  // the last diagnostics and clouds
-  ASSERT_TRUE(left_info && right_info);
+  ASSERT_TRUE(bag.left_info && bag.right_info);
+  const sensor_msgs::CameraInfo& left_info = *bag.left_info;
+  const sensor_msgs::CameraInfo& right_info = *bag.right_info;
 
-  const std::string frame = left_info->header.frame_id;
+  const std::string frame = left_info.header.frame_id;
   EXPECT_EQ(frame, "stereo_left_optical_frame");
   ASSERT_GE(disparities.size(), 5u) << "too few disparity images";
   ASSERT_GE(depths.size(), 5u) << "too few depth images";
@@ -171,22 +113,22 @@ TEST_F(HbdsNode, BagOutputs) {
   for (const auto& i : depth_infos) {
     EXPECT_TRUE(input_stamps.count(i->header.stamp));
     EXPECT_EQ(i->header.frame_id, frame);
-    for (int k = 0; k < 9; ++k) EXPECT_DOUBLE_EQ(i->K[k], left_info->P[4 * (k / 3) + k % 3]) << "K[" << k << "]";
-    EXPECT_EQ(i->width, left_info->width);
-    EXPECT_EQ(i->height, left_info->height);
+    for (int k = 0; k < 9; ++k) EXPECT_DOUBLE_EQ(i->K[k], left_info.P[4 * (k / 3) + k % 3]) << "K[" << k << "]";
+    EXPECT_EQ(i->width, left_info.width);
+    EXPECT_EQ(i->height, left_info.height);
   }
 
   // Geometry from camera_info: f = fx, T = -Tx / fx of the right P.
-  const double fx = left_info->P[0], fy = left_info->P[5], cx = left_info->P[2], cy = left_info->P[6];
-  const double baseline = -right_info->P[3] / right_info->P[0];
+  const double fx = left_info.P[0], fy = left_info.P[5], cx = left_info.P[2], cy = left_info.P[6];
+  const double baseline = -right_info.P[3] / right_info.P[0];
   EXPECT_DOUBLE_EQ(fx, 250.0);
   EXPECT_NEAR(baseline, 0.10, 1e-9);
   for (const auto& d : disparities) {
     EXPECT_NEAR(d->f, fx, 1e-4);
     EXPECT_NEAR(d->T, baseline, 1e-6);
     EXPECT_EQ(d->image.encoding, "32FC1");
-    EXPECT_EQ(d->image.width, left_info->width);
-    EXPECT_EQ(d->image.height, left_info->height);
+    EXPECT_EQ(d->image.width, left_info.width);
+    EXPECT_EQ(d->image.height, left_info.height);
     EXPECT_LT(d->min_disparity, d->max_disparity);
   }
 
@@ -252,12 +194,12 @@ TEST_F(HbdsNode, BagOutputs) {
   // neighbourhood (the back is what the central image region shows).
   std::vector<double> errors, signed_errors;
   for (const auto& depth : depths) {
-    const long index = std::lround((depth->header.stamp - first_stamp).toSec() * gt_rate);
+    const long index = gt.index(depth->header.stamp);
     ASSERT_GE(index, 0);
-    ASSERT_LT(index, static_cast<long>(acupoints.size()));
+    ASSERT_LT(index, static_cast<long>(gt.frames.size()));
     const float* z = floats(*depth);
     std::vector<double> frame_errors;
-    for (const auto& a : acupoints[index]) {
+    for (const auto& [name, a] : gt.frames[index]) {
       const int u = static_cast<int>(std::lround(fx * a[0] / a[2] + cx));
       const int v = static_cast<int>(std::lround(fy * a[1] / a[2] + cy));
       std::vector<double> patch;
@@ -297,93 +239,40 @@ TEST_F(HbdsNode, BagOutputs) {
 
 // ------------------------------------------------------------ bad input --
 
-struct StereoPair {
-  sensor_msgs::Image left, right;
-  sensor_msgs::CameraInfo left_info, right_info;
-};
-
 TEST_F(HbdsNode, BadInputIsSkipped) {
   // A good pair from the bag, to be altered.
   StereoPair good;
-  {
-    rosbag::Bag bag(bag_path_, rosbag::bagmode::Read);
-    rosbag::View view(bag);
-    int found = 0;
-    for (const auto& m : view) {
-      if (found == 15) break;
-      const std::string& topic = m.getTopic();
-      if (topic == "/stereo/left/image_raw" && !(found & 1)) good.left = *m.instantiate<sensor_msgs::Image>(), found |= 1;
-      if (topic == "/stereo/right/image_raw" && !(found & 2)) good.right = *m.instantiate<sensor_msgs::Image>(), found |= 2;
-      if (topic == "/stereo/left/camera_info" && !(found & 4))
-        good.left_info = *m.instantiate<sensor_msgs::CameraInfo>(), found |= 4;
-      if (topic == "/stereo/right/camera_info" && !(found & 8))
-        good.right_info = *m.instantiate<sensor_msgs::CameraInfo>(), found |= 8;
-    }
-    ASSERT_EQ(found, 15) << "the bag lacks a stereo pair";
-  }
+  ASSERT_NO_FATAL_FAILURE(readFirstPair(bag_path_, &good));
 
   ros::NodeHandle ns("/bad_input");
-  ros::Publisher left_pub = ns.advertise<sensor_msgs::Image>("left/image_raw", 5);
-  ros::Publisher right_pub = ns.advertise<sensor_msgs::Image>("right/image_raw", 5);
-  ros::Publisher left_info_pub = ns.advertise<sensor_msgs::CameraInfo>("left/camera_info", 5);
-  ros::Publisher right_info_pub = ns.advertise<sensor_msgs::CameraInfo>("right/camera_info", 5);
+  PairPublisher input(ns);
   std::vector<stereo_msgs::DisparityImageConstPtr> outputs;
   ros::Subscriber sub = ns.subscribe<stereo_msgs::DisparityImage>(
       "disparity", 10, [&](const stereo_msgs::DisparityImageConstPtr& m) { outputs.push_back(m); });
-  HbdsStatus status;
-  ros::Subscriber diag = watchDiagnostics(nh_, "bad_input/hbds", status);
-  ASSERT_TRUE(spinUntil(
-      [&] {
-        return left_pub.getNumSubscribers() && right_pub.getNumSubscribers() && left_info_pub.getNumSubscribers() &&
-               right_info_pub.getNumSubscribers() && status.seen;
-      },
-      15.0))
-      << "the node in /bad_input did not subscribe to its inputs (or sends no diagnostics)";
-  ros::WallDuration(0.5).sleep();  // connections of the synchronised subscribers settle
+  NodeStatus status;
+  ros::Subscriber diag = watchDiagnostics(nh_, "bad_input/hbds", kDiagnostics, status);
+  ASSERT_NO_FATAL_FAILURE(waitForNode(input, status, "/bad_input"));
 
-  int stamp_seconds = 1000;
-  auto publish = [&](StereoPair pair) {
-    const ros::Time stamp(++stamp_seconds, 0);
-    for (auto* header : {&pair.left.header, &pair.right.header, &pair.left_info.header, &pair.right_info.header}) {
-      header->stamp = stamp;
-    }
-    left_pub.publish(pair.left);
-    left_info_pub.publish(pair.left_info);
-    right_pub.publish(pair.right);
-    right_info_pub.publish(pair.right_info);
-    return stamp;
-  };
   auto outputFor = [&](const ros::Time& stamp) {
     return std::any_of(outputs.begin(), outputs.end(), [&](const auto& m) { return m->header.stamp == stamp; });
   };
 
   // Each bad pair must be counted, named in the diagnostics and give no output.
   auto expectSkipped = [&](const std::string& what, const StereoPair& pair, const std::string& message) {
-    const long before = std::max(0L, status.count("bad pairs"));
-    const ros::Time stamp = publish(pair);
-    EXPECT_TRUE(spinUntil([&] { return status.count("bad pairs") > before; }, 6.0)) << what << ": not counted as bad";
-    EXPECT_NE(status.text("last error").find(message), std::string::npos)
-        << what << ": last error '" << status.text("last error") << "' does not say '" << message << "'";
-    EXPECT_FALSE(outputFor(stamp)) << what << ": a disparity image was published";
+    EXPECT_FALSE(outputFor(publishBadPair(input, status, what, pair, message)))
+        << what << ": a disparity image was published";
   };
 
   StereoPair p = good;  // right image smaller than its camera_info
-  p.right.width /= 2;
-  p.right.height /= 2;
-  p.right.step /= 2;
-  p.right.data.resize(p.right.step * p.right.height);
+  halve(p.right);
   expectSkipped("image smaller than camera_info", p, "but its camera_info says");
 
   p = good;  // uncalibrated left camera
-  std::fill(p.left_info.K.begin(), p.left_info.K.end(), 0.0);
-  std::fill(p.left_info.P.begin(), p.left_info.P.end(), 0.0);
+  uncalibrate(p.left_info);
   expectSkipped("uncalibrated camera_info", p, "uncalibrated");
 
   p = good;  // both views consistent, but of different sizes
-  p.right.width /= 2;
-  p.right.height /= 2;
-  p.right.step /= 2;
-  p.right.data.resize(p.right.step * p.right.height);
+  halve(p.right);
   p.right_info.width /= 2;
   p.right_info.height /= 2;
   expectSkipped("left/right sizes differ", p, "both views must have one size");
@@ -412,7 +301,7 @@ TEST_F(HbdsNode, BadInputIsSkipped) {
   expectSkipped("range wider than the image", p, "wider than the image");
 
   // The node is alive and still processes a good pair.
-  const ros::Time stamp = publish(good);
+  const ros::Time stamp = input.publish(good);
   EXPECT_TRUE(spinUntil([&] { return outputFor(stamp); }, 15.0)) << "no disparity for the good pair after the bad ones";
   EXPECT_TRUE(spinUntil([&] { return status.count("pairs processed") == 1; }, 3.0)) << "diagnostics: processed pairs";
   EXPECT_EQ(status.count("bad pairs"), 5);
@@ -426,46 +315,36 @@ TEST_F(HbdsNode, RawPairIsRectified) {
                                                          " --supersample 1 --out " + dir.str(),
                                                      120);
   ASSERT_EQ(render.exit_code, 0) << render.output;
-  sensor_msgs::CameraInfo info[2];
-  sensor_msgs::Image image[2];
+  StereoPair raw;
+  sensor_msgs::CameraInfo* info[2] = {&raw.left_info, &raw.right_info};
+  sensor_msgs::Image* image[2] = {&raw.left, &raw.right};
   const char* side[2] = {"left", "right"};
   for (int i = 0; i < 2; ++i) {
     std::string name;
     ASSERT_TRUE(camera_calibration_parsers::readCalibration((dir.path() / (std::string(side[i]) + "_camera_info.yaml")).string(),
-                                                            name, info[i]));
+                                                            name, *info[i]));
     const cv::Mat bgr = cv::imread((dir.path() / (std::string(side[i]) + ".png")).string(), cv::IMREAD_COLOR);
     ASSERT_FALSE(bgr.empty());
-    image[i] = *cv_bridge::CvImage(std_msgs::Header(), "bgr8", bgr).toImageMsg();
+    *image[i] = *cv_bridge::CvImage(std_msgs::Header(), "bgr8", bgr).toImageMsg();
+    image[i]->header.frame_id = info[i]->header.frame_id = "stereo_left_optical_frame";
   }
   // The raw calibration really is raw: distortion and a rectifying rotation.
-  ASSERT_GT(std::abs(info[0].D.at(0)), 0.01);
-  ASSERT_GT(std::abs(info[0].R[1]) + std::abs(info[0].R[2]) + std::abs(info[0].R[5]), 1e-4);
+  ASSERT_GT(std::abs(raw.left_info.D.at(0)), 0.01);
+  ASSERT_GT(std::abs(raw.left_info.R[1]) + std::abs(raw.left_info.R[2]) + std::abs(raw.left_info.R[5]), 1e-4);
   const cv::Mat gt_depth = cv::imread((dir.path() / "left_depth.pfm").string(), cv::IMREAD_UNCHANGED);
   ASSERT_EQ(gt_depth.type(), CV_32F);
 
   ros::NodeHandle ns("/raw_input");
-  ros::Publisher pubs[4] = {ns.advertise<sensor_msgs::Image>("left/image_raw", 2),
-                            ns.advertise<sensor_msgs::CameraInfo>("left/camera_info", 2),
-                            ns.advertise<sensor_msgs::Image>("right/image_raw", 2),
-                            ns.advertise<sensor_msgs::CameraInfo>("right/camera_info", 2)};
+  PairPublisher input(ns, 2);
   sensor_msgs::ImageConstPtr depth;
   ros::Subscriber sub =
       ns.subscribe<sensor_msgs::Image>("depth", 2, [&](const sensor_msgs::ImageConstPtr& m) { depth = m; });
-  ASSERT_TRUE(spinUntil([&] { return std::all_of(std::begin(pubs), std::end(pubs), [](const auto& p) { return p.getNumSubscribers() > 0; }); },
-                        15.0))
+  ASSERT_TRUE(spinUntil([&] { return input.subscribed(); }, 15.0))
       << "the node in /raw_input did not subscribe to its inputs";
   ros::WallDuration(0.5).sleep();
   // Publish the pair (a few times: the first may race the subscriptions).
   for (int attempt = 0; attempt < 5 && !depth; ++attempt) {
-    const ros::Time stamp(2000 + attempt, 0);
-    for (int i = 0; i < 2; ++i) {
-      image[i].header.stamp = info[i].header.stamp = stamp;
-      image[i].header.frame_id = info[i].header.frame_id = "stereo_left_optical_frame";
-    }
-    pubs[0].publish(image[0]);
-    pubs[1].publish(info[0]);
-    pubs[2].publish(image[1]);
-    pubs[3].publish(info[1]);
+    input.publish(raw, ros::Time(2000 + attempt, 0));
     spinUntil([&] { return depth != nullptr; }, 8.0);
   }
   ASSERT_TRUE(depth) << "no depth for the raw pair";

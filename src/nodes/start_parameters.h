@@ -1,0 +1,52 @@
+// Start-up check of a nodelet's dynamic_reconfigure parameters.
+#pragma once
+
+#include <algorithm>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <boost/any.hpp>
+#include <ros/ros.h>
+
+namespace massage_cell::nodes {
+
+/// dynamic_reconfigure reads the int and double parameters of `Config` (a
+/// generated config class) from the parameter server and clamps a value
+/// outside the .cfg's range, or ignores one of the wrong type, without a
+/// word: one message per such parameter of `pnh`, in the .cfg's order, for
+/// the nodelet to log as an ERROR.
+template <class Config>
+std::vector<std::string> startParameterProblems(const ros::NodeHandle& pnh) {
+  std::vector<std::string> problems;
+  const Config min = Config::__getMin__(), max = Config::__getMax__();
+  for (const auto& description : Config::__getParamDescriptions__()) {
+    const bool integer = description->type == "int";
+    if (!integer && description->type != "double") continue;
+    XmlRpc::XmlRpcValue v;
+    if (!pnh.getParam(description->name, v)) continue;
+    const auto type = v.getType();
+    const bool is_int = type == XmlRpc::XmlRpcValue::TypeInt;
+    std::ostringstream problem;
+    if (!is_int && (integer || type != XmlRpc::XmlRpcValue::TypeDouble)) {
+      problem << "parameter ~" << description->name << " must be " << (integer ? "an integer" : "a number")
+              << ": ignored, using the default";
+      problems.push_back(problem.str());
+      continue;
+    }
+    boost::any lo_any, hi_any;
+    description->getValue(min, lo_any);
+    description->getValue(max, hi_any);
+    const double lo = integer ? boost::any_cast<int>(lo_any) : boost::any_cast<double>(lo_any);
+    const double hi = integer ? boost::any_cast<int>(hi_any) : boost::any_cast<double>(hi_any);
+    const double value = is_int ? static_cast<int>(v) : static_cast<double>(v);
+    if (value < lo || value > hi) {
+      problem << "parameter ~" << description->name << " = " << value << " is outside [" << lo << ", " << hi
+              << "]: clamped to " << std::min(std::max(value, lo), hi);
+      problems.push_back(problem.str());
+    }
+  }
+  return problems;
+}
+
+}  // namespace massage_cell::nodes

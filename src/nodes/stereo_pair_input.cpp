@@ -1,0 +1,178 @@
+#include "stereo_pair_input.h"
+
+#include <algorithm>
+#include <utility>
+
+namespace massage_cell::nodes {
+
+// ------------------------------------------------------------ input --
+
+SyncOptions SyncOptions::fromParameters(const ros::NodeHandle& pnh) {
+  SyncOptions o;
+  pnh.param("queue_size", o.queue_size, o.queue_size);
+  pnh.param("approximate_sync", o.approximate, o.approximate);
+  if (o.queue_size < 1) {
+    o.problem = "parameter ~queue_size must be >= 1 (got " + std::to_string(o.queue_size) + "): using 5";
+    o.queue_size = 5;
+  }
+  return o;
+}
+
+StereoPairInput::StereoPairInput(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, const SyncOptions& sync,
+                                 Handler handler)
+    : nh_(nh), pnh_(pnh), handler_(std::move(handler)), it_(nh_) {
+  if (sync.approximate) {
+    approximate_sync_ = std::make_unique<message_filters::Synchronizer<ApproximatePolicy>>(
+        ApproximatePolicy(sync.queue_size), left_image_sub_, left_info_sub_, right_image_sub_, right_info_sub_);
+    approximate_sync_->registerCallback(&StereoPairInput::pairCb, this);
+  } else {
+    exact_sync_ = std::make_unique<message_filters::Synchronizer<ExactPolicy>>(
+        ExactPolicy(sync.queue_size), left_image_sub_, left_info_sub_, right_image_sub_, right_info_sub_);
+    exact_sync_->registerCallback(&StereoPairInput::pairCb, this);
+  }
+  worker_ = std::thread([this] { workLoop(); });
+}
+
+StereoPairInput::~StereoPairInput() { stop(); }
+
+void StereoPairInput::subscribe() {
+  if (left_image_sub_.getSubscriber()) return;
+  const image_transport::TransportHints hints("raw", ros::TransportHints(), pnh_);
+  left_image_sub_.subscribe(it_, "left/image_raw", 1, hints);
+  left_info_sub_.subscribe(nh_, "left/camera_info", 1);
+  right_image_sub_.subscribe(it_, "right/image_raw", 1, hints);
+  right_info_sub_.subscribe(nh_, "right/camera_info", 1);
+}
+
+void StereoPairInput::unsubscribe() {
+  left_image_sub_.unsubscribe();
+  left_info_sub_.unsubscribe();
+  right_image_sub_.unsubscribe();
+  right_info_sub_.unsubscribe();
+}
+
+void StereoPairInput::stop() {
+  {
+    std::lock_guard<std::mutex> lock(slot_mutex_);
+    stopping_ = true;
+  }
+  slot_cv_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+StereoPairInput::Counts StereoPairInput::counts() const {
+  std::lock_guard<std::mutex> lock(slot_mutex_);
+  return counts_;
+}
+
+void StereoPairInput::pairCb(const sensor_msgs::ImageConstPtr& left_image,
+                             const sensor_msgs::CameraInfoConstPtr& left_info,
+                             const sensor_msgs::ImageConstPtr& right_image,
+                             const sensor_msgs::CameraInfoConstPtr& right_info) {
+  {
+    std::lock_guard<std::mutex> lock(slot_mutex_);
+    ++counts_.received;
+    if (slot_) ++counts_.dropped;  // the worker is busy and never took the previous pair
+    slot_ = StereoPair{left_image, right_image, left_info, right_info};
+  }
+  slot_cv_.notify_one();
+}
+
+void StereoPairInput::workLoop() {
+  while (true) {
+    StereoPair pair;
+    {
+      std::unique_lock<std::mutex> lock(slot_mutex_);
+      slot_cv_.wait(lock, [this] { return stopping_ || slot_.has_value(); });
+      if (stopping_) return;
+      pair = std::move(*slot_);
+      slot_.reset();
+    }
+    handler_(pair);
+  }
+}
+
+// ------------------------------------------------- per-pair checks --
+
+double msSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+std::string sizeText(unsigned width, unsigned height) { return std::to_string(width) + "x" + std::to_string(height); }
+
+void checkImageSize(const sensor_msgs::CameraInfo& info, const sensor_msgs::Image& image, const std::string& which) {
+  if (info.width != image.width || info.height != image.height) {
+    throw BadInput(which + " image is " + sizeText(image.width, image.height) + " but its camera_info says " +
+                   sizeText(info.width, info.height));
+  }
+  if (info.binning_x > 1 || info.binning_y > 1 || (info.roi.width != 0 && info.roi.width != info.width) ||
+      (info.roi.height != 0 && info.roi.height != info.height)) {
+    throw BadInput(which + " camera_info uses binning or a region of interest, which this node does not support");
+  }
+}
+
+void appendCalibrationKey(std::vector<double>& key, const sensor_msgs::CameraInfo& info) {
+  key.push_back(info.width);
+  key.push_back(info.height);
+  key.push_back(static_cast<double>(std::hash<std::string>{}(info.distortion_model)));
+  key.push_back(static_cast<double>(info.D.size()));
+  key.insert(key.end(), info.D.begin(), info.D.end());
+  key.insert(key.end(), info.K.begin(), info.K.end());
+  key.insert(key.end(), info.R.begin(), info.R.end());
+  key.insert(key.end(), info.P.begin(), info.P.end());
+}
+
+bool ProblemThrottle::due(const std::string& problem) {
+  const ros::WallTime now = ros::WallTime::now();
+  if (last_.size() > 100) last_.clear();
+  ros::WallTime& last = last_[problem];
+  if (!last.isZero() && (now - last).toSec() < period_s_) return false;
+  last = now;
+  return true;
+}
+
+// ------------------------------------------------------ diagnostics --
+
+void PairStats::processedOne(double ms) {
+  ++processed_;
+  last_pair_bad_ = false;
+  last_ms_ = ms;
+  total_ms_ += ms;
+  const ros::WallTime now = ros::WallTime::now();
+  times_.push_back(now);
+  while (times_.size() > 2 && (now - times_.front()).toSec() > kRateWindow) times_.pop_front();
+}
+
+std::uint64_t PairStats::badOne(const std::string& problem) {
+  last_pair_bad_ = true;
+  last_error_ = problem;
+  last_error_time_ = ros::WallTime::now();
+  return ++bad_;
+}
+
+bool PairStats::recentError() const {
+  return !last_error_time_.isZero() && (ros::WallTime::now() - last_error_time_).toSec() < kRateWindow;
+}
+
+double PairStats::rate() const {
+  if (times_.size() < 2 || (ros::WallTime::now() - times_.back()).toSec() >= kRateWindow) return 0.0;
+  return (times_.size() - 1) / std::max(1e-6, (times_.back() - times_.front()).toSec());
+}
+
+void PairStats::addCounts(diagnostic_updater::DiagnosticStatusWrapper& status,
+                          const StereoPairInput::Counts& input) const {
+  status.add("pairs received", input.received);
+  status.add("pairs processed", processed_);
+  status.add("dropped pairs", input.dropped);
+  status.add("bad pairs", bad_);
+}
+
+void PairStats::addTimes(diagnostic_updater::DiagnosticStatusWrapper& status, const std::string& stage_label,
+                         double stage_ms) const {
+  status.add("processing rate (Hz)", rate());
+  status.add("last processing time (ms)", last_ms_);
+  status.add(stage_label, stage_ms);
+  status.add("mean processing time (ms)", processed_ > 0 ? total_ms_ / processed_ : 0.0);
+}
+
+}  // namespace massage_cell::nodes

@@ -1,0 +1,182 @@
+// The input side shared by the stereo nodelets (hbds, cect), the way
+// stereo_image_proc does it: left/image_raw + left/camera_info +
+// right/image_raw + right/camera_info (image_transport, raw by default)
+// synchronised by message_filters with exact stamps, or approximately with
+// ~approximate_sync; ~queue_size is the synchroniser's queue.
+//
+// Threading: the synchroniser callback only drops the pair into a one-pair
+// slot (replacing, and counting as dropped, a pair the worker has not taken
+// yet); a worker thread hands the newest pair to the nodelet's handler, so
+// subscriber callbacks are never blocked by the processing.
+//
+// Also here: what the nodelets' per-pair checks and diagnostics have in
+// common (BadInput, the camera_info / image size check, the calibration key,
+// per-problem log throttling, PairStats). Nothing here logs: the nodelets
+// log under their own names.
+#pragma once
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <diagnostic_updater/DiagnosticStatusWrapper.h>
+#include <image_transport/image_transport.h>
+#include <image_transport/subscriber_filter.h>
+#include <message_filters/subscriber.h>
+#include <message_filters/sync_policies/approximate_time.h>
+#include <message_filters/sync_policies/exact_time.h>
+#include <message_filters/synchronizer.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+
+namespace massage_cell::nodes {
+
+/// One synchronised input pair.
+struct StereoPair {
+  sensor_msgs::ImageConstPtr left_image, right_image;
+  sensor_msgs::CameraInfoConstPtr left_info, right_info;
+};
+
+/// How the pair is synchronised: private parameters ~queue_size (5) and
+/// ~approximate_sync (false), as stereo_image_proc.
+struct SyncOptions {
+  int queue_size = 5;
+  bool approximate = false;
+  std::string problem;  ///< a parameter replaced by its default, for the caller to log (empty: none)
+
+  static SyncOptions fromParameters(const ros::NodeHandle& pnh);
+};
+
+/// The synchronised stereo input of a nodelet and the worker thread that
+/// processes its newest pair.
+class StereoPairInput {
+ public:
+  using Handler = std::function<void(const StereoPair&)>;
+  struct Counts {
+    std::uint64_t received = 0;  ///< pairs from the synchroniser
+    std::uint64_t dropped = 0;   ///< replaced in the slot before the worker took them
+  };
+
+  /// Starts the worker, which calls `handler` (which must not throw) with
+  /// each pair it takes. Topics are resolved in `nh`; the image transport
+  /// ("raw" by default) is read from `pnh`'s ~image_transport.
+  StereoPairInput(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, const SyncOptions& sync, Handler handler);
+  ~StereoPairInput();  ///< stop()
+  StereoPairInput(const StereoPairInput&) = delete;
+  StereoPairInput& operator=(const StereoPairInput&) = delete;
+
+  /// Subscribes to the four inputs (queue size 1 each: the synchroniser's
+  /// queue is the one that matters); does nothing while subscribed.
+  void subscribe();
+  void unsubscribe();
+  /// Ends the worker once it has finished the pair it is processing (waits
+  /// for it); pairs arriving afterwards are ignored. Idempotent.
+  void stop();
+  Counts counts() const;
+
+ private:
+  using Image = sensor_msgs::Image;
+  using CameraInfo = sensor_msgs::CameraInfo;
+  using ExactPolicy = message_filters::sync_policies::ExactTime<Image, CameraInfo, Image, CameraInfo>;
+  using ApproximatePolicy = message_filters::sync_policies::ApproximateTime<Image, CameraInfo, Image, CameraInfo>;
+
+  void pairCb(const sensor_msgs::ImageConstPtr& left_image, const sensor_msgs::CameraInfoConstPtr& left_info,
+              const sensor_msgs::ImageConstPtr& right_image, const sensor_msgs::CameraInfoConstPtr& right_info);
+  void workLoop();
+
+  ros::NodeHandle nh_, pnh_;
+  Handler handler_;
+  image_transport::ImageTransport it_;
+  image_transport::SubscriberFilter left_image_sub_, right_image_sub_;
+  message_filters::Subscriber<CameraInfo> left_info_sub_, right_info_sub_;
+  std::unique_ptr<message_filters::Synchronizer<ExactPolicy>> exact_sync_;
+  std::unique_ptr<message_filters::Synchronizer<ApproximatePolicy>> approximate_sync_;
+
+  // The latest-pair slot between the synchroniser and the worker.
+  mutable std::mutex slot_mutex_;
+  std::condition_variable slot_cv_;
+  std::optional<StereoPair> slot_;
+  bool stopping_ = false;
+  Counts counts_;
+  std::thread worker_;
+};
+
+// ------------------------------------------------- per-pair checks --
+
+/// A problem with one input pair: logged (throttled), counted, the pair skipped.
+struct BadInput : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point start);
+
+/// "640x480".
+std::string sizeText(unsigned width, unsigned height);
+
+/// Throws BadInput when the image does not have the size its camera_info
+/// declares or the camera_info uses binning / a region of interest.
+void checkImageSize(const sensor_msgs::CameraInfo& info, const sensor_msgs::Image& image, const std::string& which);
+
+/// Appends everything of `info` a calibration change affects, to detect
+/// changes cheaply by comparing keys.
+void appendCalibrationKey(std::vector<double>& key, const sensor_msgs::CameraInfo& info);
+
+/// Per-problem log throttling (wall time), so that a second kind of problem
+/// is not hidden by the first. Not thread-safe.
+class ProblemThrottle {
+ public:
+  explicit ProblemThrottle(double period_s) : period_s_(period_s) {}
+  /// True when `problem` was not let through within the period (and notes it).
+  bool due(const std::string& problem);
+
+ private:
+  double period_s_;
+  std::map<std::string, ros::WallTime> last_;
+};
+
+// ------------------------------------------------------ diagnostics --
+
+/// What the diagnostics of a stereo nodelet say about the pairs it processed
+/// and skipped. Not thread-safe: the nodelet guards it with its status mutex.
+class PairStats {
+ public:
+  static constexpr double kRateWindow = 10.0;  ///< s of completions the rate is taken over; also "recent"
+
+  void processedOne(double ms);                          ///< a pair processed in `ms` (clears lastPairBad)
+  std::uint64_t badOne(const std::string& problem);      ///< a pair skipped; returns the bad pairs so far
+  std::uint64_t processed() const { return processed_; }
+  std::uint64_t bad() const { return bad_; }
+  bool lastPairBad() const { return last_pair_bad_; }    ///< the newest pair was skipped
+  const std::string& lastError() const { return last_error_; }
+  bool recentError() const;                              ///< a pair was skipped within kRateWindow
+  double rate() const;                                   ///< processed pairs a second (0 when stalled)
+
+  /// "pairs received", "pairs processed", "dropped pairs", "bad pairs".
+  void addCounts(diagnostic_updater::DiagnosticStatusWrapper& status, const StereoPairInput::Counts& input) const;
+  /// "processing rate (Hz)", "last processing time (ms)", then
+  /// `stage_label` = `stage_ms` (the library's own time), "mean processing time (ms)".
+  void addTimes(diagnostic_updater::DiagnosticStatusWrapper& status, const std::string& stage_label,
+                double stage_ms) const;
+
+ private:
+  std::uint64_t processed_ = 0, bad_ = 0;
+  bool last_pair_bad_ = false;
+  std::string last_error_;
+  ros::WallTime last_error_time_;
+  double last_ms_ = 0.0, total_ms_ = 0.0;
+  std::deque<ros::WallTime> times_;  // recent completions, for the rate
+};
+
+}  // namespace massage_cell::nodes
