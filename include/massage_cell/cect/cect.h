@@ -80,7 +80,11 @@ struct CectParams {
   /// fitted to the seeds nearby) instead of interpolating linearly.
   bool rim_profile = true;
   double query_search = 0.0;    ///< pixels searched either side of a query's prediction (0: transfer only, the default: single windows on skin are noisier than the smoothed seeds)
-  double min_ncc = 0.5;         ///< weakest accepted correlation peak
+  /// Weakest accepted correlation peak. Low on purpose: on dark skin and
+  /// under sheen the skin's texture correlates weakly, and a gap without
+  /// seeds is extrapolated far worse (up to 30 mm) than weak seeds err;
+  /// constraints 2 and 3 reject the wrong ones.
+  double min_ncc = 0.4;
   /// Constraint 1 (candidate agreement): the candidates from the triangle
   /// and its neighbours must agree within this many pixels.
   double max_candidate_spread = 4.0;
