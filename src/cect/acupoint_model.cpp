@@ -77,6 +77,7 @@ constexpr double kWaistPlateau = 0.03;    // waist run: within 3 % of (hips - wa
 constexpr double kNeckNarrower = 0.85;    // something above the shoulder line narrower than this x shoulders
 constexpr double kWaistNarrower = 0.95;   // waist narrower than this x shoulders
 constexpr double kHipWider = 0.015;       // hips wider than the waist by this fraction (+ 0.5 px)
+constexpr double kMaxOutOfView = 0.25;    // L4 at most this fraction of C7 -> L4 below a back cut by the image
 constexpr int kMinRows = 24;              // fewer rows: too small to find anything
 constexpr double kScaleWindow = 0.03;     // metres-per-pixel median over +-3 % of C7->L4 along the midline
 
@@ -398,7 +399,13 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   const double length = (waist_row - top) / (c + q);
   if (!(length > 0.0)) return invalid("the waist is not below the top of the back");
   const double c7_row = top + c * length, l4_row = c7_row + length;
-  if (!(l4_row < bottom)) {
+  // A back that leaves the image at its bottom (the camera shifted toward the
+  // head) may have its iliac-crest line out of view: the levels still follow
+  // from C7 and the waist, and the points beyond the image are reported
+  // invalid by the placement and the localisation, each with its reason.
+  // Its own silhouette ending above L4 is not a back, or not this model's.
+  const bool cut_by_image = bottom >= static_cast<double>(seg.mask.rows) - 1.0;
+  if (!(l4_row < bottom) && !(cut_by_image && l4_row < bottom + kMaxOutOfView * length)) {
     return invalid("the iliac-crest line (row " + num(l4_row) + ") is below the back's bottom (row " + num(bottom) +
                    ")");
   }

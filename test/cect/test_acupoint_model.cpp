@@ -486,6 +486,55 @@ TEST(AcupointPlacement, MeanSubjectAcupointsNearTheTruth) {
   EXPECT_LT(std::abs(e.cun_rel), 0.01);  // calibrated on this subject
 }
 
+TEST(AcupointLandmarks, IliacLineOutOfViewWhenTheImageCutsTheBack) {
+  // The camera shifted toward the head: the image ends a little above L4,
+  // with the waist and the start of the hips still in view. The levels follow
+  // from C7 and the waist as before; the points below the image are invalid
+  // with a reason, the others keep their places.
+  const Rendered& r = meanSubject640();
+  const cect::Segmentation full = groundTruthSegmentation(r);
+  const cect::BackLandmarks whole = cect::findLandmarks(full, model());
+  ASSERT_TRUE(whole.valid) << whole.reason;
+  const int cut = static_cast<int>(whole.l4.y) - 6;
+  ASSERT_GT(cut, static_cast<int>(whole.waist_row) + 20);
+  const cv::Mat cropped = full.mask.rowRange(0, cut).clone();
+  const cect::BackLandmarks l = cect::findLandmarks(segmentationFromMask(cropped), model());
+  ASSERT_TRUE(l.valid) << l.reason;
+  std::printf("image cut at row %d: C7 (%.1f, %.1f) vs (%.1f, %.1f), L4 row %.1f vs %.1f\n", cut, l.c7.x, l.c7.y,
+              whole.c7.x, whole.c7.y, l.l4.y, whole.l4.y);
+  EXPECT_GT(l.l4.y, cut - 1);  // out of view
+  EXPECT_NEAR(l.l4.y, whole.l4.y, 3.0);
+  EXPECT_NEAR(l.c7.y, whole.c7.y, 3.0);
+  const auto scale = depthScale(r.view.depth, r.fx);
+  const auto points = cect::placeAcupoints(l, model(), scale);
+  const auto reference = cect::placeAcupoints(whole, model(), scale);
+  ASSERT_EQ(points.size(), reference.size());
+  int in_view = 0, out_of_view = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const auto& a = points[i];
+    const bool inside = a.valid && a.pixel.y < cut - 1;
+    if (inside) {
+      ++in_view;
+      EXPECT_LT(distance(a.pixel, reference[i].pixel), 4.0) << a.name;
+    } else {
+      ++out_of_view;
+      EXPECT_GT(reference[i].pixel.y, cut - 12) << a.name << " should be near or below the cut";
+      if (!a.valid) EXPECT_FALSE(a.reason.empty()) << a.name;
+    }
+  }
+  std::printf("%d points in view, %d at or below the cut\n", in_view, out_of_view);
+  EXPECT_GT(in_view, 80);
+  EXPECT_GT(out_of_view, 0);
+
+  // The same silhouette ending above L4 inside the image is not taken as a
+  // back whose iliac line is out of view.
+  cv::Mat short_back = cv::Mat::zeros(full.mask.size(), CV_8U);
+  cropped.copyTo(short_back.rowRange(0, cut));
+  const cect::BackLandmarks s = cect::findLandmarks(segmentationFromMask(short_back), model());
+  EXPECT_FALSE(s.valid);
+  EXPECT_NE(s.reason.find("iliac-crest line"), std::string::npos) << s.reason;
+}
+
 TEST(AcupointLandmarks, ParallaxCorrectionPutsTheMidlineOnTheSpine) {
   // The silhouette's centre line is the table-level image of the midline;
   // with the back in 3D (CECT on the mean subject's stereo pair: the rims'
