@@ -67,4 +67,15 @@ if(CATKIN_ENABLE_TESTING)
     target_compile_definitions(test_arm_node PRIVATE MASSAGE_CELL_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
     add_dependencies(test_arm_node arm_node massage_cell_arm_nodelet ${PROJECT_NAME}_generate_messages_cpp)
   endif()
+  # The same test node against can_interface can9 (no such interface): one
+  # error, the node keeps running, every command refused with the reason.
+  add_rostest(${PROJECT_SOURCE_DIR}/test/ros/arm_bad_interface.test DEPENDENCIES test_arm_node)
+  # cell.launch with the arm on: one parent and one publisher per tf frame.
+  add_rostest_gtest(test_arm_cell_tf ${PROJECT_SOURCE_DIR}/test/ros/arm_cell_tf.test
+                    ${PROJECT_SOURCE_DIR}/test/ros/test_arm_cell_tf.cpp)
+  if(TARGET test_arm_cell_tf)
+    target_include_directories(test_arm_cell_tf PRIVATE ${catkin_INCLUDE_DIRS})
+    target_link_libraries(test_arm_cell_tf ${catkin_LIBRARIES})
+    add_dependencies(test_arm_cell_tf arm_node massage_cell_arm_nodelet)
+  endif()
 endif()

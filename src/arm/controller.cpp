@@ -12,7 +12,7 @@ namespace massage_cell::arm {
 namespace {
 
 using can::Cia402State;
-using Lock = std::lock_guard<std::recursive_mutex>;
+using Lock = std::lock_guard<can::RecursivePiMutex>;
 
 std::string fmt(const char* format, double v) {
   char buf[64];
@@ -79,12 +79,32 @@ Controller::Controller(can::Bus& bus, const can::Clock& clock, ArmConfig config)
   validate(config_);
   master_ = std::make_unique<can::Master>(tap_, clock_, config_.can);
   for (int i = 0; i < 3; ++i) axes_[i] = std::make_unique<can::Cia402Axis>(*master_, config_.axis(i));
-  tick_id_ = master_->addTickHandler([this](can::TimePoint now) { tick(now); });
+  listener_id_ = master_->addEventListener([this](const can::Event& e) { events_.push_back(e); });
+  master_->setBeforeSyncHook([this](can::TimePoint now) { cycle(now); });
 }
 
 Controller::~Controller() {
+  master_->stop();  // no cycle may run on a half-destroyed controller
   Lock lock(master_->mutex());
-  master_->removeTickHandler(tick_id_);
+  master_->setBeforeSyncHook({});
+  master_->removeEventListener(listener_id_);
+}
+
+can::RealtimeStatus Controller::startThread(const can::RealtimeOptions& options) {
+  can::RealtimeStatus s;
+  s.requested = options.priority;
+  s.lock_requested = options.lock_memory;
+  auto note = [&s](const std::string& error) {
+    if (!error.empty()) s.error += (s.error.empty() ? "" : "; ") + error;
+  };
+  if (options.lock_memory) {
+    const std::string error = can::lockMemory();
+    s.memory_locked = error.empty();
+    note(error);
+  }
+  note(master_->start(options.priority));
+  s.priority = master_->threadPriority();
+  return s;
 }
 
 void Controller::start() {
@@ -122,19 +142,9 @@ bool Controller::allHomed() const {
 
 // --- the cycle ---------------------------------------------------------------------------------------
 
-void Controller::tick(can::TimePoint now) {
-  // One cycle per SYNC, in the poll that sends it, just before it: the
-  // master calls tick handlers with the same `now` right before its SYNC
-  // producer, whose schedule (next += period; restart from now when behind)
-  // this mirrors. Commands of the cycle go out in the RPDOs before that SYNC.
-  const can::Duration period = std::chrono::microseconds(config_.can.sync_period_us);
-  if (now < next_cycle_) return;
-  next_cycle_ += period;
-  if (next_cycle_ <= now) next_cycle_ = now + period;
-  cycle(now);
-}
-
 void Controller::cycle(can::TimePoint now) {
+  // The master's before-SYNC hook: once per SYNC, just before that SYNC's
+  // RPDOs (after the axes' tick handlers of the same poll).
   ++cycles_;
   if (cycle_observer_) cycle_observer_(now);
   if (!started_) return;
@@ -182,8 +192,9 @@ void Controller::cycle(can::TimePoint now) {
 }
 
 void Controller::handleEvents() {
-  // The controller is the consumer of the master's event queue.
-  const std::vector<can::Event> events = master_->takeEvents();
+  // Our listener's copy of every master event: a takeEvents() reader elsewhere takes nothing from us.
+  std::vector<can::Event> events;
+  events.swap(events_);
   for (const can::Event& e : events) {
     log(std::string(can::toString(e.type)) + ": " + e.text);
     switch (e.type) {

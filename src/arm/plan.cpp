@@ -98,12 +98,7 @@ std::string planMassage(const ArmConfig& c, const Eigen::Vector3d& from, const P
     return "speed " + m3(speed) + " m/s must be in (0, " + m3(pc.max_speed) + "] m/s";
   }
   if (!std::isfinite(req.depth) || req.depth < 0.0) return "depth must be >= 0 m (0: the region's default)";
-  // The current position may sit on the envelope's border by a count or two
-  // (homing ends at a limit): within position_tolerance it counts as inside.
-  const Eigen::Vector3d inside = from.cwiseMax(c.workspace_min).cwiseMin(c.workspace_max);
-  if (!from.allFinite() || (inside - from).norm() > c.position_tolerance) {
-    return "the tool's current position " + checkTool(c, from);
-  }
+  if (std::string bad = checkTool(c, from); !bad.empty()) return "the tool's current position " + bad;
 
   std::vector<Step> out;
   Eigen::Vector3d at = from;

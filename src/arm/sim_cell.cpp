@@ -1,20 +1,7 @@
 // The arm on simulated drives (see sim_cell.h).
 #include "massage_cell/arm/sim_cell.h"
 
-#include <pthread.h>
-#include <sched.h>
-
-#include <cstring>
-
 namespace massage_cell::arm {
-
-std::string useRealtimeScheduling(int priority) {
-  if (priority < 1 || priority > 99) return "priority must be 1..99, got " + std::to_string(priority);
-  sched_param param{};
-  param.sched_priority = priority;
-  const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
-  return rc == 0 ? std::string() : std::string(std::strerror(rc));
-}
 
 SimCell::SimCell(ArmConfig config) : bus_(can::SteadyClock::instance()) {
   master_ep_ = bus_.open("master");
@@ -32,8 +19,8 @@ SimCell::SimCell(ArmConfig config) : bus_(can::SteadyClock::instance()) {
 
 SimCell::~SimCell() { stop(); }
 
-void SimCell::start() {
-  if (running_) return;
+can::RealtimeStatus SimCell::start(const can::RealtimeOptions& realtime) {
+  if (running_) return status_;
   running_ = true;
   stop_ = false;
   for (auto& d : drives_) d->powerOn();
@@ -41,8 +28,15 @@ void SimCell::start() {
     can::SimDrive* drive = d.get();
     threads_.emplace_back([this, drive] { drive->run(stop_, std::chrono::milliseconds(1)); });
   }
-  controller_->master().start();
+  status_ = controller_->startThread(realtime);
+  if (status_.active()) {
+    for (auto& t : threads_) {
+      const std::string error = can::setRealtimePriority(t.native_handle(), realtime.priority);
+      if (!error.empty()) status_.error += (status_.error.empty() ? "" : "; ") + ("simulated drive thread: " + error);
+    }
+  }
   controller_->start();
+  return status_;
 }
 
 void SimCell::stop() {

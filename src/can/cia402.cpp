@@ -113,7 +113,7 @@ const char* toString(Cia402Axis::Operation op) {
 }
 
 Cia402Axis::Cia402Axis(Master& master, const AxisConfig& config) : master_(master), config_(config) {
-  std::lock_guard<std::recursive_mutex> lock(master_.mutex());
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
   master_.nodeState(config_.node_id);  // throws std::out_of_range for a node the master does not know
   for (StartupWrite& w : cia402StartupWrites(config_)) master_.addStartupWrite(config_.node_id, std::move(w));
   const double stop_s = config_.profile_velocity / config_.quick_stop_deceleration;
@@ -158,7 +158,7 @@ void Cia402Axis::phase(Phase p) {
 }
 
 void Cia402Axis::begin(Operation op) {
-  std::lock_guard<std::recursive_mutex> lock(master_.mutex());
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
   if (status_ == Status::kRunning) {
     const Operation old = op_;
     fail(std::string(toString(old)) + " superseded by " + toString(op));
@@ -204,7 +204,7 @@ void Cia402Axis::faultReset() { begin(Operation::kFaultReset); }
 void Cia402Axis::home() { begin(Operation::kHoming); }
 
 void Cia402Axis::moveTo(double metres) {
-  std::lock_guard<std::recursive_mutex> lock(master_.mutex());
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
   if (!(metres >= config_.min_position && metres <= config_.max_position)) {
     begin(Operation::kMove);
     char buf[160];
@@ -217,7 +217,7 @@ void Cia402Axis::moveTo(double metres) {
 }
 
 void Cia402Axis::moveToCounts(std::int32_t counts) {
-  std::lock_guard<std::recursive_mutex> lock(master_.mutex());
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
   begin(Operation::kMove);
   target_ = counts;
   if (counts < config_.toCounts(config_.min_position) || counts > config_.toCounts(config_.max_position)) {
@@ -226,15 +226,15 @@ void Cia402Axis::moveToCounts(std::int32_t counts) {
 }
 
 Cia402Axis::Operation Cia402Axis::operation() const {
-  std::lock_guard<std::recursive_mutex> lock(master_.mutex());
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
   return op_;
 }
 Cia402Axis::Status Cia402Axis::status() const {
-  std::lock_guard<std::recursive_mutex> lock(master_.mutex());
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
   return status_;
 }
 std::string Cia402Axis::error() const {
-  std::lock_guard<std::recursive_mutex> lock(master_.mutex());
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
   return error_;
 }
 bool Cia402Axis::valid() const { return master_.feedback(config_.node_id).valid; }
@@ -246,11 +246,11 @@ std::uint16_t Cia402Axis::statusword() const { return master_.feedback(config_.n
 std::int32_t Cia402Axis::positionCounts() const { return master_.feedback(config_.node_id).position; }
 double Cia402Axis::position() const { return config_.toMetres(positionCounts()); }
 bool Cia402Axis::homed() const {
-  std::lock_guard<std::recursive_mutex> lock(master_.mutex());
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
   return homed_;
 }
 std::vector<Cia402State> Cia402Axis::history() const {
-  std::lock_guard<std::recursive_mutex> lock(master_.mutex());
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
   return history_;
 }
 

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "massage_cell/can/realtime.h"
+
 namespace massage_cell::can {
 
 namespace {
@@ -13,6 +15,18 @@ std::vector<std::uint8_t> u16(std::uint16_t v) { return toBytes(v, 2); }
 std::vector<std::uint8_t> u32(std::uint32_t v) { return toBytes(v, 4); }
 
 constexpr std::uint32_t kPdoInvalid = 0x80000000u;  // COB-ID bit 31: PDO does not exist / disabled
+
+/// Registered callbacks (tick handlers, event listeners) by id.
+template <typename F>
+int addCallback(std::vector<std::pair<int, F>>& callbacks, int& last_id, F f) {
+  callbacks.emplace_back(++last_id, std::move(f));
+  return last_id;
+}
+template <typename F>
+void removeCallback(std::vector<std::pair<int, F>>& callbacks, int id) {
+  callbacks.erase(std::remove_if(callbacks.begin(), callbacks.end(), [id](const auto& c) { return c.first == id; }),
+                  callbacks.end());
+}
 
 std::string hex4(unsigned v) {
   char buf[8];
@@ -158,46 +172,58 @@ void Master::event(EventType type, std::uint8_t node, std::string text, std::uin
 }
 
 void Master::postEvent(Event e) {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   if (e.stamp == TimePoint{}) e.stamp = clock_.now();
   if (events_.size() > 10000) events_.erase(events_.begin(), events_.begin() + 5000);  // nobody reads them
   events_.push_back(e);
   if (event_callback_) event_callback_(e);
+  for (std::size_t i = 0; i < event_listeners_.size(); ++i) event_listeners_[i].second(e);
 }
 
 std::vector<Event> Master::takeEvents() {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   std::vector<Event> out;
   out.swap(events_);
   return out;
 }
 
 void Master::setEventCallback(EventCallback callback) {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   event_callback_ = std::move(callback);
 }
 
+int Master::addEventListener(EventCallback listener) {
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
+  return addCallback(event_listeners_, last_callback_id_, std::move(listener));
+}
+
+void Master::removeEventListener(int id) {
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
+  removeCallback(event_listeners_, id);
+}
+
+void Master::setBeforeSyncHook(TickHandler hook) {
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
+  before_sync_ = std::move(hook);
+}
+
 int Master::addTickHandler(TickHandler handler) {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
-  const int id = ++last_tick_id_;
-  tick_handlers_.emplace_back(id, std::move(handler));
-  return id;
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
+  return addCallback(tick_handlers_, last_callback_id_, std::move(handler));
 }
 
 void Master::removeTickHandler(int id) {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
-  tick_handlers_.erase(std::remove_if(tick_handlers_.begin(), tick_handlers_.end(),
-                                      [id](const auto& h) { return h.first == id; }),
-                       tick_handlers_.end());
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
+  removeCallback(tick_handlers_, id);
 }
 
 std::uint64_t Master::rpdosSent(std::uint8_t id) const {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   return node(id).rpdos_sent;
 }
 
 MasterStats Master::stats() const {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   return stats_;
 }
 
@@ -220,17 +246,17 @@ void Master::setState(Node& n, NodeState s) {
 // --- NMT -----------------------------------------------------------------------
 
 bool Master::sendNmt(NmtCommand command, std::uint8_t node) {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   return send(encodeNmt(command, node));
 }
 
 void Master::bringUp() {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   for (auto& [id, n] : nodes_) bringUp(id);
 }
 
 void Master::bringUp(std::uint8_t id) {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   Node& n = node(id);
   own_nmt_ = NmtState::kOperational;  // the master has started the network
   n.outage_mark = stats_.bus_outages;
@@ -275,17 +301,17 @@ void Master::startConfiguration(Node& n) {
 }
 
 NodeState Master::nodeState(std::uint8_t id) const {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   return node(id).state;
 }
 
 std::optional<NmtState> Master::nmtState(std::uint8_t id) const {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   return node(id).nmt;
 }
 
 NmtState Master::ownNmtState() const {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   return own_nmt_;
 }
 
@@ -347,7 +373,7 @@ void Master::checkBus() {
 }
 
 bool Master::allOperational() const {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   for (const auto& [id, n] : nodes_) {
     if (n->state != NodeState::kOperational) return false;
   }
@@ -357,28 +383,28 @@ bool Master::allOperational() const {
 // --- SDO / PDO ------------------------------------------------------------------
 
 void Master::sdoUpload(std::uint8_t id, std::uint16_t index, std::uint8_t sub, SdoClient::Callback done) {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   node(id).sdo.upload(index, sub, std::move(done));
 }
 
 void Master::sdoDownload(std::uint8_t id, std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
                          SdoClient::Callback done) {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   node(id).sdo.download(index, sub, std::move(data), std::move(done));
 }
 
 void Master::addStartupWrite(std::uint8_t id, StartupWrite write) {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   node(id).extra_writes.push_back(std::move(write));
 }
 
 DriveFeedback Master::feedback(std::uint8_t id) const {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   return node(id).fb;
 }
 
 void Master::setRpdo(std::uint8_t id, std::uint16_t controlword, std::int32_t target) {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   Node& n = node(id);
   n.rpdo_set = true;
   n.controlword = controlword;
@@ -386,7 +412,7 @@ void Master::setRpdo(std::uint8_t id, std::uint16_t controlword, std::int32_t ta
 }
 
 std::uint16_t Master::controlword(std::uint8_t id) const {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   return node(id).controlword;
 }
 
@@ -548,9 +574,11 @@ void Master::timers(TimePoint now) {
     next_heartbeat_ += hb;  // the first one (at the first poll) sets the phase
     if (next_heartbeat_ <= now) next_heartbeat_ = now + hb;  // fell behind: do not burst
   }
-  // SYNC producer: RPDOs first, so synchronous drives apply them at this SYNC.
+  // SYNC producer: the owner's hook, then RPDOs, so synchronous drives apply
+  // what the hook wrote at this SYNC.
   const Duration period = std::chrono::microseconds(config_.sync_period_us);
   if (now >= next_sync_) {
+    if (before_sync_) before_sync_(now);
     for (auto& [id, np] : nodes_) {
       Node& n = *np;
       if (n.state != NodeState::kOperational || !n.rpdo_set) continue;
@@ -568,22 +596,29 @@ void Master::timers(TimePoint now) {
 }
 
 void Master::poll() {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
   while (auto f = bus_.receive(Duration::zero())) process(*f);
   timers(clock_.now());
   polled_.notify_all();
 }
 
-void Master::start() {
-  std::lock_guard<std::recursive_mutex> lock(mutex_);
-  if (thread_.joinable()) return;
-  stop_ = false;
-  thread_ = std::thread([this] { threadMain(); });
+std::string Master::start(int realtime_priority) {
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
+  if (!thread_.joinable()) {
+    stop_ = false;
+    thread_ = std::thread([this] { threadMain(); });
+  }
+  return realtime_priority > 0 ? setRealtimePriority(thread_.native_handle(), realtime_priority) : std::string();
+}
+
+int Master::threadPriority() const {
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
+  return thread_.joinable() ? realtimePriority(const_cast<std::thread&>(thread_).native_handle()) : 0;
 }
 
 void Master::stop() {
   {
-    std::lock_guard<std::recursive_mutex> lock(mutex_);
+    std::lock_guard<RecursivePiMutex> lock(mutex_);
     stop_ = true;
   }
   if (thread_.joinable()) thread_.join();
@@ -593,12 +628,12 @@ void Master::threadMain() {
   while (true) {
     Duration wait;
     {
-      std::lock_guard<std::recursive_mutex> lock(mutex_);
+      std::lock_guard<RecursivePiMutex> lock(mutex_);
       if (stop_) return;
       wait = std::clamp<Duration>(next_sync_ - clock_.now(), Duration::zero(), std::chrono::milliseconds(2));
     }
     std::optional<TimedFrame> f = bus_.receive(wait);  // outside the lock: callers stay responsive
-    std::lock_guard<std::recursive_mutex> lock(mutex_);
+    std::lock_guard<RecursivePiMutex> lock(mutex_);
     if (f) process(*f);
     while (auto g = bus_.receive(Duration::zero())) process(*g);
     timers(clock_.now());
@@ -608,7 +643,7 @@ void Master::threadMain() {
 
 bool Master::waitUntil(const std::function<bool()>& pred, Duration timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
-  std::unique_lock<std::recursive_mutex> lock(mutex_);
+  std::unique_lock<RecursivePiMutex> lock(mutex_);
   while (!pred()) {
     if (std::chrono::steady_clock::now() >= deadline) return false;
     if (thread_.joinable()) {

@@ -715,6 +715,11 @@ void SimDrive::startHoming() {
 }
 
 void SimDrive::completeHoming() {
+  // Called from step() after approach() moved the demand onto the goal but
+  // before the step copies the demand into the actual position: take that
+  // step first, so the reference lands on the goal itself (not on where the
+  // motor stood a step earlier, which left it a step past the offset).
+  if (!blocked_) actual_ = demand_;
   const double delta = static_cast<double>(od_.get(0x607C, 0)) - actual_;
   actual_ += delta;
   demand_ += delta;

@@ -51,6 +51,8 @@ void ArmNodelet::readParameters() {
       if (node["tf_timeout"]) tf_timeout_ = node["tf_timeout"].as<double>();
       if (node["acupoint_prefix"]) acupoint_prefix_ = node["acupoint_prefix"].as<std::string>();
       if (node["command_timeout"]) command_timeout_ = node["command_timeout"].as<double>();
+      if (node["realtime_priority"]) realtime_options_.priority = node["realtime_priority"].as<int>();
+      if (node["lock_memory"]) realtime_options_.lock_memory = node["lock_memory"].as<bool>();
     }
   } catch (const YAML::Exception& e) {
     throw arm::ArmConfigError(config_path_ + ": node: " + e.what());
@@ -62,40 +64,28 @@ void ArmNodelet::readParameters() {
   pnh.param("tf_timeout", tf_timeout_, tf_timeout_);
   pnh.param("acupoint_prefix", acupoint_prefix_, acupoint_prefix_);
   pnh.param("command_timeout", command_timeout_, command_timeout_);
+  pnh.param("realtime_priority", realtime_options_.priority, realtime_options_.priority);
+  pnh.param("lock_memory", realtime_options_.lock_memory, realtime_options_.lock_memory);
   if (!(publish_rate_ > 0.0)) throw arm::ArmConfigError("publish_rate must be > 0, got " + fmt("%g", publish_rate_));
   if (!(max_target_age_ > 0.0)) throw arm::ArmConfigError("max_target_age must be > 0, got " + fmt("%g", max_target_age_));
   if (!(tf_timeout_ >= 0.0)) throw arm::ArmConfigError("tf_timeout must be >= 0");
   if (!(command_timeout_ > 0.0)) throw arm::ArmConfigError("command_timeout must be > 0");
   if (can_interface_.empty()) throw arm::ArmConfigError("can_interface must be 'sim' or an interface name (can0)");
+  if (realtime_options_.priority < 0 || realtime_options_.priority > 99) {
+    throw arm::ArmConfigError("realtime_priority must be 0 (normal scheduling) .. 99, got " +
+                              std::to_string(realtime_options_.priority));
+  }
 }
 
 void ArmNodelet::onInit() {
   try {
     readParameters();
     config_ = arm::loadArmConfig(config_path_);
-    if (can_interface_ == "sim") {
-      sim_ = std::make_unique<arm::SimCell>(config_);
-      controller_ = &sim_->controller();
-    } else {
-      can::SocketCanOptions options;
-      options.interface = can_interface_;
-      socket_bus_ = std::make_unique<can::SocketCanBus>(options);
-      real_controller_ = std::make_unique<arm::Controller>(*socket_bus_, can::SteadyClock::instance(), config_);
-      controller_ = real_controller_.get();
-    }
+    if (can_interface_ == "sim") sim_ = std::make_unique<arm::SimCell>(config_);
   } catch (const std::exception& e) {
     NODELET_FATAL_STREAM("arm: " << e.what());
     throw;
   }
-  controller_->setLog([this](const std::string& text) {
-    if (text.rfind("FAULT", 0) == 0 || text.rfind("E-STOP", 0) == 0) {
-      NODELET_ERROR_STREAM("arm: " << text);
-    } else if (text.rfind("refused", 0) == 0 || text.find("failed") != std::string::npos) {
-      NODELET_WARN_STREAM("arm: " << text);
-    } else {
-      NODELET_INFO_STREAM("arm: " << text);
-    }
-  });
 
   ros::NodeHandle nh(getNodeHandle());
   ros::NodeHandle pnh(getPrivateNodeHandle());
@@ -115,31 +105,128 @@ void ArmNodelet::onInit() {
   updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
   updater_->setHardwareID(can_interface_ == "sim" ? "simulated drives (virtual CAN bus)" : "CAN " + can_interface_);
   updater_->add("arm", this, &ArmNodelet::diagnose);
+
+  if (sim_) {
+    startController(sim_->controller());
+  } else {
+    openInterface();  // on failure: logged; the timer retries
+  }
   timer_ = pnh.createWallTimer(ros::WallDuration(1.0 / publish_rate_), &ArmNodelet::onTimer, this);
   spinner_ = std::make_unique<ros::AsyncSpinner>(4, &queue_);
   spinner_->start();
-
-  if (sim_) {
-    sim_->start();
-  } else {
-    real_controller_->master().start();
-    real_controller_->start();
-  }
   NODELET_INFO_STREAM("arm: " << (sim_ ? "simulated drives on the virtual bus" : "CAN interface " + can_interface_)
                               << ", config " << config_path_ << ", base frame " << base_frame_);
+}
+
+void ArmNodelet::startController(arm::Controller& c) {
+  c.setLog([this](const std::string& text) {
+    if (text.rfind("FAULT", 0) == 0 || text.rfind("E-STOP", 0) == 0) {
+      NODELET_ERROR_STREAM("arm: " << text);
+    } else if (text.rfind("refused", 0) == 0 || text.find("failed") != std::string::npos) {
+      NODELET_WARN_STREAM("arm: " << text);
+    } else {
+      NODELET_INFO_STREAM("arm: " << text);
+    }
+  });
+  if (estop_input_) c.setEstop(true);  // pressed before the controller existed
+  can::RealtimeStatus rt;
+  if (sim_) {
+    rt = sim_->start(realtime_options_);  // the master's and the drives' threads
+  } else {
+    rt = c.startThread(realtime_options_);
+    c.start();
+  }
+  {
+    std::lock_guard<std::mutex> lock(status_mutex_);
+    realtime_ = rt;
+  }
+  controller_ = &c;
+  if (!rt.error.empty()) {
+    NODELET_WARN_STREAM("arm: real-time scheduling not as configured, running with " << rt.describe());
+  } else if (rt.requested > 0 || rt.lock_requested) {
+    NODELET_INFO_STREAM("arm: control threads: " << rt.describe());
+  }
+}
+
+bool ArmNodelet::openInterface() {
+  std::string error;
+  try {
+    can::SocketCanOptions options;
+    options.interface = can_interface_;
+    auto bus = std::make_unique<can::SocketCanBus>(options);
+    auto controller = std::make_unique<arm::Controller>(*bus, can::SteadyClock::instance(), config_);
+    socket_bus_ = std::move(bus);
+    real_controller_ = std::move(controller);
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  {
+    std::lock_guard<std::mutex> lock(status_mutex_);
+    next_open_ = ros::WallTime::now() + ros::WallDuration(2.0);
+    if (!error.empty()) {
+      const bool again = error == open_error_;
+      open_error_ = error;
+      if (!again) {
+        NODELET_ERROR_STREAM("arm: cannot open the CAN interface '"
+                             << can_interface_ << "': " << error
+                             << ". Check can_interface (node.can_interface in " << config_path_
+                             << " or ~can_interface; 'sim' runs simulated drives). The node keeps running, refuses "
+                                "every command and retries every 2 s.");
+      }
+      return false;
+    }
+    if (!open_error_.empty()) NODELET_INFO_STREAM("arm: CAN interface '" << can_interface_ << "' is open now");
+    open_error_.clear();
+  }
+  startController(*real_controller_);
+  return true;
+}
+
+std::string ArmNodelet::unavailable() const {
+  std::lock_guard<std::mutex> lock(status_mutex_);
+  return "the CAN interface '" + can_interface_ + "' is not available (" + open_error_ +
+         "); check can_interface; retrying every 2 s";
+}
+
+arm::Controller* ArmNodelet::available(const std::string& what, std::string* message) const {
+  arm::Controller* c = controller();
+  if (!c) {
+    *message = what + " refused: " + unavailable();
+    NODELET_WARN_STREAM("arm: " << *message);
+  }
+  return c;
 }
 
 // --------------------------------------------------------------- periodic --
 
 void ArmNodelet::onTimer(const ros::WallTimerEvent&) {
-  controller_->keepAlive();  // the command watchdog: this node is alive
-  checkPressTarget();
+  arm::Controller* c = controller();
+  if (!c) {
+    bool due;
+    {
+      std::lock_guard<std::mutex> lock(status_mutex_);
+      due = ros::WallTime::now() >= next_open_;
+    }
+    if (due) openInterface();
+  } else {
+    c->keepAlive();  // the command watchdog: this node is alive
+    checkPressTarget();
+  }
   publishState();
   updater_->update();
 }
 
 void ArmNodelet::publishState() {
-  const arm::ArmStatus s = controller_->status();
+  arm::ArmStatus s;
+  if (arm::Controller* c = controller()) {
+    s = c->status();
+  } else {  // no CAN interface: a fault nothing but the interface clears
+    s.mode = arm::Mode::kFault;
+    s.faults = {unavailable()};
+    s.last_error = s.faults.front();
+    s.bus = can::BusState::kDown;
+    for (int i = 0; i < 3; ++i) s.axes[i].name = config_.axis_names[i];
+  }
   const ros::Time now = ros::Time::now();
   sensor_msgs::JointState js;
   js.header.stamp = now;
@@ -174,8 +261,8 @@ void ArmNodelet::checkPressTarget() {
   std::string frame;
   {
     std::lock_guard<std::mutex> lock(targets_mutex_);
-    if (massage_command_ == 0 || controller_->result(massage_command_).done) return;
-    const int index = controller_->status().target;
+    if (massage_command_ == 0 || controller()->result(massage_command_).done) return;
+    const int index = controller()->status().target;
     for (const FrameTarget& t : frame_targets_) {
       if (t.index == index) frame = t.frame;
     }
@@ -183,7 +270,7 @@ void ArmNodelet::checkPressTarget() {
   if (frame.empty()) return;
   geometry_msgs::TransformStamped t;
   std::string error;
-  if (!lookup(frame, ros::Time(0), &t, &error)) controller_->abortMassage("acupoint frame " + error);
+  if (!lookup(frame, ros::Time(0), &t, &error)) controller()->abortMassage("acupoint frame " + error);
 }
 
 bool ArmNodelet::lookup(const std::string& frame, const ros::Time& stamp, geometry_msgs::TransformStamped* out,
@@ -208,7 +295,10 @@ bool ArmNodelet::lookup(const std::string& frame, const ros::Time& stamp, geomet
 
 // --------------------------------------------------------------- inputs --
 
-void ArmNodelet::estopCb(const std_msgs::BoolConstPtr& msg) { controller_->setEstop(msg->data); }
+void ArmNodelet::estopCb(const std_msgs::BoolConstPtr& msg) {
+  estop_input_ = msg->data;
+  if (arm::Controller* c = controller()) c->setEstop(msg->data);
+}
 
 void ArmNodelet::injectFaultCb(const std_msgs::StringConstPtr& msg) {
   std::istringstream in(msg->data);
@@ -240,10 +330,11 @@ bool ArmNodelet::wait(const arm::Accepted& accepted, std::string* message) {
     return false;
   }
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(command_timeout_);
-  arm::CommandResult r = controller_->result(accepted.id);
+  arm::Controller* c = controller();  // set: a command was accepted
+  arm::CommandResult r = c->result(accepted.id);
   while (!r.done && ros::WallTime::now() < deadline && ros::ok()) {
     ros::WallDuration(0.01).sleep();
-    r = controller_->result(accepted.id);
+    r = c->result(accepted.id);
   }
   if (!r.done) {
     *message = "no result within " + fmt("%.0f", command_timeout_) + " s (the command goes on; see ~state)";
@@ -254,26 +345,38 @@ bool ArmNodelet::wait(const arm::Accepted& accepted, std::string* message) {
 }
 
 bool ArmNodelet::home(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-  res.success = wait(controller_->home(), &res.message);
+  arm::Controller* c = available("home", &res.message);
+  res.success = c && wait(c->home(), &res.message);
   return true;
 }
 
 bool ArmNodelet::stop(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-  const arm::Accepted a = controller_->stop("stopped by ~stop");
+  arm::Controller* c = available("stop", &res.message);
+  if (!c) {
+    res.success = false;
+    return true;
+  }
+  const arm::Accepted a = c->stop("stopped by ~stop");
   std::string message;
   const bool ended_ok = wait(a, &message);
   // The stop succeeded once the command it ended is over, whatever that command's outcome.
-  res.success = controller_->result(a.id).done;
+  res.success = c->result(a.id).done;
   res.message = ended_ok ? message : "stopped: " + message;
   return true;
 }
 
 bool ArmNodelet::resetFault(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-  res.success = wait(controller_->resetFault(), &res.message);
+  arm::Controller* c = available("reset_fault", &res.message);
+  res.success = c && wait(c->resetFault(), &res.message);
   return true;
 }
 
 bool ArmNodelet::moveTo(massage_cell::MoveTo::Request& req, massage_cell::MoveTo::Response& res) {
+  arm::Controller* c = available("move_to", &res.message);
+  if (!c) {
+    res.success = false;
+    return true;
+  }
   geometry_msgs::TransformStamped t;
   std::string error;
   const std::string frame = req.target.header.frame_id;
@@ -290,12 +393,14 @@ bool ArmNodelet::moveTo(massage_cell::MoveTo::Request& req, massage_cell::MoveTo
   }
   geometry_msgs::Point p;
   tf2::doTransform(req.target.point, p, t);
-  res.success = wait(controller_->moveTo(toEigen(p), req.speed), &res.message);
+  res.success = wait(c->moveTo(toEigen(p), req.speed), &res.message);
   return true;
 }
 
 bool ArmNodelet::massage(massage_cell::Massage::Request& req, massage_cell::Massage::Response& res) {
   res.success = false;
+  arm::Controller* c = available("massage", &res.message);
+  if (!c) return true;
   auto refuse = [&](const std::string& why) {
     res.message = "massage refused: " + why;
     NODELET_WARN_STREAM("arm: " << res.message);
@@ -356,22 +461,34 @@ bool ArmNodelet::massage(massage_cell::Massage::Request& req, massage_cell::Mass
     }
     press.targets.push_back(target);
   }
-  const arm::Accepted accepted = controller_->massage(press);
+  const arm::Accepted accepted = c->massage(press);
   if (accepted) {
     std::lock_guard<std::mutex> lock(targets_mutex_);
     massage_command_ = accepted.id;
     frame_targets_ = frames;
   }
   res.success = wait(accepted, &res.message);
-  res.presses_done = accepted ? controller_->status().presses_done : 0;
+  res.presses_done = accepted ? c->status().presses_done : 0;
   return true;
 }
 
 // --------------------------------------------------------------- diagnostics --
 
 void ArmNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
-  const arm::ArmStatus s = controller_->status();
   using diagnostic_msgs::DiagnosticStatus;
+  can::RealtimeStatus rt;
+  {
+    std::lock_guard<std::mutex> lock(status_mutex_);
+    rt = realtime_;
+  }
+  arm::Controller* c = controller();
+  if (!c) {
+    status.summary(DiagnosticStatus::ERROR, unavailable());
+    status.add("CAN interface", can_interface_);
+    status.add("real-time scheduling", "not started (no CAN interface)");
+    return;
+  }
+  const arm::ArmStatus s = c->status();
   if (s.mode == arm::Mode::kFault) {
     std::string f;
     for (const auto& x : s.faults) f += (f.empty() ? "" : "; ") + x;
@@ -388,6 +505,7 @@ void ArmNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
   status.add("e-stop input", s.estop_input);
   status.add("e-stop latched", s.estop_latched);
   status.add("CAN interface", can_interface_);
+  status.add("real-time scheduling", rt.describe());
   status.add("bus state", can::toString(s.bus));
   for (const auto& a : s.axes) {
     status.add("axis " + a.name, fmt("%.6f m", a.position) + ", " + can::toString(a.state) + ", node " +

@@ -2,7 +2,16 @@
 // thin ROS wrapper of the ROS-free controller (include/massage_cell/arm/):
 //  - `can_interface`: "sim" runs simulated CiA 402 drives on an in-process
 //    virtual bus (arm::SimCell, the default on machines without CAN), any
-//    other name opens that SocketCAN interface (can0);
+//    other name opens that SocketCAN interface (can0); when it cannot be
+//    opened (missing, down) the node logs one error naming it and the
+//    reason, keeps running (~state mode fault, bus down; diagnostics ERROR),
+//    refuses every command with that reason, and retries every 2 s;
+//  - `realtime_priority` (> 0: the master's SYNC / poll thread, which runs
+//    the controller's cycle, and the simulated drives' threads under
+//    SCHED_FIFO at that priority; 0: normal scheduling) and `lock_memory`
+//    (mlockall), set up by the library (Controller::startThread,
+//    SimCell::start; can/realtime.h); a refusal is logged once with the fix
+//    and the node runs with normal scheduling; diagnostics report which;
 //  - publishes `joint_states` (for robot_state_publisher and urdf/), `~state`
 //    (massage_cell/ArmState) and diagnostics;
 //  - services `~home`, `~stop`, `~reset_fault` (std_srvs/Trigger), `~move_to`
@@ -21,6 +30,7 @@
 // controller retracts.
 #pragma once
 
+#include <atomic>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -40,6 +50,7 @@
 #include "massage_cell/MoveTo.h"
 #include "massage_cell/arm/controller.h"
 #include "massage_cell/arm/sim_cell.h"
+#include "massage_cell/can/realtime.h"
 #include "massage_cell/can/socketcan_bus.h"
 
 namespace massage_cell::nodes {
@@ -58,6 +69,16 @@ class ArmNodelet : public nodelet::Nodelet {
 
   void onInit() override;
   void readParameters();
+  /// The controller, or null while the CAN interface is not open.
+  arm::Controller* controller() const { return controller_.load(); }
+  /// Opens the SocketCAN interface and starts the controller on it; false (logged once per reason) when it cannot.
+  bool openInterface();
+  /// Logs the log lines of `c` through ROS and starts it (threads with the real-time options).
+  void startController(arm::Controller& c);
+  /// Why commands are refused while there is no controller.
+  std::string unavailable() const;
+  /// Refuses the service call `what` when there is no controller (message in `message`).
+  arm::Controller* available(const std::string& what, std::string* message) const;
   void onTimer(const ros::WallTimerEvent& event);
   void publishState();
   void checkPressTarget();
@@ -84,13 +105,19 @@ class ArmNodelet : public nodelet::Nodelet {
   double tf_timeout_ = 0.2;
   std::string acupoint_prefix_ = "acupoint/";
   double command_timeout_ = 300.0;
+  can::RealtimeOptions realtime_options_;
 
   // The controller and what it runs on.
   std::unique_ptr<arm::SimCell> sim_;
   std::unique_ptr<can::SocketCanBus> socket_bus_;
   std::unique_ptr<arm::Controller> real_controller_;
-  arm::Controller* controller_ = nullptr;
+  std::atomic<arm::Controller*> controller_{nullptr};
   arm::ArmConfig config_;
+  std::atomic<bool> estop_input_{false};  ///< applied to a controller started later
+  mutable std::mutex status_mutex_;       ///< guards the three below
+  std::string open_error_;                ///< why the CAN interface is not open ("" when it is)
+  ros::WallTime next_open_;
+  can::RealtimeStatus realtime_;
 
   // ROS.
   ros::CallbackQueue queue_;

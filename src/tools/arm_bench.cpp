@@ -25,7 +25,7 @@ using namespace massage_cell::tools;
 using Clock = std::chrono::steady_clock;
 using Ms = std::chrono::duration<double, std::milli>;
 
-const char* const kUsage = R"(Usage: arm_bench [--duration S] [--estops N] [--moves N] [--config FILE] [--seed N] [--rt-priority P] [--csv]
+const char* const kUsage = R"(Usage: arm_bench [--duration S] [--estops N] [--moves N] [--config FILE] [--seed N] [--rt-priority P] [--lock-memory] [--csv]
 
 Runs the arm controller on simulated CiA 402 drives (in-process virtual bus,
 real clock; master and drives in their own threads, as the arm node's
@@ -41,8 +41,10 @@ can_interface "sim"), homes it (drives configured to home in place), then:
   --moves N     default 20          --seed N    default 1
   --config FILE default config/arm.yaml of the source tree
   --rt-priority P  run the master and drive threads under SCHED_FIFO priority P
-                (1..99; 0 = normal scheduling, the default); a refusal (no
+                (1..99; 0 = normal scheduling, the default), as the arm node's
+                realtime_priority does (same library code); a refusal (no
                 privilege) is reported and the bench runs with normal scheduling
+  --lock-memory mlockall(MCL_CURRENT | MCL_FUTURE) first, as the node's lock_memory
   --csv         print metric,value,unit rows instead of the table
 Targets: cycle jitter p99 <= 2 ms, e-stop -> quick-stop frame <= 10 ms, move error <= 0.1 mm.
 )";
@@ -54,6 +56,7 @@ struct Options {
   std::string config = std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/arm.yaml";
   std::uint32_t seed = 1;
   int rt_priority = 0;
+  bool lock_memory = false;
   bool csv = false;
 };
 
@@ -98,12 +101,6 @@ void bench(const Options& o) {
   // Home in place (method 37): the bench measures the controller, not homing runs.
   for (can::AxisConfig& a : config.can.axes) a.homing_method = 37;
   const double period_ms = config.can.sync_period_us / 1000.0;
-  std::string scheduling = "normal (SCHED_OTHER)";
-  if (o.rt_priority > 0) {
-    const std::string error = arm::useRealtimeScheduling(o.rt_priority);
-    scheduling = error.empty() ? "SCHED_FIFO priority " + std::to_string(o.rt_priority)
-                               : "normal (SCHED_FIFO refused: " + error + ")";
-  }
   arm::SimCell cell(config);
   arm::Controller& c = cell.controller();
   auto sniffer = cell.bus().open("arm_bench sniffer");
@@ -133,7 +130,9 @@ void bench(const Options& o) {
     }
   } join{done, keep_alive};
 
-  cell.start();
+  // The arm node's code path (can_interface sim, realtime_priority, lock_memory).
+  const can::RealtimeStatus realtime = cell.start({o.rt_priority, o.lock_memory});
+  if (!realtime.error.empty()) std::fprintf(stderr, "arm_bench: warning: %s\n", realtime.error.c_str());
   waitFor([&] { return c.mode() != arm::Mode::kStarting; }, 10.0, "the bring-up");
   if (c.mode() == arm::Mode::kFault) throw std::runtime_error("bring-up failed: " + c.status().faults.front());
   run(c, c.home(), "homing");
@@ -218,7 +217,7 @@ void bench(const Options& o) {
       {"cycle_jitter_p99_ms", percentile(jitter, 0.99), "ms", "cycle jitter p99 (target <= 2)"},
       {"cycle_jitter_max_ms", percentile(jitter, 1.0), "ms", "cycle jitter max"},
       {"cycles", static_cast<double>(jitter.size() + 1), "count", "cycles measured"},
-      {"realtime_priority", scheduling.rfind("SCHED_FIFO", 0) == 0 ? static_cast<double>(o.rt_priority) : 0.0, "",
+      {"realtime_priority", static_cast<double>(realtime.priority), "",
        "SCHED_FIFO priority of the threads (0: normal)"},
       {"estop_latency_ms", percentile(frame_ms, 1.0), "ms", "e-stop -> quick-stop RPDO1, max (target <= 10)"},
       {"estop_latency_p50_ms", percentile(frame_ms, 0.5), "ms", "e-stop -> quick-stop RPDO1, p50"},
@@ -231,7 +230,8 @@ void bench(const Options& o) {
     return;
   }
   std::printf("arm_bench: %.0f s at %.0f Hz SYNC, %d e-stops, %d moves (simulated drives, virtual bus, real clock; %s)\n",
-              o.duration, 1000.0 / period_ms, o.estops, o.moves, scheduling.c_str());
+              o.duration, 1000.0 / period_ms, o.estops, o.moves,
+              realtime.error.empty() ? realtime.describe().c_str() : "real-time refused: see the warning");
   for (const Row& r : rows) std::printf("  %-52s %10.4f %s\n", r.label, r.value, r.unit);
 }
 
@@ -261,6 +261,7 @@ int main(int argc, char** argv) {
           o.rt_priority = parseInt(opt, v);
           require(o.rt_priority >= 0 && o.rt_priority <= 99, "--rt-priority must be 0..99");
         };
+        t.flags["--lock-memory"] = [&] { o.lock_memory = true; };
         t.flags["--csv"] = [&] { o.csv = true; };
         return parseArguments(argc, argv, t, kUsage);
       },

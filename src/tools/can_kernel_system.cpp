@@ -119,7 +119,7 @@ class System {
 
   /// Index of the next event (for find()).
   std::size_t mark() {
-    std::lock_guard<std::recursive_mutex> lock(master_.mutex());
+    std::lock_guard<RecursivePiMutex> lock(master_.mutex());
     return events_.size();
   }
   /// Waits for an event after `from` matching `pred`.
@@ -151,7 +151,7 @@ class System {
   }
 
   std::size_t countEvents(const std::function<bool(const Event&)>& pred) {
-    std::lock_guard<std::recursive_mutex> lock(master_.mutex());
+    std::lock_guard<RecursivePiMutex> lock(master_.mutex());
     return static_cast<std::size_t>(std::count_if(events_.begin(), events_.end(), pred));
   }
 

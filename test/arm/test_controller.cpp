@@ -1,14 +1,18 @@
 // The arm controller against three simulated CiA 402 drives on a VirtualBus,
 // on a VirtualClock (each step = 1 ms: the drives poll, then the master and
 // with it the controller's cycle, once per SYNC). A sniffer endpoint records
-// every RPDO1 (controlword + target) the master sends.
+// every RPDO1 (controlword + target) the master sends. The SimCell cases run
+// on the real clock: the real-time options reach the cycle's thread.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
 
 #include <random>
+#include <thread>
 
 #include "massage_cell/arm/controller.h"
+#include "massage_cell/arm/sim_cell.h"
+#include "massage_cell/can/realtime.h"
 #include "massage_cell/can/sim_drive.h"
 #include "massage_cell/can/virtual_bus.h"
 
@@ -158,6 +162,9 @@ TEST(Controller, HomingZFirstThenXY) {
   EXPECT_TRUE(s.homed);
   EXPECT_EQ(s.mode, Mode::kIdle);
   EXPECT_TRUE(s.joints.isApprox(Eigen::Vector3d(0.0, 0.0, 0.30), 1e-6)) << s.joints.transpose();
+  for (int i = 0; i < 3; ++i) {  // exactly on the home offsets (the envelope's border for Z)
+    EXPECT_EQ(r.drives[i]->position(), r.config.axis(i).toCounts(r.config.axis(i).home_offset)) << i;
+  }
   EXPECT_TRUE(contains(r.message(h), "homed; tool at (0.000, 0.000, 0.300) m")) << r.message(h);
 }
 
@@ -204,16 +211,9 @@ TEST(Controller, SoftLimitsHoldWhateverTheCommand) {
   ASSERT_TRUE(r.start());
   ASSERT_TRUE(r.home());
   // Largest excursion beyond a joint limit seen on a drive. Homing (the
-  // drive's own run to its switch) may end a count past Z's limit at 0.30 m:
-  // that is the baseline no command may add to.
-  auto excursion = [&](const Eigen::Vector3d& q) {
-    double e = 0.0;
-    for (int i = 0; i < 3; ++i) e = std::max({e, r.config.joints[i].min - q[i], q[i] - r.config.joints[i].max});
-    return e;
-  };
-  const double baseline = excursion(r.drivePositions());
-  EXPECT_LE(baseline, 1e-6);
-  double worst = baseline;
+  // drive's own run to its switch) ends exactly on Z's limit at 0.30 m.
+  EXPECT_EQ(r.drives[2]->position(), r.config.axis(2).toCounts(r.config.joints[2].max));
+  double worst = 0.0;
   r.observer = [&] {
     const Eigen::Vector3d q = r.drivePositions();
     for (int i = 0; i < 3; ++i) {
@@ -252,7 +252,7 @@ TEST(Controller, SoftLimitsHoldWhateverTheCommand) {
   }
   EXPECT_GT(accepted, 3);
   EXPECT_GT(refused, 3);
-  EXPECT_LE(worst, baseline);
+  EXPECT_LE(worst, 0.0);
   EXPECT_FALSE(r.controller->moveTo({0.4, 0.2, 0.25}, -1.0));
 }
 
@@ -587,6 +587,84 @@ TEST(Controller, BringUpTimeoutIsAFault) {
   EXPECT_EQ(r.controller->mode(), Mode::kFault);
   EXPECT_TRUE(contains(r.controller->status().faults.front(), "node 2")) << r.controller->status().faults.front();
   EXPECT_TRUE(contains(r.controller->home().error, "in fault"));
+}
+
+// --- events ------------------------------------------------------------------------------------------------
+
+TEST(Controller, SeesEveryEventWhoeverElseDrainsTheMastersQueue) {
+  Rig r;
+  std::vector<can::Event> drained;
+  bool cycled = false;
+  r.controller->setCycleObserver([&](can::TimePoint) { cycled = true; });
+  r.observer = [&] {  // another reader of the master's queue, after every poll
+    for (can::Event& e : r.controller->master().takeEvents()) drained.push_back(std::move(e));
+  };
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  // Inject right after a cycle, so the EMCY arrives in a poll without a cycle
+  // and the other reader drains the queue before the next cycle.
+  cycled = false;
+  ASSERT_TRUE(r.runUntil([&] { return cycled; }, 20ms));
+  r.drives[1]->injectFault(0x2310);
+  ASSERT_TRUE(r.runUntil([&] { return r.controller->mode() == Mode::kFault; }, 1s));
+  r.run(50ms);
+  std::string all;
+  for (const auto& f : r.controller->status().faults) all += f + "\n";
+  // The EMCY event itself (its text names the error register), not only the drive's fault state.
+  EXPECT_TRUE(contains(all, "node 2 (Y): EMCY 0x2310 continuous over-current (error register")) << all;
+  bool other_saw_it = false;
+  for (const can::Event& e : drained) other_saw_it |= e.type == can::EventType::kEmcy && e.emcy_code == 0x2310;
+  EXPECT_TRUE(other_saw_it);
+}
+
+// --- the threads on the real clock (SimCell: what the node's sim and arm_bench run) ----------------------
+
+bool mayUseFifo() {
+  std::string error;
+  std::thread t([&] { error = can::setRealtimePriority(pthread_self(), 50); });
+  t.join();
+  return error.empty();
+}
+
+TEST(SimCell, RealtimePriorityReachesTheCycleThread) {
+  ArmConfig config = exampleConfig();
+  SimCell cell(config);
+  int cycle_priority = -1;
+  std::uint64_t cycles = 0;
+  cell.controller().setCycleObserver([&](can::TimePoint) {
+    cycle_priority = can::realtimePriority(pthread_self());
+    ++cycles;
+  });
+  const can::RealtimeStatus rt = cell.start({50, false});
+  EXPECT_EQ(rt.requested, 50);
+  ASSERT_TRUE(cell.controller().master().waitUntil([&] { return cycles >= 5; }, 5s));
+  std::unique_lock<can::RecursivePiMutex> lock(cell.controller().master().mutex());  // the observer writes under it
+  if (mayUseFifo()) {
+    EXPECT_TRUE(rt.active()) << rt.describe();
+    EXPECT_EQ(rt.error, "");
+    EXPECT_EQ(rt.describe(), "SCHED_FIFO priority 50");
+    EXPECT_EQ(cycle_priority, 50);  // the controller's cycle runs in the SYNC thread, under SCHED_FIFO
+    EXPECT_EQ(cell.controller().master().threadPriority(), 50);
+  } else {
+    EXPECT_FALSE(rt.active());
+    EXPECT_TRUE(contains(rt.describe(), "normal (SCHED_OTHER): SCHED_FIFO priority 50 refused")) << rt.describe();
+    EXPECT_EQ(cycle_priority, 0);
+  }
+  EXPECT_EQ(can::realtimePriority(pthread_self()), 0);  // the caller's thread is left alone
+  lock.unlock();
+  cell.stop();
+}
+
+TEST(SimCell, NormalSchedulingByDefault) {
+  SimCell cell(exampleConfig());
+  int cycle_priority = -1;
+  cell.controller().setCycleObserver([&](can::TimePoint) { cycle_priority = can::realtimePriority(pthread_self()); });
+  const can::RealtimeStatus rt = cell.start();
+  int seen = -1;
+  ASSERT_TRUE(cell.controller().master().waitUntil([&] { return (seen = cycle_priority) >= 0; }, 5s));
+  EXPECT_EQ(seen, 0);
+  EXPECT_EQ(rt.describe(), "normal (SCHED_OTHER)");
+  cell.stop();
 }
 
 }  // namespace

@@ -1,13 +1,28 @@
 // Layer 3 tests: SDO client against scripted server frames, and the CANopen
 // master against a scripted node on a VirtualBus with a VirtualClock
-// (bring-up sequence, SYNC / RPDO timing, TPDO feedback, heartbeat
-// consumer, EMCY, boot-up detection, configuration failures, bus state).
+// (bring-up sequence, SYNC / RPDO timing, the before-SYNC hook, TPDO
+// feedback, heartbeat consumer, EMCY, event listeners, boot-up detection,
+// configuration failures, bus state), and its thread on the real clock
+// (heartbeat producer, SCHED_FIFO).
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <map>
+#include <sstream>
+#include <mutex>
 #include <thread>
 
 #include "massage_cell/can/master.h"
+#include "massage_cell/can/realtime.h"
 #include "massage_cell/can/virtual_bus.h"
 
 namespace {
@@ -585,17 +600,22 @@ TEST_F(MasterFixture, ConfiguresTheDrivesConsumerOfItsHeartbeat) {
   EXPECT_EQ(nodes[1]->od.count({0x1016, 1}), 0u);  // Y does not monitor the master
 }
 
-TEST(MasterHeartbeat, StopsWhenTheMasterStops) {
-  VirtualBus bus;  // real clock
-  auto ep = bus.open("master");
-  auto sniffer = bus.open("sniffer");
-  sniffer->setFilters({{0x77F, CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG}});
+CanConfig oneAxisConfig() {
   CanConfig c;
   AxisConfig a;
   a.name = "X";
   a.node_id = 1;
   a.counts_per_metre = 1000;
   c.axes.push_back(a);
+  return c;
+}
+
+TEST(MasterHeartbeat, StopsWhenTheMasterStops) {
+  VirtualBus bus;  // real clock
+  auto ep = bus.open("master");
+  auto sniffer = bus.open("sniffer");
+  sniffer->setFilters({{0x77F, CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG}});
+  CanConfig c = oneAxisConfig();
   c.master_heartbeat_ms = 50;
   auto master = std::make_unique<Master>(*ep, SteadyClock::instance(), c);
   master->start();
@@ -615,6 +635,221 @@ TEST(MasterHeartbeat, StopsWhenTheMasterStops) {
   while (sniffer->receive(0ns)) {}
   std::this_thread::sleep_for(200ms);
   EXPECT_EQ(sniffer->pending(), 0u) << "heartbeats after the master was destroyed";
+}
+
+// --- before-SYNC hook ---------------------------------------------------------------
+
+TEST_F(MasterFixture, BeforeSyncHookRunsOncePerSyncJustBeforeIt) {
+  bringUp();
+  auto sniffer = bus.open("sniffer");
+  std::vector<TimedFrame> frames;
+  auto drain = [&] {
+    while (auto f = sniffer->receive(0ns)) frames.push_back(*f);
+  };
+  auto syncsOnTheBus = [&] {
+    return std::count_if(frames.begin(), frames.end(), [](const TimedFrame& f) { return f.frame.can_id == 0x080; });
+  };
+  std::vector<long> syncs_before;  // SYNCs already on the bus when the hook ran
+  std::vector<TimePoint> hook_times;
+  master->setBeforeSyncHook([&](TimePoint now) {
+    drain();
+    syncs_before.push_back(static_cast<long>(syncsOnTheBus()));
+    hook_times.push_back(now);
+    master->setRpdo(1, 0x000F, static_cast<std::int32_t>(hook_times.size()));  // this SYNC's set-point
+  });
+  // Polls denser and sparser than the period: still one hook per SYNC.
+  const TimePoint t0 = clock.now();
+  while (clock.now() - t0 < 60ms) step(250us);
+  while (clock.now() - t0 < 120ms) step(3ms);
+  drain();
+  ASSERT_GE(hook_times.size(), 10u);
+  std::vector<std::size_t> sync_at;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (frames[i].frame.can_id == 0x080) sync_at.push_back(i);
+  }
+  ASSERT_EQ(sync_at.size(), hook_times.size());
+  for (std::size_t k = 0; k < sync_at.size(); ++k) {
+    EXPECT_EQ(syncs_before[k], static_cast<long>(k)) << "hook " << k << " did not run before its SYNC";
+    EXPECT_EQ(frames[sync_at[k]].stamp, hook_times[k]);  // in the same poll
+    // What the hook wrote went out in this SYNC's RPDO, just before it.
+    ASSERT_GT(sync_at[k], 0u);
+    const can_frame& rpdo = frames[sync_at[k] - 1].frame;
+    ASSERT_EQ(rpdo.can_id, 0x201u) << formatFrame(rpdo);
+    EXPECT_EQ(static_cast<std::int32_t>(rpdo.data[2] | rpdo.data[3] << 8 | rpdo.data[4] << 16 |
+                                        static_cast<std::uint32_t>(rpdo.data[5]) << 24),
+              static_cast<std::int32_t>(k + 1));
+  }
+  master->setBeforeSyncHook({});
+  const std::size_t calls = hook_times.size();
+  while (clock.now() - t0 < 200ms) step();
+  EXPECT_EQ(hook_times.size(), calls);  // removed
+}
+
+/// A Bus that notes which thread sent each SYNC.
+class SyncThreadTap final : public Bus {
+ public:
+  explicit SyncThreadTap(Bus& inner) : inner_(inner) {}
+  std::string name() const override { return inner_.name(); }
+  bool send(const can_frame& f) override {
+    if (f.can_id == 0x080) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      threads_.push_back(std::this_thread::get_id());
+    }
+    return inner_.send(f);
+  }
+  std::optional<TimedFrame> receive(Duration timeout) override { return inner_.receive(timeout); }
+  void setFilters(const std::vector<can_filter>& filters) override { inner_.setFilters(filters); }
+  BusStatus status() const override { return inner_.status(); }
+  std::vector<std::thread::id> threads() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return threads_;
+  }
+
+ private:
+  Bus& inner_;
+  mutable std::mutex mutex_;
+  std::vector<std::thread::id> threads_;
+};
+
+TEST(MasterThread, BeforeSyncHookRunsInTheThreadThatSendsTheSync) {
+  VirtualBus bus;  // real clock
+  auto ep = bus.open("master");
+  SyncThreadTap tap(*ep);
+  Master master(tap, SteadyClock::instance(), oneAxisConfig());
+  std::vector<std::thread::id> hook_threads;
+  std::vector<std::uint64_t> syncs_sent;  // master's SYNC count when the hook ran
+  master.setBeforeSyncHook([&](TimePoint) {
+    hook_threads.push_back(std::this_thread::get_id());
+    syncs_sent.push_back(master.stats().syncs);
+  });
+  master.start();
+  ASSERT_TRUE(master.waitUntil([&] { return hook_threads.size() >= 20; }, 5s));
+  master.stop();
+  const std::vector<std::thread::id> sync_threads = tap.threads();
+  ASSERT_EQ(sync_threads.size(), hook_threads.size());
+  for (std::size_t k = 0; k < hook_threads.size(); ++k) {
+    EXPECT_EQ(hook_threads[k], sync_threads[k]);
+    EXPECT_NE(hook_threads[k], std::this_thread::get_id());
+    EXPECT_EQ(syncs_sent[k], k);
+  }
+}
+
+// --- events: a one-reader queue and any number of listeners ---------------------------
+
+TEST_F(MasterFixture, EveryListenerSeesEveryEventWhoeverDrainsTheQueue) {
+  std::vector<std::string> a, b;
+  const int id_a = master->addEventListener([&](const Event& e) { a.push_back(e.text); });
+  master->addEventListener([&](const Event& e) { b.push_back(e.text); });
+  bringUp();
+  const std::vector<Event> queued = master->takeEvents();
+  ASSERT_FALSE(queued.empty());
+  ASSERT_EQ(a.size(), queued.size());
+  EXPECT_EQ(a, b);
+  for (std::size_t i = 0; i < queued.size(); ++i) EXPECT_EQ(a[i], queued[i].text);
+  master->removeEventListener(id_a);
+  nodes[1]->silent = true;
+  ASSERT_TRUE(runUntil([&] { return master->nodeState(2) == NodeState::kLost; }, 1s));
+  EXPECT_EQ(a.size(), queued.size());  // removed: saw nothing more
+  ASSERT_GT(b.size(), queued.size());
+  EXPECT_NE(b.back().find("node 2 (Y): no heartbeat"), std::string::npos) << b.back();
+  EXPECT_TRUE(hasEvent(master->takeEvents(), EventType::kHeartbeatTimeout, 2));  // the queue has it too
+}
+
+// --- real-time scheduling of the master's thread ----------------------------------------
+
+/// Whether this process may use SCHED_FIFO (CAP_SYS_NICE or an rtprio limit >= 50).
+bool mayUseFifo() {
+  std::string error;
+  std::thread t([&] { error = setRealtimePriority(pthread_self(), 50); });
+  t.join();
+  return error.empty();
+}
+
+TEST(MasterRealtime, ThreadRunsUnderFifoAtThePriority) {
+  if (!mayUseFifo()) GTEST_SKIP() << "no CAP_SYS_NICE / rtprio limit here";
+  VirtualBus bus;
+  auto ep = bus.open("master");
+  Master master(*ep, SteadyClock::instance(), oneAxisConfig());
+  int in_hook = -1;
+  master.setBeforeSyncHook([&](TimePoint) { in_hook = realtimePriority(pthread_self()); });
+  EXPECT_EQ(master.start(50), "");
+  EXPECT_EQ(master.threadPriority(), 50);
+  ASSERT_TRUE(master.waitUntil([&] { return in_hook >= 0; }, 2s));
+  EXPECT_EQ(in_hook, 50);  // the SYNC / cycle thread itself
+  EXPECT_EQ(realtimePriority(pthread_self()), 0);  // the caller is left alone
+  master.stop();
+  EXPECT_EQ(master.threadPriority(), 0);
+  EXPECT_EQ(master.start(), "");  // 0: normal scheduling
+  EXPECT_EQ(master.threadPriority(), 0);
+}
+
+/// The calling thread's scheduling priority as the kernel applies it now
+/// (/proc .../stat field 18: 20 for nice 0, -1 - p under SCHED_FIFO p, also when boosted).
+int kernelPriority() {
+  std::ifstream in("/proc/self/task/" + std::to_string(static_cast<long>(syscall(SYS_gettid))) + "/stat");
+  std::string stat((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::istringstream fields(stat.substr(stat.rfind(')') + 2));
+  std::string field;
+  for (int i = 3; i <= 18 && fields >> field; ++i) {
+  }
+  return std::stoi(field);
+}
+
+TEST(MasterRealtime, ALockHolderInheritsTheWaitingThreadsPriority) {
+  if (!mayUseFifo()) GTEST_SKIP() << "no CAP_SYS_NICE / rtprio limit here";
+  VirtualBus bus;
+  auto ep = bus.open("master");
+  Master master(*ep, SteadyClock::instance(), oneAxisConfig());
+  std::atomic<bool> locked{false};
+  int before = 0, boosted = 0;
+  std::thread holder([&] {  // normal scheduling, e.g. a ROS callback reading the status
+    std::lock_guard<RecursivePiMutex> lock(master.mutex());
+    before = kernelPriority();
+    locked = true;
+    const auto end = std::chrono::steady_clock::now() + 2s;
+    while ((boosted = kernelPriority()) != -51 && std::chrono::steady_clock::now() < end) std::this_thread::sleep_for(1ms);
+  });
+  while (!locked) std::this_thread::sleep_for(1ms);
+  std::thread waiter([&] {  // the SYNC thread under SCHED_FIFO 50
+    ASSERT_EQ(setRealtimePriority(pthread_self(), 50), "");
+    std::lock_guard<RecursivePiMutex> lock(master.mutex());
+  });
+  holder.join();
+  waiter.join();
+  EXPECT_EQ(before, 20);
+  EXPECT_EQ(boosted, -51);  // SCHED_FIFO 50 while the FIFO thread waited for the lock
+}
+
+TEST(MasterRealtime, RefusalNamesTheProblemAndTheFixAndTheThreadRunsOn) {
+  // A child process without the privilege: rtprio limit 0 and, when root, an
+  // unprivileged user (setresuid drops CAP_SYS_NICE).
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    const rlimit none{0, 0};
+    if (setrlimit(RLIMIT_RTPRIO, &none) != 0) _exit(10);
+    if (geteuid() == 0 && setresuid(65534, 65534, 65534) != 0) _exit(11);
+    VirtualBus bus;
+    auto ep = bus.open("master");
+    Master master(*ep, SteadyClock::instance(), oneAxisConfig());
+    const std::string error = master.start(50);
+    if (error.empty()) _exit(12);
+    for (const char* part : {"SCHED_FIFO priority 50 refused", "CAP_SYS_NICE", "ulimit -r 50", "limits.conf"}) {
+      if (error.find(part) == std::string::npos) {
+        std::fprintf(stderr, "missing '%s' in: %s\n", part, error.c_str());
+        _exit(13);
+      }
+    }
+    if (master.threadPriority() != 0) _exit(14);
+    const std::uint64_t before = master.stats().syncs;  // runs on, with normal scheduling
+    if (!master.waitUntil([&] { return master.stats().syncs >= before + 3; }, 2s)) _exit(15);
+    master.stop();
+    _exit(0);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "child failed at step " << WEXITSTATUS(status);
 }
 
 TEST(MasterConfig, RejectsInvalidConfig) {

@@ -329,6 +329,42 @@ TEST_F(SimFixture, HomingInPlace) {
   EXPECT_EQ(drive.modeDisplay(), 6);
 }
 
+TEST_F(SimFixture, HomingToTheSwitchEndsExactlyAtTheOffset) {
+  // Method 17 runs to the switch (here at 0 m, 10000 counts away) and sets
+  // the position there to the home offset: exactly, not a step past it. (A
+  // steep ramp makes the last 1 ms step a few counts long, as on the arm's Z.)
+  start();
+  write(0x6098, 0, {17});
+  write(0x6099, 1, toBytes(20000u, 4));    // counts/s
+  write(0x609A, 0, toBytes(1000000u, 4));  // counts/s^2
+  write(0x607C, 0, toBytes(static_cast<std::uint32_t>(-1234), 4));
+  write(0x6060, 0, {6});
+  enable();
+  controlword(0x1F);
+  int ms = 0;
+  while (!(drive.statusword() & sw::kHomingAttained) && ms < 10000) {
+    tick();
+    ++ms;
+  }
+  ASSERT_TRUE(drive.homed());
+  EXPECT_GT(ms, 400);  // it did run to the switch
+  EXPECT_EQ(drive.position(), -1234);
+  EXPECT_EQ(drive.velocity(), 0.0);
+  for (int i = 0; i < 100; ++i) tick();
+  EXPECT_EQ(drive.position(), -1234);  // and stays
+  received();
+  sync();  // the TPDO reports the same
+  bool seen = false;
+  for (const can_frame& f : received()) {
+    if (f.can_id != 0x185) continue;
+    seen = true;
+    EXPECT_EQ(static_cast<std::int32_t>(f.data[2] | f.data[3] << 8 | f.data[4] << 16 |
+                                        static_cast<std::uint32_t>(f.data[5]) << 24),
+              -1234);
+  }
+  EXPECT_TRUE(seen);
+}
+
 TEST_F(SimFixture, PowerOffIsSilentAndLosesTheReference) {
   drive.powerOff();
   received();

@@ -2,8 +2,11 @@
 // and robot_state_publisher's tf tree, homing, move_to with a PointStamped in
 // the camera's optical frame, a massage over two acupoint frames this node
 // publishes, each refusal (envelope, depth, unknown frame, stale frame), an
-// e-stop mid-move and its reset, an injected drive fault and its reset, and an
-// acupoint frame lost during a press (the tool retracts).
+// e-stop mid-move and its reset, an injected drive fault and its reset, an
+// acupoint frame lost during a press (the tool retracts), and the real-time
+// scheduling the diagnostics report (ArmNode.*). With a CAN interface that
+// does not exist (test/ros/arm_bad_interface.test, ArmNodeBadInterface.*):
+// one error naming it, the node keeps running and refuses every command.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -12,8 +15,13 @@
 #include <mutex>
 #include <thread>
 
+#include <pthread.h>
+#include <sched.h>
+
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
+#include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/JointState.h>
 #include <std_msgs/Bool.h>
 #include <std_msgs/String.h>
@@ -57,6 +65,18 @@ struct Fixture {
   ros::Subscriber joint_sub = nh.subscribe<sensor_msgs::JointState>("/joint_states", 10, [this](const auto& m) {
     std::lock_guard<std::mutex> lock(mutex);
     joints = *m;
+  });
+  diagnostic_msgs::DiagnosticStatus diagnostics;  // the arm's latest
+  std::vector<rosgraph_msgs::Log> arm_log;       // /rosout lines of the arm node
+  ros::Subscriber diag_sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10, [this](const auto& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& st : m->status) {
+      if (st.name.find("arm") != std::string::npos) diagnostics = st;
+    }
+  });
+  ros::Subscriber log_sub = nh.subscribe<rosgraph_msgs::Log>("/rosout", 100, [this](const auto& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (m->name == "/arm") arm_log.push_back(*m);
   });
   ros::Publisher estop_pub = nh.advertise<std_msgs::Bool>("/arm/estop", 1, true);
   ros::Publisher fault_pub = nh.advertise<std_msgs::String>("/arm/sim/inject_fault", 1, true);
@@ -111,6 +131,23 @@ struct Fixture {
   massage_cell::ArmState latest() {
     std::lock_guard<std::mutex> lock(mutex);
     return state;
+  }
+  /// The value of `key` in the arm's latest diagnostics ("" when not there yet).
+  std::string diagnostic(const std::string& key) {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& kv : diagnostics.values) {
+      if (kv.key == key) return kv.value;
+    }
+    return "";
+  }
+  /// The arm node's /rosout lines at `level` containing `part`.
+  std::vector<std::string> logged(std::uint8_t level, const std::string& part) {
+    std::lock_guard<std::mutex> lock(mutex);
+    std::vector<std::string> out;
+    for (const auto& l : arm_log) {
+      if (l.level == level && l.msg.find(part) != std::string::npos) out.push_back(l.msg);
+    }
+    return out;
   }
   Eigen::Vector3d jointPositions() {
     std::lock_guard<std::mutex> lock(mutex);
@@ -173,7 +210,8 @@ TEST(ArmNode, UrdfParsesAndRobotStatePublisherPublishesEveryLink) {
   EXPECT_EQ(model.getRoot()->name, "table");
   std::vector<urdf::LinkSharedPtr> links;
   model.getLinks(links);
-  EXPECT_EQ(links.size(), 10u);  // table, gantry (5), press_tool, tool_tip, camera mount, 2 optical frames
+  EXPECT_EQ(links.size(), 9u);  // table, gantry (5), press_tool, tool_tip, camera mount, left optical frame
+  EXPECT_FALSE(model.getLink("stereo_right_optical_frame"));  // the camera driver's, from its calibration
   for (const auto& link : links) {
     EXPECT_TRUE(F->buffer.canTransform("table", link->name, ros::Time(0), ros::Duration(10.0))) << link->name;
   }
@@ -377,6 +415,80 @@ TEST(ArmNode, LostAcupointFrameDuringAPressRetracts) {
   EXPECT_TRUE(contains(r.message, "tool retracted to")) << r.message;
   EXPECT_NEAR(F->latest().tool.z, F->config.press.travel_height, 1e-4);
   EXPECT_EQ(r.presses_done, 0);
+}
+
+/// Whether this machine lets a process use SCHED_FIFO 50 (the node's default realtime_priority).
+bool mayUseFifo() {
+  bool ok = false;
+  std::thread t([&] {
+    sched_param p{};
+    p.sched_priority = 50;
+    ok = pthread_setschedparam(pthread_self(), SCHED_FIFO, &p) == 0;
+  });
+  t.join();
+  return ok;
+}
+
+TEST(ArmNode, DiagnosticsReportTheRealtimeScheduling) {
+  ASSERT_TRUE(F->waitFor([] { return !F->diagnostic("real-time scheduling").empty(); }, 10.0));
+  const std::string rt = F->diagnostic("real-time scheduling");
+  if (mayUseFifo()) {
+    EXPECT_EQ(rt, "SCHED_FIFO priority 50");  // config/arm.yaml node.realtime_priority
+    EXPECT_TRUE(F->logged(rosgraph_msgs::Log::WARN, "real-time").empty());
+  } else {
+    EXPECT_TRUE(contains(rt, "normal (SCHED_OTHER): SCHED_FIFO priority 50 refused")) << rt;
+    EXPECT_TRUE(contains(rt, "ulimit -r 50")) << rt;
+    EXPECT_EQ(F->logged(rosgraph_msgs::Log::WARN, "real-time scheduling not as configured").size(), 1u);
+  }
+}
+
+// --- arm_bad_interface.test: can_interface can9 (no such interface) ----------------------------
+
+TEST(ArmNodeBadInterface, LogsOneErrorNamingTheInterfaceAndKeepsRunning) {
+  ASSERT_TRUE(F->waitFor([] { return F->latest().mode == "fault"; }, 20.0)) << F->latest().mode;
+  const massage_cell::ArmState s = F->latest();
+  ASSERT_EQ(s.faults.size(), 1u);
+  EXPECT_TRUE(contains(s.faults[0], "the CAN interface 'can9' is not available")) << s.faults[0];
+  EXPECT_TRUE(contains(s.faults[0], "does not exist")) << s.faults[0];
+  EXPECT_EQ(s.bus_state, "down");
+  EXPECT_FALSE(s.homed);
+  // The one error came at start-up (before this test listened on /rosout);
+  // the retries every 2 s repeat nothing. (That /rosout reaches us is
+  // checked by RefusesEveryCommandWithTheReason: the refusals are WARNs.)
+  const std::size_t errors_before = F->logged(rosgraph_msgs::Log::ERROR, "").size();
+  ros::WallDuration(5.0).sleep();
+  EXPECT_TRUE(F->waitFor([] { return F->latest().header.stamp > ros::Time::now() - ros::Duration(0.5); }, 2.0))
+      << "the node stopped publishing ~state";
+  EXPECT_EQ(F->logged(rosgraph_msgs::Log::ERROR, "").size(), errors_before);
+  EXPECT_TRUE(F->logged(rosgraph_msgs::Log::FATAL, "").empty());
+  ASSERT_TRUE(F->waitFor([] { return !F->diagnostic("CAN interface").empty(); }, 5.0));
+  std::lock_guard<std::mutex> lock(F->mutex);
+  EXPECT_EQ(F->diagnostics.level, diagnostic_msgs::DiagnosticStatus::ERROR);
+  EXPECT_TRUE(contains(F->diagnostics.message, "'can9' is not available")) << F->diagnostics.message;
+}
+
+TEST(ArmNodeBadInterface, RefusesEveryCommandWithTheReason) {
+  const std::string why = "refused: the CAN interface 'can9' is not available";
+  for (const char* name : {"home", "reset_fault", "stop"}) {
+    const auto r = F->trigger(std::string("/arm/") + name);
+    EXPECT_FALSE(r.success) << name;
+    EXPECT_TRUE(contains(r.message, std::string(name) + " " + why)) << r.message;
+  }
+  const auto m = F->moveTo(kBase, {0.4, 0.2, 0.25});
+  EXPECT_FALSE(m.success);
+  EXPECT_TRUE(contains(m.message, "move_to " + why)) << m.message;
+  massage_cell::Massage::Request req;
+  req.frames = {"acupoint/BL23_L"};
+  const auto r = F->massage(req);
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "massage " + why)) << r.message;
+  const std::string warning = "home " + why;  // each refusal is also a WARN on /rosout
+  EXPECT_TRUE(F->waitFor([&] { return !F->logged(rosgraph_msgs::Log::WARN, warning).empty(); }, 2.0));
+  std_msgs::Bool on;  // the e-stop input is taken (and kept for when the interface appears)
+  on.data = true;
+  F->estop_pub.publish(on);
+  ros::WallDuration(0.3).sleep();
+  EXPECT_EQ(F->latest().mode, "fault");
 }
 
 }  // namespace

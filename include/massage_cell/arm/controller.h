@@ -1,10 +1,12 @@
 // The arm controller (issue 7), ROS-free: the three prismatic axes X, Y, Z
 // of the gantry as CiA 402 drives behind one CANopen master
 // (include/massage_cell/can/), driven by a cycle that runs once per SYNC
-// (100 Hz with the default bus.sync_period_ms = 10), inside the master's
-// poll (a tick handler, in the poll that sends the SYNC, just before it), so
-// on a VirtualClock everything is deterministic and on the steady clock it
-// runs in the master's thread.
+// (100 Hz with the default bus.sync_period_ms = 10): the master's
+// before-SYNC hook, called in the poll that sends the SYNC, just before that
+// SYNC's RPDOs. So on a VirtualClock everything is deterministic, and on the
+// steady clock the cycle runs in the master's thread (startThread(), under
+// SCHED_FIFO when asked: can/realtime.h). The controller sees every master
+// event as a listener (addEventListener), whoever else drains takeEvents().
 //
 // What it guarantees:
 //  - no motion before homing (home(): enable, Z up to its switch first, then
@@ -52,6 +54,7 @@
 #include "massage_cell/arm/profile.h"
 #include "massage_cell/can/cia402.h"
 #include "massage_cell/can/master.h"
+#include "massage_cell/can/realtime.h"
 
 namespace massage_cell::arm {
 
@@ -151,6 +154,11 @@ class Controller {
 
   /// Brings the nodes up (asynchronous: kStarting -> kReady, or kFault).
   void start();
+  /// Runs the master (and with it the cycle) in its own thread, real clocks
+  /// only: mlockall first when options.lock_memory, SCHED_FIFO at
+  /// options.priority when > 0. A refusal is in the status (with the fix);
+  /// the thread then runs with normal scheduling.
+  can::RealtimeStatus startThread(const can::RealtimeOptions& options = {});
 
   // --- commands (asynchronous; poll result(id)) -------------------------------------------
   Accepted home();
@@ -177,7 +185,7 @@ class Controller {
   // --- hooks -----------------------------------------------------------------------------------
   /// Every event and decision as a text line (called under the master's lock: do not call back).
   void setLog(Log log);
-  /// Called at the start of every cycle (under the lock).
+  /// Called at the start of every cycle (under the lock, in the thread that sends the SYNC).
   void setCycleObserver(CycleObserver observer);
   /// Sees every frame the master sends (TapBus).
   void setFrameObserver(TapBus::Observer observer) { tap_.setObserver(std::move(observer)); }
@@ -192,7 +200,6 @@ class Controller {
   };
   enum class Phase { kStart, kProfiles, kRunning };
 
-  void tick(can::TimePoint now);
   void cycle(can::TimePoint now);
   void handleEvents();
   void checkFaults();
@@ -220,8 +227,8 @@ class Controller {
   TapBus tap_;
   std::unique_ptr<can::Master> master_;
   std::array<std::unique_ptr<can::Cia402Axis>, 3> axes_;
-  int tick_id_ = 0;
-  can::TimePoint next_cycle_{};  ///< mirrors the master's SYNC schedule
+  int listener_id_ = 0;
+  std::vector<can::Event> events_;  ///< master events since the last cycle (our listener's queue)
   std::uint64_t cycles_ = 0;
 
   Mode mode_ = Mode::kStarting;

@@ -1,7 +1,8 @@
 // The arm on simulated drives, in-process and on the real clock: a
 // VirtualBus, one SimDrive per configured CAN axis (each polled in its own
 // thread), the Controller's master in its own thread. What the arm node runs
-// with can_interface "sim" and what arm_bench measures.
+// with can_interface "sim" and what arm_bench measures, with the same
+// real-time options (can/realtime.h).
 #pragma once
 
 #include <atomic>
@@ -15,12 +16,6 @@
 
 namespace massage_cell::arm {
 
-/// Puts the calling thread under SCHED_FIFO with `priority` (1..99); threads
-/// it creates afterwards inherit it (the master's and the drives' threads when
-/// called before SimCell::start / Master::start). Empty on success, else why
-/// not (e.g. "Operation not permitted": needs CAP_SYS_NICE / an rtprio limit).
-std::string useRealtimeScheduling(int priority);
-
 class SimCell {
  public:
   explicit SimCell(ArmConfig config);
@@ -29,7 +24,11 @@ class SimCell {
   SimCell& operator=(const SimCell&) = delete;
 
   /// Powers the drives, starts the threads and the controller's bring-up.
-  void start();
+  /// The master's thread starts through Controller::startThread(realtime)
+  /// (as on real drives); with realtime.priority > 0 the drives' threads,
+  /// the simulated hardware, get the same SCHED_FIFO priority. Returns what
+  /// the threads got (a refusal: normal scheduling, the reason and the fix).
+  can::RealtimeStatus start(const can::RealtimeOptions& realtime = {});
   /// Stops the threads (the destructor does too).
   void stop();
 
@@ -50,6 +49,7 @@ class SimCell {
   std::atomic<bool> stop_{false};
   std::vector<std::thread> threads_;
   bool running_ = false;
+  can::RealtimeStatus status_;
 };
 
 }  // namespace massage_cell::arm

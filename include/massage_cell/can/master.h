@@ -2,9 +2,11 @@
 //  - NMT: commands, bring-up (reset communication -> boot-up -> SDO
 //    configuration in pre-operational -> start -> operational heartbeat),
 //    boot-up detection (a node that reboots on its own is reconfigured);
-//  - SYNC producer (bus.sync_period_ms); before each SYNC the RPDO1 of every
-//    operational node (controlword 0x6040 + target position 0x607A) is sent,
-//    so synchronous drives apply it at that SYNC;
+//  - SYNC producer (bus.sync_period_ms); before each SYNC the owner's
+//    before-SYNC hook runs (setBeforeSyncHook: a cyclic controller computes
+//    its set-points there), then the RPDO1 of every operational node
+//    (controlword 0x6040 + target position 0x607A) is sent, so synchronous
+//    drives apply it at that SYNC;
 //  - TPDO consumer: TPDO1 = statusword 0x6041 + position actual 0x6064,
 //    TPDO2 (velocity_pdo) = velocity actual 0x606C + mode display 0x6061;
 //  - heartbeat consumer per node (timeout -> event, node lost; heartbeat
@@ -33,7 +35,8 @@
 // Driving: poll() processes every received frame and all timers once and
 // never blocks, so tests run the master, the simulated drives and a
 // VirtualClock in one thread, deterministically. start() runs the same
-// poll in a background thread on a real clock (tools, nodes). All public
+// poll in a background thread on a real clock (tools, nodes), optionally
+// under SCHED_FIFO (realtime.h). All public
 // functions lock one recursive mutex; tick handlers and SDO callbacks run
 // under it (from poll), so they may call back into the master.
 #pragma once
@@ -47,6 +50,7 @@
 
 #include "massage_cell/can/bus.h"
 #include "massage_cell/can/config.h"
+#include "massage_cell/can/realtime.h"
 #include "massage_cell/can/sdo_client.h"
 
 namespace massage_cell::can {
@@ -146,16 +150,21 @@ class Master {
   /// The clock every timeout is measured on.
   const Clock& clock() const { return clock_; }
   /// The lock of all master state (layers above hold it across several calls).
-  std::recursive_mutex& mutex() const { return mutex_; }
+  RecursivePiMutex& mutex() const { return mutex_; }
 
   // --- driving ---------------------------------------------------------------
   /// Processes every frame waiting on the bus, then timers, tick handlers and
-  /// the SYNC producer; never blocks.
+  /// the SYNC producer (with the before-SYNC hook); never blocks.
   void poll();
-  /// Runs poll() in a background thread (real clocks only).
-  void start();
+  /// Runs poll() in a background thread (real clocks only). With
+  /// `realtime_priority` > 0 that thread runs under SCHED_FIFO at that
+  /// priority (realtime.h); returns "" or why that was refused (the thread
+  /// then runs with normal scheduling).
+  std::string start(int realtime_priority = 0);
   void stop();
   bool threaded() const { return thread_.joinable(); }
+  /// The SCHED_FIFO priority of the thread start() runs (0: normal scheduling, or no thread).
+  int threadPriority() const;
   /// Waits until `pred` (evaluated under the lock after each poll) holds;
   /// polls by itself when no thread runs. False on timeout (real time).
   bool waitUntil(const std::function<bool()>& pred, Duration timeout);
@@ -188,9 +197,19 @@ class Master {
   std::uint16_t controlword(std::uint8_t node) const;
 
   // --- events / hooks ----------------------------------------------------------
-  /// Events since the last call (oldest first).
+  // Events reach their readers two ways: a queue with ONE reader, who drains
+  // it with takeEvents() (a tool or test that owns the master; the queue
+  // keeps at most the last 10000 events when nobody reads it), and any
+  // number of listeners, each called for every event as it is posted. A
+  // layer above that must see every event (arm::Controller) is a listener,
+  // so whoever else drains the queue takes nothing from it.
+  /// Drains the queue: the events since the last call (oldest first).
   std::vector<Event> takeEvents();
-  /// Also called for every event (under the lock).
+  /// Adds a listener, called for every event under the lock (it may call the
+  /// master; it must not remove listeners); returns an id for removeEventListener.
+  int addEventListener(EventCallback listener);
+  void removeEventListener(int id);
+  /// The one replaceable listener of the master's owner (tools); empty removes it.
   void setEventCallback(EventCallback callback);
   /// Records an event (layers above use kAxis).
   void postEvent(Event event);
@@ -198,6 +217,12 @@ class Master {
   /// lock); returns an id for removeTickHandler.
   int addTickHandler(TickHandler handler);
   void removeTickHandler(int id);
+  /// The owner's before-SYNC hook: called once per SYNC, right before the
+  /// master sends that SYNC's RPDOs and the SYNC itself, in the thread that
+  /// sends them (start()'s thread, or poll()'s caller), under the lock, with
+  /// the poll's time, after the tick handlers; RPDO content set in it
+  /// (setRpdo) goes out with this SYNC. One hook; empty removes it.
+  void setBeforeSyncHook(TickHandler hook);
   /// RPDO1 frames sent to the node so far (a controlword edge needs one in between).
   std::uint64_t rpdosSent(std::uint8_t node) const;
   MasterStats stats() const;
@@ -222,13 +247,18 @@ class Master {
   Bus& bus_;
   const Clock& clock_;
   CanConfig config_;
-  mutable std::recursive_mutex mutex_;
+  // Callers of every priority take this lock (ROS callbacks reading the
+  // status, the SCHED_FIFO thread that sends SYNC): with priority
+  // inheritance a preempted holder cannot hold the SYNC thread up.
+  mutable RecursivePiMutex mutex_;
   std::condition_variable_any polled_;
   std::map<std::uint8_t, std::unique_ptr<Node>> nodes_;
   std::vector<Event> events_;
   EventCallback event_callback_;
+  std::vector<std::pair<int, EventCallback>> event_listeners_;
   std::vector<std::pair<int, TickHandler>> tick_handlers_;
-  int last_tick_id_ = 0;
+  int last_callback_id_ = 0;  // ids of tick handlers and event listeners
+  TickHandler before_sync_;
   MasterStats stats_;
   TimePoint next_sync_{};
   BusState bus_state_ = BusState::kErrorActive;
