@@ -69,6 +69,23 @@ can_frame segmentFrame(canid_t id, std::uint8_t cs_bits, bool toggle, const std:
 }
 
 // Initiate with data (download request / upload response share the layout).
+/// A segment upload request / download response: only the command byte
+/// (its toggle bit) carries information.
+can_frame toggleFrame(canid_t id, std::uint8_t cs_bits, bool toggle) {
+  can_frame f{};
+  f.can_id = id;
+  f.len = 8;
+  f.data[0] = static_cast<std::uint8_t>(cs_bits | (toggle ? 0x10 : 0));
+  return f;
+}
+
+/// An SDO abort (either direction): index, sub-index and the abort code.
+can_frame abortFrame(canid_t id, std::uint16_t index, std::uint8_t sub, std::uint32_t code) {
+  can_frame f = sdoFrame(id, 0x80, index, sub);
+  putU32(f, 4, code);
+  return f;
+}
+
 can_frame initiateWithData(canid_t id, std::uint8_t cs_bits, std::uint16_t index, std::uint8_t sub,
                            const std::vector<std::uint8_t>& data, const char* what) {
   if (data.empty()) throw std::invalid_argument(std::string(what) + ": no data");
@@ -415,18 +432,12 @@ can_frame sdoInitiateUploadRequest(std::uint8_t node, std::uint16_t index, std::
 
 can_frame sdoUploadSegmentRequest(std::uint8_t node, bool toggle) {
   requireNode(node, false, "sdoUploadSegmentRequest");
-  can_frame f{};
-  f.can_id = kSdoRxBase + node;
-  f.len = 8;
-  f.data[0] = static_cast<std::uint8_t>(0x60 | (toggle ? 0x10 : 0));
-  return f;
+  return toggleFrame(kSdoRxBase + node, 0x60, toggle);
 }
 
 can_frame sdoAbortRequest(std::uint8_t node, std::uint16_t index, std::uint8_t sub, std::uint32_t code) {
   requireNode(node, false, "sdoAbortRequest");
-  can_frame f = sdoFrame(kSdoRxBase + node, 0x80, index, sub);
-  putU32(f, 4, code);
-  return f;
+  return abortFrame(kSdoRxBase + node, index, sub, code);
 }
 
 can_frame sdoInitiateDownloadResponse(std::uint8_t node, std::uint16_t index, std::uint8_t sub) {
@@ -436,11 +447,7 @@ can_frame sdoInitiateDownloadResponse(std::uint8_t node, std::uint16_t index, st
 
 can_frame sdoDownloadSegmentResponse(std::uint8_t node, bool toggle) {
   requireNode(node, false, "sdoDownloadSegmentResponse");
-  can_frame f{};
-  f.can_id = kSdoTxBase + node;
-  f.len = 8;
-  f.data[0] = static_cast<std::uint8_t>(0x20 | (toggle ? 0x10 : 0));
-  return f;
+  return toggleFrame(kSdoTxBase + node, 0x20, toggle);
 }
 
 can_frame sdoInitiateUploadResponse(std::uint8_t node, std::uint16_t index, std::uint8_t sub,
@@ -456,9 +463,7 @@ can_frame sdoUploadSegmentResponse(std::uint8_t node, bool toggle, const std::ve
 
 can_frame sdoAbortResponse(std::uint8_t node, std::uint16_t index, std::uint8_t sub, std::uint32_t code) {
   requireNode(node, false, "sdoAbortResponse");
-  can_frame f = sdoFrame(kSdoTxBase + node, 0x80, index, sub);
-  putU32(f, 4, code);
-  return f;
+  return abortFrame(kSdoTxBase + node, index, sub, code);
 }
 
 Result<SdoFrame> decodeSdoRequest(const can_frame& f) {
