@@ -182,6 +182,73 @@ MatchResult matchAlongRow(const cv::Mat& from, const cv::Mat& to, float x, float
   return res;
 }
 
+/// matchAlongRow for a window that may cross the back's border: only the
+/// window's pixels on `from_mask` whose candidate lies on `to_mask` count
+/// (at least a third of the window). Whole pixels (x, y rounded). Also
+/// returns the peak's sharpness (minus the second difference of the NCC).
+MatchResult maskedMatchAlongRow(const cv::Mat& from, const cv::Mat& to, const cv::Mat& from_mask, const cv::Mat& to_mask,
+                                float x, float y, double d_lo, double d_hi, int r, int ry, bool to_left,
+                                double* sharpness) {
+  MatchResult res;
+  *sharpness = 0.0;
+  const int xi = cvRound(x), yi = cvRound(y);
+  const int lo = static_cast<int>(std::floor(d_lo)), hi = static_cast<int>(std::ceil(d_hi));
+  if (hi - lo < 2) {
+    res.why = "search range too small";
+    return res;
+  }
+  const int min_count = (2 * r + 1) * (2 * ry + 1) / 3;
+  std::vector<double> score(static_cast<std::size_t>(hi - lo + 1), -2.0);
+  for (int d = lo; d <= hi; ++d) {
+    const int dx = to_left ? d : -d;
+    double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+    int n = 0;
+    for (int v = yi - ry; v <= yi + ry; ++v) {
+      if (v < 0 || v >= from.rows) continue;
+      const float* a = from.ptr<float>(v);
+      const float* b = to.ptr<float>(v);
+      const std::uint8_t* ma = from_mask.ptr<std::uint8_t>(v);
+      const std::uint8_t* mb = to_mask.ptr<std::uint8_t>(v);
+      for (int u = xi - r; u <= xi + r; ++u) {
+        const int uc = u + dx;
+        if (u < 0 || u >= from.cols || uc < 0 || uc >= to.cols || !ma[u] || !mb[uc]) continue;
+        sa += a[u];
+        sb += b[uc];
+        saa += static_cast<double>(a[u]) * a[u];
+        sbb += static_cast<double>(b[uc]) * b[uc];
+        sab += static_cast<double>(a[u]) * b[uc];
+        ++n;
+      }
+    }
+    if (n < min_count) continue;
+    const double va = saa - sa * sa / n, vb = sbb - sb * sb / n;
+    if (va <= 1e-9 || vb <= 1e-9) continue;
+    score[static_cast<std::size_t>(d - lo)] = (sab - sa * sb / n) / std::sqrt(va * vb);
+  }
+  const auto best = std::max_element(score.begin(), score.end());
+  const int k = static_cast<int>(best - score.begin());
+  res.ncc = *best;
+  if (*best < -1.5) {
+    res.why = "too little of the window on the back";
+    return res;
+  }
+  if (k == 0 || k == static_cast<int>(score.size()) - 1) {
+    res.why = "correlation peak at the edge of the search range";
+    return res;
+  }
+  const double a = score[static_cast<std::size_t>(k - 1)], b = *best, c = score[static_cast<std::size_t>(k + 1)];
+  if (a < -1.5 || c < -1.5) {
+    res.why = "too little of the window on the back";
+    return res;
+  }
+  const double denom = a - 2 * b + c;
+  *sharpness = -denom;
+  const double off = denom < 0 ? std::clamp(0.5 * (a - c) / denom, -0.5, 0.5) : 0.0;
+  res.disparity = lo + k + off;
+  res.ok = true;
+  return res;
+}
+
 /// Barycentric coordinates of p in triangle (a, b, c); false if degenerate.
 bool barycentric(const cv::Point2f& p, const cv::Point2f& a, const cv::Point2f& b, const cv::Point2f& c,
                  double* l0, double* l1, double* l2) {
@@ -302,6 +369,12 @@ class CectFrameBuilder {
     f_.timings_.segment_ms = msSince(t);
     if (!f_.left_seg_.valid) return fail("left view: " + f_.left_seg_.reason, t0);
     if (!f_.right_seg_.valid) return fail("right view: " + f_.right_seg_.reason, t0);
+    const cv::Mat k3 = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(7, 7));
+    cv::erode(f_.left_seg_.mask, f_.left_inner_, k3);
+    cv::erode(f_.right_seg_.mask, f_.right_inner_, k3);
+    const int margin = f_.params_.seed_margin >= 0 ? cvRound(f_.params_.seed_margin) : f_.params_.ncc_radius + 2;
+    cv::erode(f_.left_seg_.mask, f_.seed_region_,
+              cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * margin + 1, 2 * margin + 1)));
 
     t = Clock::now();
     foundational();
@@ -905,9 +978,7 @@ class CectFrameBuilder {
     const CectParams& p = f_.params_;
     const int r = p.ncc_radius;
     const int ry = p.ncc_half_height > 0 ? p.ncc_half_height : r;
-    cv::Mat inner;
-    cv::erode(f_.left_seg_.mask, inner,
-              cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * (r + 2) + 1, 2 * (r + 2) + 1)));
+    const cv::Mat& inner = f_.seed_region_;
     struct Seed {
       cv::Point2f left;
       double d;
@@ -1167,6 +1238,24 @@ LocalizedPoint CectFrame::extrapolate(const cv::Point2f& q, LocalizedPoint out) 
     out.reason = "pixel outside the triangulated back, and the seeds around it do not fit a smooth surface (rms " +
                  std::to_string(rms) + " px)";
     return out;
+  }
+  if (params_.direct_min_sharpness > 0 && !seed_region_.at<std::uint8_t>(cvRound(q.y), cvRound(q.x))) {
+    // In the border band: a direct match where the pixel's own window holds
+    // enough texture.
+    const int ry = params_.ncc_half_height > 0 ? params_.ncc_half_height : params_.ncc_radius;
+    const double reach = params_.continuity_margin;
+    double sharp = 0.0, sharp_back = 0.0;
+    const MatchResult m = maskedMatchAlongRow(left_grey_, right_grey_, left_inner_, right_inner_, q.x, q.y,
+                                              d - reach - 1.0, d + reach + 1.0, params_.ncc_radius, ry, false, &sharp);
+    if (m.ok && m.ncc >= params_.min_ncc && sharp >= params_.direct_min_sharpness && std::abs(m.disparity - d) <= reach) {
+      const float xr = static_cast<float>(cvRound(q.x) - std::round(m.disparity));
+      const double d_back = cvRound(q.x) - xr;
+      const MatchResult back =
+          maskedMatchAlongRow(right_grey_, left_grey_, right_inner_, left_inner_, xr, q.y, d_back - 2.0 - params_.lr_tolerance,
+                              d_back + 2.0 + params_.lr_tolerance, params_.ncc_radius, ry, true, &sharp_back);
+      if (back.ok && std::abs(back.disparity - d_back) <= params_.lr_tolerance)  // constraint 3
+        return triangulated(q, m.disparity, params_.pixel_sigma, std::move(out));
+    }
   }
   const double sigma = std::hypot(params_.pixel_sigma, rms) * (1.0 + nearest / step);
   out.extrapolated = true;

@@ -68,6 +68,7 @@ cect::CectParams cectParams(const CECTConfig& c) {
   p.rim_profile = c.rim_profile;
   p.max_extrapolation = c.max_extrapolation;
   p.max_triangle_edge = c.max_triangle_edge;
+  p.direct_min_sharpness = c.direct_min_sharpness;
   p.seed_search = c.seed_search;
   p.query_search = c.query_search;
   p.min_ncc = c.min_ncc;

@@ -91,6 +91,8 @@ const std::map<std::string, std::function<void(cect::CectParams&, double)>>& par
       {"ncc_half_height", [](P& p, double v) { p.ncc_half_height = static_cast<int>(v); }},
       {"bandpass_low", [](P& p, double v) { p.bandpass_low = v; }},
       {"bandpass_high", [](P& p, double v) { p.bandpass_high = v; }},
+      {"seed_margin", [](P& p, double v) { p.seed_margin = v; }},
+      {"direct_min_sharpness", [](P& p, double v) { p.direct_min_sharpness = v; }},
       {"seed_search", [](P& p, double v) { p.seed_search = v; }},
       {"max_relief", [](P& p, double v) { p.max_relief = v; }},
       {"smooth_radius", [](P& p, double v) { p.smooth_radius = v; }},

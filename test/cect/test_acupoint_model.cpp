@@ -519,7 +519,9 @@ TEST(AcupointLandmarks, IliacLineOutOfViewWhenTheImageCutsTheBack) {
     } else {
       ++out_of_view;
       EXPECT_GT(reference[i].pixel.y, cut - 12) << a.name << " should be near or below the cut";
-      if (!a.valid) EXPECT_FALSE(a.reason.empty()) << a.name;
+      if (!a.valid) {
+        EXPECT_FALSE(a.reason.empty()) << a.name;
+      }
     }
   }
   std::printf("%d points in view, %d at or below the cut\n", in_view, out_of_view);

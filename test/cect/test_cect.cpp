@@ -425,6 +425,46 @@ TEST(Cect, PixelsAtTheNeckBaseAreExtrapolatedWithAWiderSigma) {
   EXPECT_LT(medianOf(err), 1.0);
 }
 
+TEST(Cect, TexturedPixelsInTheBorderBandAreMatchedDirectly) {
+  // The band along the neck base where no seed window fits: the surface
+  // rolls off there (and the vertebra prominens stands out), which the
+  // seeds' quadratic cannot see. Where a pixel's own window (restricted to
+  // the back) holds texture, a direct match replaces the extrapolation.
+  const Rendered r = renderBack(true);
+  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  cect::CectParams on, off;
+  off.direct_min_sharpness = 0.0;
+  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, on);
+  const cect::CectFrame f0 = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, off);
+  ASSERT_TRUE(f.valid() && f0.valid());
+  const cv::Rect box = cv::boundingRect(f.left().mask);
+  std::vector<double> e, e0;
+  int extrapolated = 0;
+  for (int y = box.y + 2; y < box.y + 14; ++y)
+    for (int x = box.x + box.width / 3; x < box.x + 2 * box.width / 3; x += 2) {
+      const float truth = r.frame.left_disparity.at<float>(y, x);
+      if (!f.left().mask.at<std::uint8_t>(y, x) || !std::isfinite(truth)) continue;
+      const cv::Point2f q(static_cast<float>(x), static_cast<float>(y));
+      const cect::LocalizedPoint p = f.localizeRectified(q), p0 = f0.localizeRectified(q);
+      if (!p0.valid || !p0.extrapolated) continue;
+      ++extrapolated;
+      ASSERT_TRUE(p.valid) << q;
+      if (p.extrapolated) {
+        EXPECT_DOUBLE_EQ(p.disparity, p0.disparity) << q;  // untextured: the same extrapolation
+        continue;
+      }
+      EXPECT_DOUBLE_EQ(p.disparity_sigma, on.pixel_sigma);
+      e.push_back(std::abs(p.disparity - truth));
+      e0.push_back(std::abs(p0.disparity - truth));
+    }
+  std::cout << "neck-base band: " << e.size() << " of " << extrapolated
+            << " extrapolated pixels matched directly, median |error| " << medianOf(e) << " px (extrapolated "
+            << medianOf(e0) << " px)\n";
+  ASSERT_GE(e.size(), 10u);
+  EXPECT_LT(medianOf(e), 0.6 * medianOf(e0));
+  EXPECT_LT(medianOf(e), 0.4);
+}
+
 TEST(Cect, EdgesAlongTheRowsAreMatchedByTheirShape) {
   // The neck base runs along the rows: no row crossings. Its shape y(x),
   // where it bends, fixes its shift between the views.

@@ -69,6 +69,9 @@ struct CectParams {
   /// estimated per pixel from the colour, smoothed by a Gaussian of this
   /// sigma (pixels), is taken off before matching (0: off).
   double sheen_sigma = 6.0;
+  /// Seeds sit at least this many pixels inside the back's border (< 0:
+  /// ncc_radius + 2, every window inside the back).
+  double seed_margin = -1.0;
   double seed_search = 10.0;    ///< pixels searched either side of a seed's barycentric prediction
   /// How far the back may rise above its contour, metres: the first seeds,
   /// predicted from the contour alone, are searched that far nearer.
@@ -99,6 +102,16 @@ struct CectParams {
   /// local quadratic when the nearest seed is within this many seed steps
   /// (0: never; they stay valid = false).
   double max_extrapolation = 1.5;
+  /// Such pixels in the border band where no seed window fits (closer to
+  /// the border than the seeds' margin; there the surface rolls off, which
+  /// the seeds' quadratic cannot see) are matched directly instead when
+  /// their own window fixes the disparity: a window restricted to the back
+  /// in both views (3 px in from the border), searched within
+  /// continuity_margin of the extrapolation, kept when the correlation
+  /// peak's sharpness (minus its second difference, per px^2: how much
+  /// texture the window holds, e.g. the vertebra prominens at the neck
+  /// base) reaches this and constraint 3 holds (0: never).
+  double direct_min_sharpness = 0.03;
   double pixel_sigma = 0.3;     ///< pixels: localisation noise of a matched point (covariance)
 };
 
@@ -192,6 +205,8 @@ class CectFrame {
   Segmentation left_seg_, right_seg_;
   cv::Mat left_rect_, right_rect_;          ///< BGR
   cv::Mat left_grey_, right_grey_;          ///< CV_32F
+  cv::Mat left_inner_, right_inner_;        ///< the masks 3 px in from the border (direct matches)
+  cv::Mat seed_region_;                     ///< left pixels at least seed_margin inside the border
   std::vector<Correspondence> vertices_;
   std::vector<cv::Vec3i> triangles_;
   std::vector<std::vector<int>> vertex_triangles_;  ///< triangles around each vertex
