@@ -125,6 +125,36 @@ struct MatchResult {
   std::string why;
 };
 
+/// The peak of a correlation curve over the integer disparities lo, lo+1,
+/// ... (scores below -1.5: no candidate there): a parabola through it and
+/// its neighbours; `missing` names why a neighbour can be absent. The
+/// peak's sharpness (minus the second difference) goes to *sharpness.
+MatchResult peakOf(const std::vector<double>& score, int lo, const char* missing, double* sharpness = nullptr) {
+  MatchResult res;
+  const auto best = std::max_element(score.begin(), score.end());
+  const int k = static_cast<int>(best - score.begin());
+  res.ncc = *best;
+  if (*best < -1.5) {
+    res.why = missing;
+    return res;
+  }
+  if (k == 0 || k == static_cast<int>(score.size()) - 1) {
+    res.why = "correlation peak at the edge of the search range";
+    return res;
+  }
+  const double a = score[static_cast<std::size_t>(k - 1)], b = *best, c = score[static_cast<std::size_t>(k + 1)];
+  if (a < -1.5 || c < -1.5) {
+    res.why = missing;
+    return res;
+  }
+  const double denom = a - 2 * b + c;
+  if (sharpness) *sharpness = -denom;
+  const double off = denom < 0 ? std::clamp(0.5 * (a - c) / denom, -0.5, 0.5) : 0.0;
+  res.disparity = lo + k + off;
+  res.ok = true;
+  return res;
+}
+
 /// Best disparity in [d_lo, d_hi] (integer steps, then a parabola through the
 /// peak) for the left point (x, y): NCC of (2r+1)^2 windows along the row.
 /// `to_left` searches the other way: the point is in `from` (the right view)
@@ -163,23 +193,7 @@ MatchResult matchAlongRow(const cv::Mat& from, const cv::Mat& to, float x, float
     for (std::size_t i = 0; i < ref.size(); ++i) s += static_cast<double>(ref[i]) * cand[i];
     score[static_cast<std::size_t>(d - lo)] = s;
   }
-  const auto best = std::max_element(score.begin(), score.end());
-  const int k = static_cast<int>(best - score.begin());
-  res.ncc = *best;
-  if (k == 0 || k == static_cast<int>(score.size()) - 1) {
-    res.why = "correlation peak at the edge of the search range";
-    return res;
-  }
-  const double a = score[static_cast<std::size_t>(k - 1)], b = *best, c = score[static_cast<std::size_t>(k + 1)];
-  if (a < -1.5 || c < -1.5) {
-    res.why = "matching window leaves the image";
-    return res;
-  }
-  const double denom = a - 2 * b + c;
-  const double off = denom < 0 ? std::clamp(0.5 * (a - c) / denom, -0.5, 0.5) : 0.0;
-  res.disparity = lo + k + off;
-  res.ok = true;
-  return res;
+  return peakOf(score, lo, "matching window leaves the image");
 }
 
 /// matchAlongRow for a window that may cross the back's border: only the
@@ -225,28 +239,7 @@ MatchResult maskedMatchAlongRow(const cv::Mat& from, const cv::Mat& to, const cv
     if (va <= 1e-9 || vb <= 1e-9) continue;
     score[static_cast<std::size_t>(d - lo)] = (sab - sa * sb / n) / std::sqrt(va * vb);
   }
-  const auto best = std::max_element(score.begin(), score.end());
-  const int k = static_cast<int>(best - score.begin());
-  res.ncc = *best;
-  if (*best < -1.5) {
-    res.why = "too little of the window on the back";
-    return res;
-  }
-  if (k == 0 || k == static_cast<int>(score.size()) - 1) {
-    res.why = "correlation peak at the edge of the search range";
-    return res;
-  }
-  const double a = score[static_cast<std::size_t>(k - 1)], b = *best, c = score[static_cast<std::size_t>(k + 1)];
-  if (a < -1.5 || c < -1.5) {
-    res.why = "too little of the window on the back";
-    return res;
-  }
-  const double denom = a - 2 * b + c;
-  *sharpness = -denom;
-  const double off = denom < 0 ? std::clamp(0.5 * (a - c) / denom, -0.5, 0.5) : 0.0;
-  res.disparity = lo + k + off;
-  res.ok = true;
-  return res;
+  return peakOf(score, lo, "too little of the window on the back", sharpness);
 }
 
 /// Barycentric coordinates of p in triangle (a, b, c); false if degenerate.
