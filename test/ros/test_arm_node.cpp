@@ -290,6 +290,18 @@ TEST(ArmNode, MassageOverTwoAcupointFrames) {
 }
 
 TEST(ArmNode, RefusalsNameTheProblem) {
+  // The previous test's last retraction may still be settling (tens of
+  // micrometres): start from an arm that stands still.
+  Eigen::Vector3d last = F->jointPositions();
+  ASSERT_TRUE(F->waitFor(
+      [&] {
+        ros::WallDuration(0.1).sleep();
+        const Eigen::Vector3d now = F->jointPositions();
+        const bool standing = (now - last).norm() < 1e-7;
+        last = now;
+        return standing;
+      },
+      3.0));
   const Eigen::Vector3d before = F->jointPositions();
   // Outside the envelope.
   auto m = F->moveTo(kBase, {1.5, 0.2, 0.2});
