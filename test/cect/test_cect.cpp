@@ -104,6 +104,20 @@ Rendered renderBack(bool rectified, int subject = 0, int w = 640, int h = 480, d
   return r;
 }
 
+/// The same pair analysed twice: with `on`, and with `off` (one feature
+/// switched off); both frames must be valid.
+struct OnOff {
+  cect::CectFrame on, off;
+};
+OnOff analyseOnOff(const Rendered& r, const cect::CectParams& on, const cect::CectParams& off) {
+  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  OnOff out{cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, on),
+            cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, off)};
+  EXPECT_TRUE(out.on.valid()) << out.on.reason();
+  EXPECT_TRUE(out.off.valid()) << out.off.reason();
+  return out;
+}
+
 }  // namespace
 
 TEST(StereoGeometry, RawPairRoundTripsAndFundamentalMatrix) {
@@ -349,14 +363,13 @@ TEST(Cect, RimProfileFollowsTheFlankBetweenContourAndSeeds) {
   // distance to it; linear interpolation between the contour and the first
   // seeds ~30 px inside undershoots by up to ~4 px there.
   const Rendered r = renderBack(true);
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
   cect::CectParams with, without;
   without.rim_profile = false;
   // Every triangle kept, so that the band is interpolated either way.
   with.max_triangle_edge = without.max_triangle_edge = 0.0;
-  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, with);
-  const cect::CectFrame f0 = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, without);
-  ASSERT_TRUE(f.valid() && f0.valid());
+  const OnOff both = analyseOnOff(r, with, without);
+  ASSERT_TRUE(both.on.valid() && both.off.valid());
+  const cect::CectFrame &f = both.on, &f0 = both.off;
   const auto rim = std::count_if(f.vertices().begin(), f.vertices().end(), [](const cect::Correspondence& v) {
     return v.source == cect::Correspondence::Source::kRimProfile;
   });
@@ -376,13 +389,12 @@ TEST(Cect, SheenIsTakenOffBeforeMatching) {
   // matches farther (subject 3: -0.6 px in the interior, -0.2 px without
   // any sheen); taking the estimated sheen off removes about half of that.
   const Rendered r = renderBack(true, 3);
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
   cect::CectParams with, without;
   without.sheen_sigma = 0.0;
   int asked = 0;
-  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, with);
-  const cect::CectFrame f0 = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, without);
-  ASSERT_TRUE(f.valid() && f0.valid());
+  const OnOff both = analyseOnOff(r, with, without);
+  ASSERT_TRUE(both.on.valid() && both.off.valid());
+  const cect::CectFrame &f = both.on, &f0 = both.off;
   const auto e = bandErrors(r, f, 32.0, 1000.0, &asked);
   const auto e0 = bandErrors(r, f0, 32.0, 1000.0, &asked);
   std::cout << "interior: sheen removed median error " << medianOf(e) << " px, |error| " << medianOf(absOf(e))
@@ -395,12 +407,11 @@ TEST(Cect, PixelsAtTheNeckBaseAreExtrapolatedWithAWiderSigma) {
   // The neck base runs along the epipolar lines: no contour correspondences
   // there, so its band lies outside the triangulation.
   const Rendered r = renderBack(true);
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
   cect::CectParams on, off;
   off.max_extrapolation = 0.0;
-  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, on);
-  const cect::CectFrame f0 = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, off);
-  ASSERT_TRUE(f.valid() && f0.valid());
+  const OnOff both = analyseOnOff(r, on, off);
+  ASSERT_TRUE(both.on.valid() && both.off.valid());
+  const cect::CectFrame &f = both.on, &f0 = both.off;
   // The topmost back rows, away from the sides.
   const cv::Rect box = cv::boundingRect(f.left().mask);
   int extrapolated = 0, refused = 0;
@@ -431,12 +442,11 @@ TEST(Cect, TexturedPixelsInTheBorderBandAreMatchedDirectly) {
   // seeds' quadratic cannot see. Where a pixel's own window (restricted to
   // the back) holds texture, a direct match replaces the extrapolation.
   const Rendered r = renderBack(true);
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
   cect::CectParams on, off;
   off.direct_min_sharpness = 0.0;
-  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, on);
-  const cect::CectFrame f0 = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, off);
-  ASSERT_TRUE(f.valid() && f0.valid());
+  const OnOff both = analyseOnOff(r, on, off);
+  ASSERT_TRUE(both.on.valid() && both.off.valid());
+  const cect::CectFrame &f = both.on, &f0 = both.off;
   const cv::Rect box = cv::boundingRect(f.left().mask);
   std::vector<double> e, e0;
   int extrapolated = 0;
@@ -469,12 +479,11 @@ TEST(Cect, EdgesAlongTheRowsAreMatchedByTheirShape) {
   // The neck base runs along the rows: no row crossings. Its shape y(x),
   // where it bends, fixes its shift between the views.
   const Rendered r = renderBack(true);
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
   cect::CectParams on, off;
   off.edge_window = 0.0;
-  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, on);
-  const cect::CectFrame f0 = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, off);
-  ASSERT_TRUE(f.valid() && f0.valid());
+  const OnOff both = analyseOnOff(r, on, off);
+  ASSERT_TRUE(both.on.valid() && both.off.valid());
+  const cect::CectFrame &f = both.on, &f0 = both.off;
   auto isEdge = [](const cect::Correspondence& v) { return v.source == cect::Correspondence::Source::kEdge; };
   EXPECT_EQ(std::count_if(f0.vertices().begin(), f0.vertices().end(), isEdge), 0);
   const cv::Rect box = cv::boundingRect(f.left().mask);
@@ -500,12 +509,11 @@ TEST(Cect, LongTrianglesAreDroppedAndTheirPixelsExtrapolated) {
   // Triangles bridging the unmatched neck base span several seed steps;
   // the final triangulation drops them and extrapolates their pixels.
   const Rendered r = renderBack(true);
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
   cect::CectParams on, off;
   off.max_triangle_edge = 0.0;
-  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, on);
-  const cect::CectFrame f0 = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, off);
-  ASSERT_TRUE(f.valid() && f0.valid());
+  const OnOff both = analyseOnOff(r, on, off);
+  ASSERT_TRUE(both.on.valid() && both.off.valid());
+  const cect::CectFrame &f = both.on, &f0 = both.off;
   auto longest = [](const cect::CectFrame& fr) {
     double m = 0.0;
     for (const auto& t : fr.triangles())
