@@ -286,6 +286,8 @@ TEST(ArmNode, MassageOverTwoAcupointFrames) {
   // lower_back (from the acupoint model by name): default depth 8 mm below 0.17 m at the deepest.
   EXPECT_GE(lowest, 0.17 - 0.008 - 1e-5);
   EXPECT_LT(lowest, 0.17 - 0.006);  // the ~state samples (50 Hz) saw it at depth
+  // ~state is sampled at 50 Hz: its latest message may predate the end of the retraction.
+  F->waitFor([] { return std::abs(F->latest().tool.z - F->config.press.travel_height) < 1e-4; }, 1.0);
   EXPECT_NEAR(F->latest().tool.z, F->config.press.travel_height, 1e-4);
 }
 
@@ -425,6 +427,8 @@ TEST(ArmNode, LostAcupointFrameDuringAPressRetracts) {
   EXPECT_FALSE(r.success);
   EXPECT_TRUE(contains(r.message, "massage aborted: acupoint frame 'acupoint/BL22_L' is stale")) << r.message;
   EXPECT_TRUE(contains(r.message, "tool retracted to")) << r.message;
+  // ~state is sampled at 50 Hz: its latest message may predate the end of the retraction.
+  F->waitFor([] { return std::abs(F->latest().tool.z - F->config.press.travel_height) < 1e-4; }, 1.0);
   EXPECT_NEAR(F->latest().tool.z, F->config.press.travel_height, 1e-4);
   EXPECT_EQ(r.presses_done, 0);
 }
