@@ -366,6 +366,7 @@ class CectFrameBuilder {
     cv::erode(f_.left_seg_.mask, f_.left_inner_, k3);
     cv::erode(f_.right_seg_.mask, f_.right_inner_, k3);
     const int margin = f_.params_.seed_margin >= 0 ? cvRound(f_.params_.seed_margin) : f_.params_.ncc_radius + 2;
+    f_.seed_margin_ = margin;
     cv::erode(f_.left_seg_.mask, f_.seed_region_,
               cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * margin + 1, 2 * margin + 1)));
 
@@ -1190,6 +1191,17 @@ LocalizedPoint CectFrame::localizeRectified(const cv::Point2f& q) const {
   }
   double d = d0;
   double sigma = std::sqrt(params_.pixel_sigma * params_.pixel_sigma + 0.0625 * spread * spread);
+  if (params_.direct_min_sharpness > 0 && inRowBorderBand(x, y)) {
+    // Next to a border running along the rows (the shoulders' top, the neck
+    // base, the waist) the transfer leans on the first seeds, whose windows
+    // reach across the band's steep relief (the shoulders' top is a ledge
+    // behind the back): the transfer there is ~0.6 px too near. The pixel's
+    // own window, wide along the border and short across it, is unbiased but
+    // noisy (~0.7 px); their mean halves both.
+    double dm = 0.0;
+    const int r = params_.ncc_radius;
+    if (directMatch(q, d0, cvRound(1.4 * r), std::max(2, r / 2), &dm)) d = 0.5 * (d0 + dm);
+  }
   if (params_.query_search > 0) {
     const int ry = params_.ncc_half_height > 0 ? params_.ncc_half_height : params_.ncc_radius;
     const double reach = std::min(params_.query_search, params_.continuity_margin);  // constraint 2
@@ -1207,6 +1219,33 @@ LocalizedPoint CectFrame::localizeRectified(const cv::Point2f& q) const {
     }
   }
   return triangulated(q, d, sigma, std::move(out));
+}
+
+bool CectFrame::directMatch(const cv::Point2f& q, double d, int rx, int ry, double* disparity) const {
+  const double reach = params_.continuity_margin;
+  double sharp = 0.0, sharp_back = 0.0;
+  const MatchResult m = maskedMatchAlongRow(left_grey_, right_grey_, left_inner_, right_inner_, q.x, q.y,
+                                            d - reach - 1.0, d + reach + 1.0, rx, ry, false, &sharp);
+  if (!m.ok || m.ncc < params_.min_ncc || sharp < params_.direct_min_sharpness || std::abs(m.disparity - d) > reach)
+    return false;
+  const float xr = static_cast<float>(cvRound(q.x) - std::round(m.disparity));
+  const double d_back = cvRound(q.x) - xr;
+  const MatchResult back =
+      maskedMatchAlongRow(right_grey_, left_grey_, right_inner_, left_inner_, xr, q.y, d_back - 2.0 - params_.lr_tolerance,
+                          d_back + 2.0 + params_.lr_tolerance, rx, ry, true, &sharp_back);
+  if (!back.ok || std::abs(back.disparity - d_back) > params_.lr_tolerance) return false;  // constraint 3
+  *disparity = m.disparity;
+  return true;
+}
+
+bool CectFrame::inRowBorderBand(int x, int y) const {
+  if (seed_region_.at<std::uint8_t>(y, x)) return false;
+  const cv::Mat& mask = left_seg_.mask;
+  auto on = [&](int xx, int yy) {
+    return xx >= 0 && yy >= 0 && xx < mask.cols && yy < mask.rows && mask.at<std::uint8_t>(yy, xx) != 0;
+  };
+  const int m = seed_margin_;
+  return (!on(x, y - m) || !on(x, y + m)) && on(x - m, y) && on(x + m, y);
 }
 
 LocalizedPoint CectFrame::extrapolate(const cv::Point2f& q, LocalizedPoint out) const {
@@ -1236,19 +1275,8 @@ LocalizedPoint CectFrame::extrapolate(const cv::Point2f& q, LocalizedPoint out) 
     // In the border band: a direct match where the pixel's own window holds
     // enough texture.
     const int ry = params_.ncc_half_height > 0 ? params_.ncc_half_height : params_.ncc_radius;
-    const double reach = params_.continuity_margin;
-    double sharp = 0.0, sharp_back = 0.0;
-    const MatchResult m = maskedMatchAlongRow(left_grey_, right_grey_, left_inner_, right_inner_, q.x, q.y,
-                                              d - reach - 1.0, d + reach + 1.0, params_.ncc_radius, ry, false, &sharp);
-    if (m.ok && m.ncc >= params_.min_ncc && sharp >= params_.direct_min_sharpness && std::abs(m.disparity - d) <= reach) {
-      const float xr = static_cast<float>(cvRound(q.x) - std::round(m.disparity));
-      const double d_back = cvRound(q.x) - xr;
-      const MatchResult back =
-          maskedMatchAlongRow(right_grey_, left_grey_, right_inner_, left_inner_, xr, q.y, d_back - 2.0 - params_.lr_tolerance,
-                              d_back + 2.0 + params_.lr_tolerance, params_.ncc_radius, ry, true, &sharp_back);
-      if (back.ok && std::abs(back.disparity - d_back) <= params_.lr_tolerance)  // constraint 3
-        return triangulated(q, m.disparity, params_.pixel_sigma, std::move(out));
-    }
+    double dm = 0.0;
+    if (directMatch(q, d, params_.ncc_radius, ry, &dm)) return triangulated(q, dm, params_.pixel_sigma, std::move(out));
   }
   const double sigma = std::hypot(params_.pixel_sigma, rms) * (1.0 + nearest / step);
   out.extrapolated = true;

@@ -475,6 +475,48 @@ TEST(Cect, TexturedPixelsInTheBorderBandAreMatchedDirectly) {
   EXPECT_LT(medianOf(e), 0.4);
 }
 
+TEST(Cect, TheBandAlongARowBorderAveragesTheTransferWithADirectMatch) {
+  // Next to a border running along the rows (the shoulders' top, the neck
+  // base) the transfer leans on the first seeds, whose windows reach across
+  // the band's steep relief; a pixel there takes the mean of the transfer and
+  // its own window's match. Everywhere else the transfer is unchanged.
+  const Rendered r = renderBack(true);
+  cect::CectParams on, off;
+  off.direct_min_sharpness = 0.0;
+  const OnOff both = analyseOnOff(r, on, off);
+  ASSERT_TRUE(both.on.valid() && both.off.valid());
+  const cect::CectFrame &f = both.on, &f0 = both.off;
+  const cv::Rect box = cv::boundingRect(f.left().mask);
+  std::vector<double> e, e0;
+  int unchanged_inside = 0;
+  for (int y = box.y; y < box.y + box.height; y += 2)
+    for (int x = box.x; x < box.x + box.width; x += 2) {
+      const float truth = r.frame.left_disparity.at<float>(y, x);
+      if (!f.left().mask.at<std::uint8_t>(y, x) || !std::isfinite(truth)) continue;
+      const cv::Point2f q(static_cast<float>(x), static_cast<float>(y));
+      const cect::LocalizedPoint p = f.localizeRectified(q), p0 = f0.localizeRectified(q);
+      if (!p0.valid || p0.extrapolated) continue;
+      ASSERT_TRUE(p.valid) << q;
+      if (p.disparity == p0.disparity) {
+        if (x > box.x + box.width / 4 && x < box.x + 3 * box.width / 4 && y > box.y + box.height / 4 &&
+            y < box.y + 3 * box.height / 4)
+          ++unchanged_inside;
+        continue;
+      }
+      // Only pixels of a band along a row border change: near the top or
+      // bottom of the back, never in its middle.
+      EXPECT_TRUE(y < box.y + box.height / 4 || y > box.y + 3 * box.height / 4) << q;
+      e.push_back(std::abs(p.disparity - truth));
+      e0.push_back(std::abs(p0.disparity - truth));
+    }
+  std::cout << "row-border band: " << e.size() << " pixels with a direct match, median |error| " << medianOf(e)
+            << " px (transfer alone " << medianOf(e0) << " px); " << unchanged_inside
+            << " pixels of the back's middle unchanged\n";
+  ASSERT_GE(e.size(), 20u);
+  EXPECT_GT(unchanged_inside, 1000);
+  EXPECT_LT(medianOf(e), 0.75 * medianOf(e0));
+}
+
 TEST(Cect, EdgesAlongTheRowsAreMatchedByTheirShape) {
   // The neck base runs along the rows: no row crossings. Its shape y(x),
   // where it bends, fixes its shift between the views.

@@ -110,7 +110,11 @@ struct CectParams {
   /// continuity_margin of the extrapolation, kept when the correlation
   /// peak's sharpness (minus its second difference, per px^2: how much
   /// texture the window holds, e.g. the vertebra prominens at the neck
-  /// base) reaches this and constraint 3 holds (0: never).
+  /// base) reaches this and constraint 3 holds (0: never). Band pixels
+  /// inside the triangulation next to a border along the rows (the
+  /// shoulders' top, where the first seeds' windows reach across a steep
+  /// ledge) take the mean of the transfer and such a match, with a window
+  /// wide along the border and short across it (same gate).
   double direct_min_sharpness = 0.03;
   double pixel_sigma = 0.3;     ///< pixels: localisation noise of a matched point (covariance)
 };
@@ -207,6 +211,7 @@ class CectFrame {
   cv::Mat left_grey_, right_grey_;          ///< CV_32F
   cv::Mat left_inner_, right_inner_;        ///< the masks 3 px in from the border (direct matches)
   cv::Mat seed_region_;                     ///< left pixels at least seed_margin inside the border
+  int seed_margin_ = 0;                     ///< that margin, pixels
   std::vector<Correspondence> vertices_;
   std::vector<cv::Vec3i> triangles_;
   std::vector<std::vector<int>> vertex_triangles_;  ///< triangles around each vertex
@@ -218,6 +223,15 @@ class CectFrame {
   /// the candidates from its triangle and the triangles sharing an edge with
   /// it; NaN outside the triangulation. `spread` = max - min candidate.
   double transfer(const cv::Point2f& q, double* spread, int* count) const;
+  /// The direct match of a border-band pixel (see direct_min_sharpness): a
+  /// (2 rx + 1) x (2 ry + 1) window restricted to the back in both views,
+  /// searched within continuity_margin of `d`; false without a sharp peak or
+  /// when constraint 3 fails.
+  bool directMatch(const cv::Point2f& q, double d, int rx, int ry, double* disparity) const;
+  /// Rectified left pixel in the border band (outside seed_region_) next to a
+  /// border that runs along the rows: the back ends within the seed margin
+  /// above or below it, and not left or right of it.
+  bool inRowBorderBand(int x, int y) const;
   /// The fallback of localizeRectified outside the triangulation.
   LocalizedPoint extrapolate(const cv::Point2f& q, LocalizedPoint out) const;
   /// `out` completed with the 3D point of rectified pixel q at disparity d and its covariance.
