@@ -73,6 +73,7 @@ constexpr double kSmoothFraction = 0.01;  // half-window of the width smoothing
 constexpr double kShoulderSearch = 0.35;  // shoulder line within the upper 35 %
 constexpr double kBottomMargin = 0.06;    // the midline fit ends this far above the bottom
 constexpr double kHipDrop = 0.03;         // above the hips the width drops by at least this fraction
+constexpr double kHipDropCut = 0.015;     // ... on a back cut by the image's bottom (no tapering end to walk past)
 constexpr double kWaistPlateau = 0.03;    // waist run: within 3 % of (hips - waist) of the minimum
 constexpr double kNeckNarrower = 0.85;    // something above the shoulder line narrower than this x shoulders
 constexpr double kWaistNarrower = 0.95;   // waist narrower than this x shoulders
@@ -363,11 +364,15 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   // Hips: walking up from the bottom, the widest row before the width has
   // dropped kHipDrop below the widest so far (past the tapering end, the first
   // clear maximum); waist: narrowest row between the shoulders and the hips.
+  // A back cut by the image's bottom (camera shifted toward the head) ends in
+  // the hips' start, not in a tapering end: a smaller drop marks the waist.
+  const bool cut_at_bottom = !seg.mask.empty() && cv::countNonZero(seg.mask.row(seg.mask.rows - 1)) > 0;
+  const double hip_drop = cut_at_bottom ? kHipDropCut : kHipDrop;
   int ih = n - 1;
   int up = n - 1;
   for (; up > ish; --up) {
     if (W(up) > W(ih)) ih = up;
-    if (W(up) < (1.0 - kHipDrop) * W(ih)) break;
+    if (W(up) < (1.0 - hip_drop) * W(ih)) break;
   }
   if (up == ish) return invalid("not a back: no waist (no narrowing between the shoulders and the bottom)");
   int iw = ish;
@@ -473,12 +478,25 @@ cv::Point2f lateralAt(const BackLandmarks& l, double y) {
   return v[static_cast<std::size_t>(std::lround(t))];
 }
 
-/// Median metres-per-pixel along the midline within +-kScaleWindow of C7->L4 around row y.
+/// Median metres-per-pixel along the midline within +-kScaleWindow of C7->L4
+/// around row y. A level out of view (a back cut by the image) takes the
+/// nearest window along the midline that has a scale, at most
+/// kMaxOutOfView of C7->L4 away: the scale varies slowly along the back, and
+/// the point is then placed (off the image, where the localisation reports it).
 double midlineScale(const BackLandmarks& l, double y, const PixelScale& scale) {
-  const double step = std::max(1.0, kScaleWindow / 3.0 * std::abs(l.l4.y - l.c7.y));
-  std::vector<double> s;
-  for (int k = -3; k <= 3; ++k) s.push_back(scale(midlineAt(l, y + k * step)));
-  return median(s);
+  const double length = std::abs(l.l4.y - l.c7.y);
+  const double step = std::max(1.0, kScaleWindow / 3.0 * length);
+  auto window = [&](double yc) {
+    std::vector<double> s;
+    for (int k = -3; k <= 3; ++k) s.push_back(scale(midlineAt(l, yc + k * step)));
+    return median(s);
+  };
+  double m = window(y);
+  for (double d = step; !std::isfinite(m) && d <= kMaxOutOfView * length; d += step) {
+    m = window(y - d);
+    if (!std::isfinite(m)) m = window(y + d);
+  }
+  return m;
 }
 
 // --- YAML helpers: errors name the key.

@@ -537,6 +537,63 @@ TEST(AcupointLandmarks, IliacLineOutOfViewWhenTheImageCutsTheBack) {
   EXPECT_NE(s.reason.find("iliac-crest line"), std::string::npos) << s.reason;
 }
 
+TEST(AcupointLandmarks, WaistFoundWhenTheImageCutsTheHipsStart) {
+  // The camera shifted further toward the head (the thesis's 14 cm shift for
+  // a long back): the image ends where the hips have only begun, the width
+  // ~2.5 % above the waist's. With no tapering end to walk past, that small
+  // widening still marks the waist (a whole back needs a 3 % drop); the
+  // levels below the image are placed beyond it with the nearest in-view
+  // metres per pixel. The mean subject's hips widen abruptly, so its rows
+  // below the waist are redrawn with a slow, steady widening.
+  const Rendered& r = meanSubject640();
+  const cect::Segmentation full = groundTruthSegmentation(r);
+  const cect::BackLandmarks whole = cect::findLandmarks(full, model());
+  ASSERT_TRUE(whole.valid) << whole.reason;
+  auto width = [](const cv::Mat& m, int y) { return cv::countNonZero(m.row(y)); };
+  const int waist = static_cast<int>(std::lround(whole.waist_row));
+  const int cut = waist + 40;
+  ASSERT_LT(cut, static_cast<int>(whole.l4.y) - 20) << "the cut should lie well above L4";
+  cv::Mat cropped = full.mask.rowRange(0, cut).clone();
+  int w0 = width(full.mask, waist);  // the narrowest row above: the waist's plateau is broad
+  for (int y = static_cast<int>(whole.shoulder_row); y < waist; ++y) w0 = std::min(w0, width(full.mask, y));
+  const double xc = whole.midline[static_cast<std::size_t>(waist - whole.midline.front().y)].x;
+  for (int y = waist; y < cut; ++y) {
+    const int wy = static_cast<int>(std::lround(w0 * (1.0 + 0.025 * (y - waist) / (cut - 1 - waist))));
+    const int x0 = static_cast<int>(std::lround(xc - 0.5 * wy));
+    cropped.row(y).setTo(0);
+    cropped.row(y).colRange(x0, x0 + wy).setTo(255);
+  }
+  const cect::BackLandmarks l = cect::findLandmarks(segmentationFromMask(cropped), model());
+  ASSERT_TRUE(l.valid) << l.reason;
+  std::printf("image cut at row %d (waist %d, widths %d -> %d px): C7 %.1f vs %.1f, L4 %.1f vs %.1f\n", cut, waist,
+              width(cropped, waist), width(cropped, cut - 1), l.c7.y, whole.c7.y, l.l4.y, whole.l4.y);
+  EXPECT_GT(l.l4.y, cut - 1);
+  EXPECT_NEAR(l.c7.y, whole.c7.y, 4.0);
+  EXPECT_NEAR(l.l4.y, whole.l4.y, 12.0);  // the waist's plateau is cut short
+  const auto scale = depthScale(r.view.depth, r.fx);
+  const auto points = cect::placeAcupoints(l, model(), scale);
+  const auto reference = cect::placeAcupoints(whole, model(), scale);
+  ASSERT_EQ(points.size(), reference.size());
+  int below = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const auto& a = points[i];
+    ASSERT_TRUE(a.valid) << a.name << ": " << a.reason;  // placed, in view or not
+    if (a.pixel.y > cut - 1) {
+      ++below;
+      EXPECT_GT(reference[i].pixel.y, cut - 20) << a.name;
+    } else {
+      EXPECT_LT(distance(a.pixel, reference[i].pixel), 12.0) << a.name;
+    }
+  }
+  EXPECT_GT(below, 4);
+
+  // A silhouette whose width only grows at its very end inside the image (no
+  // cut) still needs the full widening: that is a tapering end's noise.
+  cv::Mat short_back = cv::Mat::zeros(full.mask.size(), CV_8U);
+  cropped.copyTo(short_back.rowRange(0, cut));
+  EXPECT_FALSE(cect::findLandmarks(segmentationFromMask(short_back), model()).valid);
+}
+
 TEST(AcupointLandmarks, ParallaxCorrectionPutsTheMidlineOnTheSpine) {
   // The silhouette's centre line is the table-level image of the midline;
   // with the back in 3D (CECT on the mean subject's stereo pair: the rims'
