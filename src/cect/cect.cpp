@@ -242,6 +242,61 @@ MatchResult maskedMatchAlongRow(const cv::Mat& from, const cv::Mat& to, const cv
   return peakOf(score, lo, "too little of the window on the back", sharpness);
 }
 
+/// matchAlongRow with a slanted window: the left window's pixel (x+u, y+v)
+/// is compared with the right view at x+u - (d + g.x u + g.y v), the
+/// disparity plane through d with gradient g (bilinear samples), for
+/// d = d0 - range .. d0 + range in whole pixels, then a parabola. A
+/// fronto-parallel window on a slanted surface compares pixels whose
+/// disparities differ by g.x r + g.y ry at its edges (~1.5 px at the
+/// shoulders' top), and its peak follows wherever the window's texture is
+/// strongest rather than its centre.
+MatchResult slantedMatch(const cv::Mat& left, const cv::Mat& right, int x, int y, double d0, const cv::Point2d& g,
+                         int range, int r, int ry) {
+  MatchResult res;
+  if (x - r < 0 || y - ry < 0 || x + r >= left.cols || y + ry >= left.rows) {
+    res.why = "matching window leaves the image";
+    return res;
+  }
+  std::vector<float> ref;
+  if (!windowAt(left, static_cast<float>(x), static_cast<float>(y), r, ry, &ref)) {
+    res.why = "no texture in the matching window";
+    return res;
+  }
+  const int n = static_cast<int>(ref.size());
+  std::vector<double> score(static_cast<std::size_t>(2 * range + 1), -2.0);
+  std::vector<float> cand(ref.size());
+  for (int k = -range; k <= range; ++k) {
+    const double d = d0 + k;
+    double sum = 0.0;
+    int i = 0;
+    bool inside = true;
+    for (int v = -ry; v <= ry && inside; ++v)
+      for (int u = -r; u <= r; ++u) {
+        const double xr = x + u - (d + g.x * u + g.y * v);
+        if (xr < 0.0 || xr > right.cols - 1.0) {
+          inside = false;
+          break;
+        }
+        const float c = sample(right, static_cast<float>(xr), static_cast<float>(y + v));
+        cand[static_cast<std::size_t>(i++)] = c;
+        sum += c;
+      }
+    if (!inside) continue;
+    const double mean = sum / n;
+    double ss = 0.0, dot = 0.0;
+    for (int j = 0; j < n; ++j) {
+      const double c = cand[static_cast<std::size_t>(j)] - mean;
+      ss += c * c;
+      dot += c * ref[static_cast<std::size_t>(j)];
+    }
+    if (ss < 1e-6 * n) continue;
+    score[static_cast<std::size_t>(k + range)] = dot / std::sqrt(ss);
+  }
+  MatchResult m = peakOf(score, 0, "matching window leaves the image");
+  if (m.ok) m.disparity += d0 - range;
+  return m;
+}
+
 /// Barycentric coordinates of p in triangle (a, b, c); false if degenerate.
 bool barycentric(const cv::Point2f& p, const cv::Point2f& a, const cv::Point2f& b, const cv::Point2f& c,
                  double* l0, double* l1, double* l2) {
@@ -281,7 +336,7 @@ cv::Mat maskedBlur(const cv::Mat& img, const cv::Mat& w, double sigma) {
 /// vertex's distance.
 bool fitQuadratic(const std::vector<Correspondence>& V, const std::vector<int>& idx, const cv::Point2f& centre,
                   double radius, std::size_t min_count, double* value, double* rms = nullptr,
-                  double* nearest = nullptr) {
+                  double* nearest = nullptr, cv::Point2d* gradient = nullptr) {
   const double s2 = 2.0 * (radius / 2.0) * (radius / 2.0);
   std::vector<int> nb;
   std::vector<double> wt;
@@ -324,6 +379,7 @@ bool fitQuadratic(const std::vector<Correspondence>& V, const std::vector<int>& 
     for (std::size_t k = 0; k < nb.size(); ++k) use[k] = res[k] <= 3.0 * mad;
   }
   *value = coef(0);
+  if (gradient) *gradient = cv::Point2d(coef(1) / radius, coef(2) / radius);
   if (rms) {
     double ss = 0.0, ws = 0.0;
     for (std::size_t k = 0; k < nb.size(); ++k)
@@ -384,6 +440,8 @@ class CectFrameBuilder {
       seeds(2 * f_.params_.seed_step, f_.params_.seed_search);
       triangulate();
       seeds(f_.params_.seed_step, std::max(2.0, 0.5 * f_.params_.seed_search));
+      if (f_.params_.slanted_windows && f_.params_.smooth_radius > 0)
+        slantSeeds(f_.params_.smooth_radius * f_.params_.seed_step);
       if (f_.params_.smooth_radius > 0) smoothSeeds(f_.params_.smooth_radius * f_.params_.seed_step);
       if (f_.params_.rim_profile) rimProfiles();
       triangulate(f_.params_.max_triangle_edge * f_.params_.seed_step);
@@ -930,6 +988,41 @@ class CectFrameBuilder {
       }
     }
     V.insert(V.end(), added.begin(), added.end());
+  }
+
+  /// Each interior seed on a slanted part of the back is matched again with
+  /// a slanted window: the disparity plane of the seeds' local quadratic
+  /// around it (its gradient at the seed), searched +-2 px around the seed's
+  /// first match. Kept when the peak is found, strong enough (min_ncc) and
+  /// within continuity_margin of the first match; otherwise the first match
+  /// stays.
+  void slantSeeds(double radius) {
+    auto& V = f_.vertices_;
+    const CectParams& p = f_.params_;
+    const int r = p.ncc_radius;
+    const int ry = p.ncc_half_height > 0 ? p.ncc_half_height : r;
+    std::vector<int> idx;
+    for (std::size_t i = 0; i < V.size(); ++i)
+      if (V[i].source == Correspondence::Source::kSeed) idx.push_back(static_cast<int>(i));
+    std::vector<float> refined(V.size(), std::numeric_limits<float>::quiet_NaN());
+    cv::parallel_for_(cv::Range(0, static_cast<int>(idx.size())), [&](const cv::Range& range) {
+      for (int k = range.start; k < range.end; ++k) {
+        const std::size_t i = static_cast<std::size_t>(idx[static_cast<std::size_t>(k)]);
+        double fit = 0.0;
+        cv::Point2d g;
+        if (!fitQuadratic(V, idx, V[i].left, radius, 8, &fit, nullptr, nullptr, &g)) continue;
+        // Nearly fronto-parallel: the first match stands (a re-match there
+        // only trades one noisy peak for another, with the right window
+        // interpolated).
+        if (std::abs(g.x) * r + std::abs(g.y) * ry < p.min_slant) continue;
+        const MatchResult m = slantedMatch(f_.left_grey_, f_.right_grey_, cvRound(V[i].left.x), cvRound(V[i].left.y),
+                                           std::round(V[i].disparity), g, 2, r, ry);
+        if (m.ok && m.ncc >= p.min_ncc && std::abs(m.disparity - V[i].disparity) <= p.continuity_margin)
+          refined[i] = static_cast<float>(m.disparity);
+      }
+    });
+    for (int i : idx)
+      if (std::isfinite(refined[static_cast<std::size_t>(i)])) V[static_cast<std::size_t>(i)].disparity = refined[static_cast<std::size_t>(i)];
   }
 
   /// Each interior seed's disparity becomes the value at the seed of a

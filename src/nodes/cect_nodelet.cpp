@@ -66,6 +66,8 @@ cect::CectParams cectParams(const CECTConfig& c) {
   p.sheen_sigma = c.sheen_sigma;
   p.smooth_radius = c.smooth_radius;
   p.rim_profile = c.rim_profile;
+  p.slanted_windows = c.slanted_windows;
+  p.min_slant = c.min_slant;
   p.max_extrapolation = c.max_extrapolation;
   p.max_triangle_edge = c.max_triangle_edge;
   p.direct_min_sharpness = c.direct_min_sharpness;

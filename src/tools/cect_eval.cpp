@@ -97,6 +97,8 @@ const std::map<std::string, std::function<void(cect::CectParams&, double)>>& par
       {"max_relief", [](P& p, double v) { p.max_relief = v; }},
       {"smooth_radius", [](P& p, double v) { p.smooth_radius = v; }},
       {"rim_profile", [](P& p, double v) { p.rim_profile = v != 0.0; }},
+      {"slanted_windows", [](P& p, double v) { p.slanted_windows = v != 0.0; }},
+      {"min_slant", [](P& p, double v) { p.min_slant = v; }},
       {"edge_window", [](P& p, double v) { p.edge_window = v; }},
       {"max_triangle_edge", [](P& p, double v) { p.max_triangle_edge = v; }},
       {"edge_min_bend", [](P& p, double v) { p.edge_min_bend = v; }},

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <numeric>
 #include <random>
 
 #include <opencv2/imgproc.hpp>
@@ -382,6 +383,28 @@ TEST(Cect, RimProfileFollowsTheFlankBetweenContourAndSeeds) {
   EXPECT_LT(medianOf(e), 0.7);
   EXPECT_LT(medianOf(e), 0.5 * medianOf(e0));
   EXPECT_GT(e.size(), e0.size());
+}
+
+TEST(Cect, SlantedWindowsTakeTheBiasOffTheSlopesTowardTheRim) {
+  // Toward the rim (the flanks, the shoulders' top) the disparity changes by
+  // more than a pixel across a fronto-parallel window, whose peak then
+  // follows the window's strongest texture rather than its centre. Matte
+  // skin (no sheen), so that the windows' geometry is what is measured:
+  // the mean subject's band 16-40 px inside the contour.
+  const Rendered r = renderBack(true, 0, 640, 480, 500, 0.0f);
+  cect::CectParams with, without;
+  without.slanted_windows = false;
+  const OnOff both = analyseOnOff(r, with, without);
+  ASSERT_TRUE(both.on.valid() && both.off.valid());
+  int asked = 0, asked0 = 0;
+  const auto e = absOf(bandErrors(r, both.on, 16.0, 40.0, &asked));
+  const auto e0 = absOf(bandErrors(r, both.off, 16.0, 40.0, &asked0));
+  ASSERT_GT(e.size(), 1000u);
+  auto mean = [](const std::vector<double>& v) { return std::accumulate(v.begin(), v.end(), 0.0) / v.size(); };
+  std::cout << "16-40 px inside the contour: slanted windows mean |error| " << mean(e) << " px (" << e.size() << "/"
+            << asked << " valid); fronto-parallel " << mean(e0) << " px (" << e0.size() << "/" << asked0 << ")\n";
+  EXPECT_LT(mean(e), 0.95 * mean(e0));
+  EXPECT_GE(e.size(), e0.size() - 10);
 }
 
 TEST(Cect, SheenIsTakenOffBeforeMatching) {

@@ -78,6 +78,14 @@ struct CectParams {
   double max_relief = 0.3;
   /// Seeds are smoothed by a local quadratic over this many seed steps (0: off).
   double smooth_radius = 4.0;
+  /// Before smoothing, seeds are matched again with a window slanted by the
+  /// local disparity gradient g of their neighbours' quadratic (needs
+  /// smooth_radius > 0): on the shoulders' slopes and the flanks a
+  /// fronto-parallel window's peak is biased by up to ~1 px.
+  bool slanted_windows = true;
+  /// ... only where the slant moves the window's edges by at least this
+  /// much, |g.x| r + |g.y| ry (pixels; scales with the image size).
+  double min_slant = 1.5;
   /// Fill the band between the contour and the first seeds from a rim
   /// profile (disparity ~ sqrt of the distance to the occluding contour,
   /// fitted to the seeds nearby) instead of interpolating linearly.
