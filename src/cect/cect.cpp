@@ -1359,7 +1359,9 @@ LocalizedPoint CectFrame::extrapolate(const cv::Point2f& q, LocalizedPoint out) 
     out.reason = "pixel outside the triangulated back (too close to its border)";
     return out;
   }
-  if (rms > 2.0 * params_.pixel_sigma) {
+  // Seeds that scatter beyond three times their matching noise around
+  // their own quadratic do not describe a smooth surface here.
+  if (rms > 3.0 * params_.pixel_sigma) {
     out.reason = "pixel outside the triangulated back, and the seeds around it do not fit a smooth surface (rms " +
                  std::to_string(rms) + " px)";
     return out;

@@ -457,6 +457,24 @@ TEST(Cect, PixelsAtTheNeckBaseAreExtrapolatedWithAWiderSigma) {
   EXPECT_EQ(refused, extrapolated);
   std::cout << "neck base: " << extrapolated << " extrapolated, median |error| " << medianOf(err) << " px\n";
   EXPECT_LT(medianOf(err), 1.0);
+
+  // Seeds that scatter around their quadratic beyond 3 pixel_sigma do not
+  // describe a smooth surface: with a (pretended) matching noise of
+  // 0.02 px, the same band is refused with that reason.
+  cect::CectParams strict;
+  strict.pixel_sigma = 0.02;
+  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const cect::CectFrame fs = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, strict);
+  ASSERT_TRUE(fs.valid()) << fs.reason();
+  int rough = 0;
+  for (int y = box.y + 3; y < box.y + 12; y += 2)
+    for (int x = box.x + box.width / 3; x < box.x + 2 * box.width / 3; x += 4) {
+      const cv::Point2f q(static_cast<float>(x), static_cast<float>(y));
+      if (!f.localizeRectified(q).extrapolated) continue;
+      const cect::LocalizedPoint p = fs.localizeRectified(q);
+      rough += !p.valid && p.reason.find("do not fit a smooth surface") != std::string::npos;
+    }
+  EXPECT_GT(rough, extrapolated / 2);
 }
 
 TEST(Cect, TexturedPixelsInTheBorderBandAreMatchedDirectly) {

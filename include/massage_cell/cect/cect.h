@@ -108,7 +108,8 @@ struct CectParams {
   /// Back pixels outside the triangulation (next to a contour running along
   /// the epipolar lines, e.g. the neck base) are extrapolated from the seeds'
   /// local quadratic when the nearest seed is within this many seed steps
-  /// (0: never; they stay valid = false).
+  /// and the seeds fit it within 3 pixel_sigma rms (0: never; they stay
+  /// valid = false).
   double max_extrapolation = 1.5;
   /// Such pixels in the border band where no seed window fits (closer to
   /// the border than the seeds' margin; there the surface rolls off, which
