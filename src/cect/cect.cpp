@@ -990,10 +990,22 @@ class CectFrameBuilder {
     V.insert(V.end(), added.begin(), added.end());
   }
 
-  /// Each interior seed on a slanted part of the back is matched again with
-  /// a slanted window: the disparity plane of the seeds' local quadratic
-  /// around it (its gradient at the seed), searched +-2 px around the seed's
-  /// first match. Kept when the peak is found, strong enough (min_ncc) and
+  /// True when a border running along the rows lies within `reach` pixels
+  /// above or below (x, y) while the back continues `reach` pixels to
+  /// either side along the row (the shoulders' top, the neck base).
+  bool nearRowBorder(int x, int y, int reach) const {
+    const cv::Mat& mask = f_.left_seg_.mask;
+    auto on = [&](int xx, int yy) {
+      return xx >= 0 && yy >= 0 && xx < mask.cols && yy < mask.rows && mask.at<std::uint8_t>(yy, xx) != 0;
+    };
+    return (!on(x, y - reach) || !on(x, y + reach)) && on(x - reach, y) && on(x + reach, y);
+  }
+
+  /// Each interior seed on a slanted part of the back (or within 2 seed
+  /// steps of a border along the rows) is matched again with a slanted
+  /// window: the disparity plane of the seeds' local quadratic around it
+  /// (its gradient at the seed), searched +-2 px around the seed's first
+  /// match. Kept when the peak is found, strong enough (min_ncc) and
   /// within continuity_margin of the first match; otherwise the first match
   /// stays.
   void slantSeeds(double radius) {
@@ -1013,16 +1025,22 @@ class CectFrameBuilder {
         if (!fitQuadratic(V, idx, V[i].left, radius, 8, &fit, nullptr, nullptr, &g)) continue;
         // Nearly fronto-parallel: the first match stands (a re-match there
         // only trades one noisy peak for another, with the right window
-        // interpolated).
-        if (std::abs(g.x) * r + std::abs(g.y) * ry < p.min_slant) continue;
+        // interpolated). But next to a border along the rows (the
+        // shoulders' top) the skin rolls over toward the head, and the
+        // quadratic, fitted from one side only, underestimates that slope:
+        // those seeds are re-matched in any case.
+        const bool ledge = nearRowBorder(cvRound(V[i].left.x), cvRound(V[i].left.y), 2 * p.seed_step);
+        if (!ledge && std::abs(g.x) * r + std::abs(g.y) * ry < p.min_slant) continue;
         const MatchResult m = slantedMatch(f_.left_grey_, f_.right_grey_, cvRound(V[i].left.x), cvRound(V[i].left.y),
                                            std::round(V[i].disparity), g, 2, r, ry);
         if (m.ok && m.ncc >= p.min_ncc && std::abs(m.disparity - V[i].disparity) <= p.continuity_margin)
           refined[i] = static_cast<float>(m.disparity);
       }
     });
-    for (int i : idx)
-      if (std::isfinite(refined[static_cast<std::size_t>(i)])) V[static_cast<std::size_t>(i)].disparity = refined[static_cast<std::size_t>(i)];
+    for (int i : idx) {
+      const float d = refined[static_cast<std::size_t>(i)];
+      if (std::isfinite(d)) V[static_cast<std::size_t>(i)].disparity = d;
+    }
   }
 
   /// Each interior seed's disparity becomes the value at the seed of a

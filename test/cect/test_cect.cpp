@@ -407,6 +407,41 @@ TEST(Cect, SlantedWindowsTakeTheBiasOffTheSlopesTowardTheRim) {
   EXPECT_GE(e.size(), e0.size() - 10);
 }
 
+TEST(Cect, SeedsBelowTheShouldersTopAreMatchedWithSlantedWindows) {
+  // Below the shoulders' top (a border along the rows 6-32 px above, the
+  // back continuing 32 px to either side) the skin rolls over toward the
+  // head more steeply than the seeds' quadratic, fitted from one side only,
+  // says: those seeds are re-matched with slanted windows whatever their
+  // estimated slant. Subject 11, matte.
+  const Rendered r = renderBack(true, 11, 640, 480, 500, 0.0f);
+  cect::CectParams with, without;
+  without.slanted_windows = false;
+  const OnOff both = analyseOnOff(r, with, without);
+  ASSERT_TRUE(both.on.valid() && both.off.valid());
+  const cv::Mat& mask = both.on.left().mask;
+  auto on = [&](int x, int y) {
+    return x >= 0 && y >= 0 && x < mask.cols && y < mask.rows && mask.at<std::uint8_t>(y, x) != 0;
+  };
+  double sum = 0.0, sum0 = 0.0;
+  int n = 0;
+  for (int y = 0; y < mask.rows; y += 2)
+    for (int x = 0; x < mask.cols; x += 2) {
+      const float t = r.frame.left_disparity.at<float>(y, x);
+      if (!on(x, y) || !on(x - 32, y) || !on(x + 32, y) || !on(x, y - 6) || on(x, y - 32) || !std::isfinite(t))
+        continue;
+      const cv::Point2f q(static_cast<float>(x), static_cast<float>(y));
+      const cect::LocalizedPoint a = both.on.localizeRectified(q), b = both.off.localizeRectified(q);
+      if (!a.valid || !b.valid) continue;
+      sum += std::abs(a.disparity - t);
+      sum0 += std::abs(b.disparity - t);
+      ++n;
+    }
+  ASSERT_GT(n, 500);
+  std::cout << "below the shoulders' top (" << n << " px): slanted windows mean |error| " << sum / n
+            << " px, fronto-parallel " << sum0 / n << " px\n";
+  EXPECT_LT(sum, 0.9 * sum0);
+}
+
 TEST(Cect, SheenIsTakenOffBeforeMatching) {
   // The highlight, a virtual image behind the convex back, pulls plain grey
   // matches farther (subject 3: -0.6 px in the interior, -0.2 px without

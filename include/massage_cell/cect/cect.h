@@ -84,7 +84,9 @@ struct CectParams {
   /// fronto-parallel window's peak is biased by up to ~1 px.
   bool slanted_windows = true;
   /// ... only where the slant moves the window's edges by at least this
-  /// much, |g.x| r + |g.y| ry (pixels; scales with the image size).
+  /// much, |g.x| r + |g.y| ry (pixels; scales with the image size), and
+  /// within 2 seed steps of a border along the rows (the shoulders' top,
+  /// where the one-sided quadratic underestimates the slope).
   double min_slant = 1.5;
   /// Fill the band between the contour and the first seeds from a rim
   /// profile (disparity ~ sqrt of the distance to the occluding contour,
