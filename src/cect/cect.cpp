@@ -39,6 +39,7 @@
 #include <limits>
 #include <cstring>
 #include <map>
+#include <set>
 #include <unordered_map>
 #include <utility>
 #include <stdexcept>
@@ -330,59 +331,67 @@ cv::Mat maskedBlur(const cv::Mat& img, const cv::Mat& w, double sigma) {
 
 /// A local quadratic d(x, y) fitted to vertices around `centre`: Gaussian
 /// weights (sigma = radius / 2) over the vertices within `radius`, one refit
-/// without the residuals beyond 3 MAD. Returns false with fewer than
-/// `min_count` neighbours or a singular fit; *value = d(centre), *rms = the
-/// weighted rms residual of the points kept, *nearest = the nearest used
-/// vertex's distance.
+/// without the residuals beyond 3 MAD. With `quartic_x` it also has x^3 and
+/// x^4 terms (across the body: the paraspinal ridges and the spine's groove
+/// between them), when the neighbours span at least five columns. Returns
+/// false with fewer than `min_count` neighbours or a singular fit; *value =
+/// d(centre), *rms = the weighted rms residual of the points kept, *nearest =
+/// the nearest used vertex's distance, *gradient = (dd/dx, dd/dy) at centre.
 bool fitQuadratic(const std::vector<Correspondence>& V, const std::vector<int>& idx, const cv::Point2f& centre,
                   double radius, std::size_t min_count, double* value, double* rms = nullptr,
-                  double* nearest = nullptr, cv::Point2d* gradient = nullptr) {
+                  double* nearest = nullptr, cv::Point2d* gradient = nullptr, bool quartic_x = false) {
+  using Vec = Eigen::Matrix<double, 8, 1>;
+  using Mat = Eigen::Matrix<double, 8, 8>;
   const double s2 = 2.0 * (radius / 2.0) * (radius / 2.0);
-  std::vector<int> nb;
-  std::vector<double> wt;
+  std::vector<Vec> phi;
+  std::vector<double> wt, dv;
+  std::set<int> columns;
   double near = std::numeric_limits<double>::infinity();
   for (int j : idx) {
-    const cv::Point2f q = V[static_cast<std::size_t>(j)].left - centre;
+    const Correspondence& v = V[static_cast<std::size_t>(j)];
+    const cv::Point2f q = v.left - centre;
     const double r2 = q.x * q.x + q.y * q.y;
-    if (r2 <= radius * radius) {
-      nb.push_back(j);
-      wt.push_back(std::exp(-r2 / s2));
-      near = std::min(near, std::sqrt(r2));
-    }
+    if (r2 > radius * radius) continue;
+    const double x = q.x / radius, y = q.y / radius;
+    Vec f;
+    f << 1.0, x, y, x * x, x * y, y * y, x * x * x, x * x * x * x;
+    phi.push_back(f);
+    wt.push_back(std::exp(-r2 / s2));
+    dv.push_back(v.disparity);
+    near = std::min(near, std::sqrt(r2));
+    if (quartic_x) columns.insert(cvRound(v.left.x));
   }
-  if (nb.size() < min_count) return false;
-  std::vector<bool> use(nb.size(), true);
-  Eigen::Matrix<double, 6, 1> coef;
-  std::vector<double> res(nb.size());
-  auto phiOf = [&](const Correspondence& v) {
-    const double x = (v.left.x - centre.x) / radius, y = (v.left.y - centre.y) / radius;
-    Eigen::Matrix<double, 6, 1> phi;
-    phi << 1.0, x, y, x * x, x * y, y * y;
-    return phi;
-  };
+  const std::size_t n = phi.size();
+  if (n < min_count) return false;
+  const int dim = quartic_x && columns.size() >= 5 ? 8 : 6;
+  std::vector<bool> use(n, true);
+  std::vector<double> res(n);
+  Vec coef = Vec::Zero();
   for (int pass = 0; pass < 2; ++pass) {
-    Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
-    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
-    for (std::size_t k = 0; k < nb.size(); ++k) {
+    Mat A = Mat::Zero();
+    Vec b = Vec::Zero();
+    for (std::size_t k = 0; k < n; ++k) {
       if (!use[k]) continue;
-      const Correspondence& v = V[static_cast<std::size_t>(nb[k])];
-      const Eigen::Matrix<double, 6, 1> phi = phiOf(v);
-      A += wt[k] * phi * phi.transpose();
-      b += wt[k] * v.disparity * phi;
+      A.noalias() += wt[k] * phi[k] * phi[k].transpose();
+      b.noalias() += wt[k] * dv[k] * phi[k];
     }
-    coef = A.ldlt().solve(b);
+    coef.setZero();
+    if (dim == 8) {
+      coef = A.ldlt().solve(b);
+    } else {
+      coef.head<6>() = A.topLeftCorner<6, 6>().ldlt().solve(b.head<6>());
+    }
     if (!coef.allFinite()) return false;
-    for (std::size_t k = 0; k < nb.size(); ++k)
-      res[k] = std::abs(V[static_cast<std::size_t>(nb[k])].disparity - coef.dot(phiOf(V[static_cast<std::size_t>(nb[k])])));
+    for (std::size_t k = 0; k < n; ++k) res[k] = std::abs(dv[k] - coef.dot(phi[k]));
     if (pass == 1) break;
     const double mad = std::max(0.3, median(res));
-    for (std::size_t k = 0; k < nb.size(); ++k) use[k] = res[k] <= 3.0 * mad;
+    for (std::size_t k = 0; k < n; ++k) use[k] = res[k] <= 3.0 * mad;
   }
   *value = coef(0);
   if (gradient) *gradient = cv::Point2d(coef(1) / radius, coef(2) / radius);
   if (rms) {
     double ss = 0.0, ws = 0.0;
-    for (std::size_t k = 0; k < nb.size(); ++k)
+    for (std::size_t k = 0; k < n; ++k)
       if (use[k]) {
         ss += wt[k] * res[k] * res[k];
         ws += wt[k];
@@ -1044,9 +1053,10 @@ class CectFrameBuilder {
   }
 
   /// Each interior seed's disparity becomes the value at the seed of a
-  /// weighted quadratic fitted to the seeds within `radius` pixels (Gaussian
-  /// weights, sigma = radius / 2; one refit without the residuals beyond
-  /// 3 MAD): single matches on skin are noisy (~0.6 px), the back is smooth.
+  /// weighted quadratic (with quartic_across: quartic across the body)
+  /// fitted to the seeds within `radius` pixels (Gaussian weights, sigma =
+  /// radius / 2; one refit without the residuals beyond 3 MAD): single
+  /// matches on skin are noisy (~0.6 px), the back is smooth.
   /// A seed farther than continuity_margin from its fit is dropped
   /// (constraint 2).
   void smoothSeeds(double radius) {
@@ -1055,12 +1065,16 @@ class CectFrameBuilder {
     for (std::size_t i = 0; i < V.size(); ++i)
       if (V[i].source == Correspondence::Source::kSeed) idx.push_back(static_cast<int>(i));
     std::vector<float> smoothed(V.size(), std::numeric_limits<float>::quiet_NaN());
-    for (int i : idx) {
-      double fit = 0.0;
-      // Too few neighbours to fit: the seed stays as matched.
-      if (fitQuadratic(V, idx, V[static_cast<std::size_t>(i)].left, radius, 8, &fit))
-        smoothed[static_cast<std::size_t>(i)] = static_cast<float>(fit);
-    }
+    const bool quartic = f_.params_.quartic_across;
+    cv::parallel_for_(cv::Range(0, static_cast<int>(idx.size())), [&](const cv::Range& range) {
+      for (int k = range.start; k < range.end; ++k) {
+        const std::size_t i = static_cast<std::size_t>(idx[static_cast<std::size_t>(k)]);
+        double fit = 0.0;
+        // Too few neighbours to fit: the seed stays as matched.
+        if (fitQuadratic(V, idx, V[i].left, radius, 8, &fit, nullptr, nullptr, nullptr, quartic))
+          smoothed[i] = static_cast<float>(fit);
+      }
+    });
     std::vector<Correspondence> kept;
     kept.reserve(V.size());
     for (std::size_t i = 0; i < V.size(); ++i) {

@@ -65,6 +65,7 @@ cect::CectParams cectParams(const CECTConfig& c) {
   p.bandpass_high = c.bandpass_high;
   p.sheen_sigma = c.sheen_sigma;
   p.smooth_radius = c.smooth_radius;
+  p.quartic_across = c.quartic_across;
   p.rim_profile = c.rim_profile;
   p.slanted_windows = c.slanted_windows;
   p.min_slant = c.min_slant;

@@ -96,6 +96,7 @@ const std::map<std::string, std::function<void(cect::CectParams&, double)>>& par
       {"seed_search", [](P& p, double v) { p.seed_search = v; }},
       {"max_relief", [](P& p, double v) { p.max_relief = v; }},
       {"smooth_radius", [](P& p, double v) { p.smooth_radius = v; }},
+      {"quartic_across", [](P& p, double v) { p.quartic_across = v != 0.0; }},
       {"rim_profile", [](P& p, double v) { p.rim_profile = v != 0.0; }},
       {"slanted_windows", [](P& p, double v) { p.slanted_windows = v != 0.0; }},
       {"min_slant", [](P& p, double v) { p.min_slant = v; }},

@@ -77,7 +77,13 @@ struct CectParams {
   /// predicted from the contour alone, are searched that far nearer.
   double max_relief = 0.3;
   /// Seeds are smoothed by a local quadratic over this many seed steps (0: off).
-  double smooth_radius = 4.0;
+  double smooth_radius = 6.0;
+  /// The smoothing fit also has x^3 and x^4 terms: across the body (which
+  /// lies along the image columns, head up or down, as in the acupoint
+  /// model) the back is a dome with two paraspinal ridges and the spine's
+  /// groove between them, ~0.5 px deep and ~40 px ridge to ridge at
+  /// 640x480, which a quadratic over the smoothing radius flattens.
+  bool quartic_across = true;
   /// Before smoothing, seeds are matched again with a window slanted by the
   /// local disparity gradient g of their neighbours' quadratic (needs
   /// smooth_radius > 0): on the shoulders' slopes and the flanks a
