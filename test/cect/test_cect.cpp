@@ -446,8 +446,8 @@ TEST(Cect, SeedsBelowTheShouldersTopAreMatchedWithSlantedWindows) {
 TEST(Cect, SmoothingFollowsTheSpinesGrooveAcrossTheBody) {
   // Across the body the back is a dome with two paraspinal ridges and the
   // spine's groove between them (~0.5 px deep, ~40 px ridge to ridge here):
-  // a quadratic over the smoothing radius flattens it, raising the groove
-  // and lowering the ridges; the quartic across the body follows it.
+  // a quadratic over the (wide) smoothing radius cannot follow that
+  // cross-section; the quartic across the body follows it better.
   // The mean subject, matte: the fit's shape is what is measured.
   const Rendered r = renderBack(true, 0, 640, 480, 500, 0.0f);
   cect::CectParams with, without;

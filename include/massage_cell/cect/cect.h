@@ -82,7 +82,8 @@ struct CectParams {
   /// lies along the image columns, head up or down, as in the acupoint
   /// model) the back is a dome with two paraspinal ridges and the spine's
   /// groove between them, ~0.5 px deep and ~40 px ridge to ridge at
-  /// 640x480, which a quadratic over the smoothing radius flattens.
+  /// 640x480, more than a quadratic over the (wide, noise-averaging)
+  /// smoothing radius can follow.
   bool quartic_across = true;
   /// Before smoothing, seeds are matched again with a window slanted by the
   /// local disparity gradient g of their neighbours' quadratic (needs
