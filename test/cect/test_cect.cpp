@@ -8,6 +8,7 @@
 #include <iostream>
 #include <numeric>
 #include <random>
+#include <utility>
 
 #include <opencv2/imgproc.hpp>
 
@@ -535,17 +536,36 @@ TEST(Cect, PixelsAtTheNeckBaseAreExtrapolatedWithAWiderSigma) {
   EXPECT_GT(rough, extrapolated / 2);
 }
 
+namespace {
+
+/// The mean subject analysed with the direct matches in the border band
+/// (the defaults) and without them; rendered once for the two tests below.
+struct DirectMatchCase {
+  Rendered r;
+  OnOff both;
+};
+const DirectMatchCase& directMatchCase() {
+  static const DirectMatchCase c = [] {
+    Rendered r = renderBack(true);
+    cect::CectParams off;
+    off.direct_min_sharpness = 0.0;
+    OnOff both = analyseOnOff(r, cect::CectParams{}, off);
+    return DirectMatchCase{std::move(r), std::move(both)};
+  }();
+  return c;
+}
+
+}  // namespace
+
 TEST(Cect, TexturedPixelsInTheBorderBandAreMatchedDirectly) {
   // The band along the neck base where no seed window fits: the surface
   // rolls off there (and the vertebra prominens stands out), which the
   // seeds' quadratic cannot see. Where a pixel's own window (restricted to
   // the back) holds texture, a direct match replaces the extrapolation.
-  const Rendered r = renderBack(true);
-  cect::CectParams on, off;
-  off.direct_min_sharpness = 0.0;
-  const OnOff both = analyseOnOff(r, on, off);
-  ASSERT_TRUE(both.on.valid() && both.off.valid());
-  const cect::CectFrame &f = both.on, &f0 = both.off;
+  const DirectMatchCase& c = directMatchCase();
+  const Rendered& r = c.r;
+  ASSERT_TRUE(c.both.on.valid() && c.both.off.valid());
+  const cect::CectFrame &f = c.both.on, &f0 = c.both.off;
   const cv::Rect box = cv::boundingRect(f.left().mask);
   std::vector<double> e, e0;
   int extrapolated = 0;
@@ -562,7 +582,7 @@ TEST(Cect, TexturedPixelsInTheBorderBandAreMatchedDirectly) {
         EXPECT_DOUBLE_EQ(p.disparity, p0.disparity) << q;  // untextured: the same extrapolation
         continue;
       }
-      EXPECT_DOUBLE_EQ(p.disparity_sigma, on.pixel_sigma);
+      EXPECT_DOUBLE_EQ(p.disparity_sigma, cect::CectParams{}.pixel_sigma);
       e.push_back(std::abs(p.disparity - truth));
       e0.push_back(std::abs(p0.disparity - truth));
     }
@@ -579,12 +599,10 @@ TEST(Cect, TheBandAlongARowBorderAveragesTheTransferWithADirectMatch) {
   // base) the transfer leans on the first seeds, whose windows reach across
   // the band's steep relief; a pixel there takes the mean of the transfer and
   // its own window's match. Everywhere else the transfer is unchanged.
-  const Rendered r = renderBack(true);
-  cect::CectParams on, off;
-  off.direct_min_sharpness = 0.0;
-  const OnOff both = analyseOnOff(r, on, off);
-  ASSERT_TRUE(both.on.valid() && both.off.valid());
-  const cect::CectFrame &f = both.on, &f0 = both.off;
+  const DirectMatchCase& c = directMatchCase();
+  const Rendered& r = c.r;
+  ASSERT_TRUE(c.both.on.valid() && c.both.off.valid());
+  const cect::CectFrame &f = c.both.on, &f0 = c.both.off;
   const cv::Rect box = cv::boundingRect(f.left().mask);
   std::vector<double> e, e0;
   int unchanged_inside = 0;
