@@ -288,6 +288,10 @@ double medianOf(std::vector<double> v) {
   return v.empty() ? NAN : v[v.size() / 2];
 }
 
+double meanOf(const std::vector<double>& v) {
+  return v.empty() ? NAN : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+}
+
 }  // namespace
 
 TEST(Cect, RenderedBackRectifiedPair) {
@@ -402,10 +406,9 @@ TEST(Cect, SlantedWindowsTakeTheBiasOffTheSlopesTowardTheRim) {
   const auto e = absOf(bandErrors(r, both.on, 8.0, 40.0, &asked));
   const auto e0 = absOf(bandErrors(r, both.off, 8.0, 40.0, &asked0));
   ASSERT_GT(e.size(), 1000u);
-  auto mean = [](const std::vector<double>& v) { return std::accumulate(v.begin(), v.end(), 0.0) / v.size(); };
-  std::cout << "8-40 px inside the contour: slanted windows mean |error| " << mean(e) << " px (" << e.size() << "/"
-            << asked << " valid); fronto-parallel " << mean(e0) << " px (" << e0.size() << "/" << asked0 << ")\n";
-  EXPECT_LT(mean(e), 0.97 * mean(e0));
+  std::cout << "8-40 px inside the contour: slanted windows mean |error| " << meanOf(e) << " px (" << e.size() << "/"
+            << asked << " valid); fronto-parallel " << meanOf(e0) << " px (" << e0.size() << "/" << asked0 << ")\n";
+  EXPECT_LT(meanOf(e), 0.97 * meanOf(e0));
   EXPECT_GE(e.size(), e0.size() - 10);
 }
 
@@ -458,12 +461,11 @@ TEST(Cect, SmoothingFollowsTheSpinesGrooveAcrossTheBody) {
   int asked = 0;
   const auto e = absOf(bandErrors(r, both.on, 48.0, 1000.0, &asked));
   const auto e0 = absOf(bandErrors(r, both.off, 48.0, 1000.0, &asked));
-  auto mean = [](const std::vector<double>& v) { return std::accumulate(v.begin(), v.end(), 0.0) / v.size(); };
   ASSERT_GT(e.size(), 1000u);
   ASSERT_GT(e0.size(), 1000u);
-  std::cout << "interior (>= 48 px inside the contour): quartic across mean |error| " << mean(e)
-            << " px, quadratic " << mean(e0) << " px\n";
-  EXPECT_LT(mean(e), 0.9 * mean(e0));
+  std::cout << "interior (>= 48 px inside the contour): quartic across mean |error| " << meanOf(e)
+            << " px, quadratic " << meanOf(e0) << " px\n";
+  EXPECT_LT(meanOf(e), 0.9 * meanOf(e0));
 }
 
 TEST(Cect, SheenIsTakenOffBeforeMatching) {
