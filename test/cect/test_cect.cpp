@@ -390,6 +390,17 @@ TEST(Cect, RimProfileFollowsTheFlankBetweenContourAndSeeds) {
   EXPECT_GT(e.size(), e0.size());
 }
 
+namespace {
+
+/// A pair analysed with slanted windows (the defaults) and without them.
+OnOff slantedOnOff(const Rendered& r) {
+  cect::CectParams without;
+  without.slanted_windows = false;
+  return analyseOnOff(r, cect::CectParams{}, without);
+}
+
+}  // namespace
+
 TEST(Cect, SlantedWindowsTakeTheBiasOffTheSlopesTowardTheRim) {
   // Toward the rim (the flanks, the shoulders' top) the disparity changes by
   // more than a pixel across a fronto-parallel window, whose peak then
@@ -398,9 +409,7 @@ TEST(Cect, SlantedWindowsTakeTheBiasOffTheSlopesTowardTheRim) {
   // the mean subject's band 8-40 px inside the contour (~5 % better
   // there, every 8 px wide band alike).
   const Rendered r = renderBack(true, 0, 640, 480, 500, 0.0f);
-  cect::CectParams with, without;
-  without.slanted_windows = false;
-  const OnOff both = analyseOnOff(r, with, without);
+  const OnOff both = slantedOnOff(r);
   ASSERT_TRUE(both.on.valid() && both.off.valid());
   int asked = 0, asked0 = 0;
   const auto e = absOf(bandErrors(r, both.on, 8.0, 40.0, &asked));
@@ -419,9 +428,7 @@ TEST(Cect, SeedsBelowTheShouldersTopAreMatchedWithSlantedWindows) {
   // says: those seeds are re-matched with slanted windows whatever their
   // estimated slant. Subject 11, matte.
   const Rendered r = renderBack(true, 11, 640, 480, 500, 0.0f);
-  cect::CectParams with, without;
-  without.slanted_windows = false;
-  const OnOff both = analyseOnOff(r, with, without);
+  const OnOff both = slantedOnOff(r);
   ASSERT_TRUE(both.on.valid() && both.off.valid());
   const cv::Mat& mask = both.on.left().mask;
   auto on = [&](int x, int y) {
