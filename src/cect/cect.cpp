@@ -473,7 +473,8 @@ class CectFrameBuilder {
   /// a diffuse part of the skin's own chromaticity c (the median over the
   /// back) plus a specular part of the light's colour (white). D and S are
   /// solved per pixel (least squares, 3 channels); S, noisy, is smoothed
-  /// (Gaussian, sheen_sigma) and taken off every channel; the grey of the
+  /// (Gaussian, sheen_sigma; with sheen_twicing 2 G*S - G*G*S, which keeps
+  /// the highlights' peaks) and taken off every channel; the grey of the
   /// rest is returned, scaled back to 0..255. Outside the back: plain grey.
   cv::Mat diffuseGrey(const cv::Mat& bgr, const cv::Mat& mask) const {
     static const std::array<float, 256> lut = [] {
@@ -535,7 +536,8 @@ class CectFrameBuilder {
         }
         cv::Mat m;
         mask.convertTo(m, CV_32F, 1.0 / 255.0);
-        S = maskedBlur(S, m, f_.params_.sheen_sigma);
+        const cv::Mat smooth = maskedBlur(S, m, f_.params_.sheen_sigma);
+        S = f_.params_.sheen_twicing ? cv::Mat(2.0 * smooth - maskedBlur(smooth, m, f_.params_.sheen_sigma)) : smooth;
         S.setTo(0, mask == 0);
       }
     }

@@ -64,6 +64,7 @@ cect::CectParams cectParams(const CECTConfig& c) {
   p.bandpass_low = c.bandpass_low;
   p.bandpass_high = c.bandpass_high;
   p.sheen_sigma = c.sheen_sigma;
+  p.sheen_twicing = c.sheen_twicing;
   p.smooth_radius = c.smooth_radius;
   p.quartic_across = c.quartic_across;
   p.rim_profile = c.rim_profile;

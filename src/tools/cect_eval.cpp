@@ -104,6 +104,7 @@ const std::map<std::string, std::function<void(cect::CectParams&, double)>>& par
       {"max_triangle_edge", [](P& p, double v) { p.max_triangle_edge = v; }},
       {"edge_min_bend", [](P& p, double v) { p.edge_min_bend = v; }},
       {"sheen_sigma", [](P& p, double v) { p.sheen_sigma = v; }},
+      {"sheen_twicing", [](P& p, double v) { p.sheen_twicing = v != 0.0; }},
       {"max_extrapolation", [](P& p, double v) { p.max_extrapolation = v; }},
       {"query_search", [](P& p, double v) { p.query_search = v; }},
       {"min_ncc", [](P& p, double v) { p.min_ncc = v; }},

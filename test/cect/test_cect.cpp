@@ -87,7 +87,7 @@ struct Rendered {
 
 /// `specular` < 0: the skin's sheen as modelled; otherwise its Blinn-Phong weight.
 Rendered renderBack(bool rectified, int subject = 0, int w = 640, int h = 480, double fx = 500,
-                    float specular = -1.0f) {
+                    float specular = -1.0f, sim::LightPreset light = sim::LightPreset::kTopCentre) {
   const sim::BackModel back(sim::BodyParameters::subject(subject));
   sim::Scene scene = sim::makeBackScene(back, 1);
   if (specular >= 0.0f)
@@ -102,7 +102,7 @@ Rendered renderBack(bool rectified, int subject = 0, int w = 640, int h = 480, d
   r.pair = sim::makeStereoPair(rig);
   sim::RenderOptions ro;
   ro.supersample = 1;
-  r.frame = sim::renderStereoFrame(renderer, r.pair, sim::Lighting::preset(sim::LightPreset::kTopCentre), ro);
+  r.frame = sim::renderStereoFrame(renderer, r.pair, sim::Lighting::preset(light), ro);
   return r;
 }
 
@@ -494,6 +494,28 @@ TEST(Cect, SheenIsTakenOffBeforeMatching) {
   EXPECT_LT(medianOf(absOf(e)), medianOf(absOf(e0)));
 }
 
+TEST(Cect, SheenTwicingKeepsTheHighlightsOffTheRidges) {
+  // A side light lays a highlight along the paraspinal ridge facing it; a
+  // single Gaussian flattens that highlight's peak, and the residual, which
+  // moves with the viewpoint, pulls the ridge's matches farther. Twicing
+  // the smoothing keeps the peak. Dark subject 5 (faint texture), light
+  // top-right: the interior's mean |error| drops ~6 % (subject 3 under the
+  // top-left light alike).
+  const Rendered r = renderBack(true, 5, 640, 480, 500, -1.0f, sim::LightPreset::kTopRight);
+  cect::CectParams with, without;
+  without.sheen_twicing = false;
+  const OnOff both = analyseOnOff(r, with, without);
+  ASSERT_TRUE(both.on.valid() && both.off.valid());
+  int asked = 0;
+  const auto e = absOf(bandErrors(r, both.on, 32.0, 1000.0, &asked));
+  const auto e0 = absOf(bandErrors(r, both.off, 32.0, 1000.0, &asked));
+  ASSERT_GT(e.size(), 1000u);
+  ASSERT_GT(e0.size(), 1000u);
+  std::cout << "interior, light top-right: twicing mean |error| " << meanOf(e) << " px, one Gaussian " << meanOf(e0)
+            << " px\n";
+  EXPECT_LT(meanOf(e), 0.97 * meanOf(e0));
+}
+
 TEST(Cect, PixelsAtTheNeckBaseAreExtrapolatedWithAWiderSigma) {
   // The neck base runs along the epipolar lines: no contour correspondences
   // there, so its band lies outside the triangulation.
@@ -599,7 +621,10 @@ TEST(Cect, TexturedPixelsInTheBorderBandAreMatchedDirectly) {
             << " extrapolated pixels matched directly, median |error| " << medianOf(e) << " px (extrapolated "
             << medianOf(e0) << " px)\n";
   ASSERT_GE(e.size(), 10u);
-  EXPECT_LT(medianOf(e), 0.6 * medianOf(e0));
+  // (~0.25 against ~0.4 px; the direct match's share of the gain shrank when
+  // the sheen's smoothing was twiced, which made the seeds, and so the
+  // extrapolation, better: 0.24 against 0.43 px before.)
+  EXPECT_LT(medianOf(e), 0.75 * medianOf(e0));
   EXPECT_LT(medianOf(e), 0.4);
 }
 

@@ -69,6 +69,12 @@ struct CectParams {
   /// estimated per pixel from the colour, smoothed by a Gaussian of this
   /// sigma (pixels), is taken off before matching (0: off).
   double sheen_sigma = 6.0;
+  /// Smooth the specular part by "twicing" (Tukey): the Gaussian's
+  /// residual smoothed once more and added back, 2 G*S - G*G*S. A single
+  /// Gaussian flattens the sheen's peaks on the ridges (a residual that moves
+  /// with the viewpoint and biases the matches); twicing keeps them at
+  /// nearly the same noise.
+  bool sheen_twicing = true;
   /// Seeds sit at least this many pixels inside the back's border (< 0:
   /// ncc_radius + 2, every window inside the back).
   double seed_margin = -1.0;
