@@ -180,11 +180,39 @@ MatchResult matchAlongRow(const cv::Mat& from, const cv::Mat& to, float x, float
   if (static_cast<float>(xi) == x && static_cast<float>(yi) == y && (strip & cv::Rect(0, 0, to.cols, to.rows)) == strip &&
       xi - r >= 0 && xi + r < from.cols) {
     // Whole pixels, every candidate inside the image: the same zero-mean
-    // NCC by cv::matchTemplate along the row (vectorised).
-    cv::Mat result;
-    cv::matchTemplate(to(strip), from(cv::Rect(xi - r, yi - ry, 2 * r + 1, 2 * ry + 1)), result, cv::TM_CCOEFF_NORMED);
-    const float* rs = result.ptr<float>(0);
-    for (int i = 0; i < result.cols; ++i) score[static_cast<std::size_t>(to_left ? i : hi - lo - i)] = rs[i];
+    // NCC (cv::matchTemplate's TM_CCOEFF_NORMED) along the strip, directly:
+    // the reference window is zero-mean and unit-length already, so each
+    // candidate needs one dot product, and its sum and sum of squares slide
+    // along the strip's column sums (~4x faster than matchTemplate at this size).
+    const int ww = 2 * r + 1, wh = 2 * ry + 1, sw = strip.width, n = ww * wh;
+    std::vector<double> cs(static_cast<std::size_t>(sw), 0.0), cs2(static_cast<std::size_t>(sw), 0.0);
+    std::vector<float> dot(static_cast<std::size_t>(sw - ww + 1), 0.0f);
+    for (int yy = 0; yy < wh; ++yy) {
+      const float* row = to.ptr<float>(strip.y + yy) + strip.x;
+      const float* rr = ref.data() + static_cast<std::size_t>(yy) * ww;
+      for (int c = 0; c < sw; ++c) {
+        cs[static_cast<std::size_t>(c)] += row[c];
+        cs2[static_cast<std::size_t>(c)] += static_cast<double>(row[c]) * row[c];
+      }
+      for (int i = 0; i + ww <= sw; ++i) {
+        float acc = 0.0f;
+        for (int c = 0; c < ww; ++c) acc += rr[c] * row[i + c];
+        dot[static_cast<std::size_t>(i)] += acc;
+      }
+    }
+    double sum = 0.0, sum2 = 0.0;
+    for (int c = 0; c < ww; ++c) {
+      sum += cs[static_cast<std::size_t>(c)];
+      sum2 += cs2[static_cast<std::size_t>(c)];
+    }
+    for (int i = 0; i + ww <= sw; ++i) {
+      if (i > 0) {
+        sum += cs[static_cast<std::size_t>(i + ww - 1)] - cs[static_cast<std::size_t>(i - 1)];
+        sum2 += cs2[static_cast<std::size_t>(i + ww - 1)] - cs2[static_cast<std::size_t>(i - 1)];
+      }
+      const double var = sum2 - sum * sum / n;
+      if (var > 1e-6 * n) score[static_cast<std::size_t>(to_left ? i : hi - lo - i)] = dot[static_cast<std::size_t>(i)] / std::sqrt(var);
+    }
   } else
   for (int d = lo; d <= hi; ++d) {
     const float xc = to_left ? x + static_cast<float>(d) : x - static_cast<float>(d);
