@@ -476,7 +476,8 @@ class CectFrameBuilder {
     if (f_.params_.seed_step > 0) {
       seeds(2 * f_.params_.seed_step, f_.params_.seed_search);
       triangulate();
-      seeds(f_.params_.seed_step, std::max(2.0, 0.5 * f_.params_.seed_search));
+      seeds(f_.params_.seed_step, std::max(2.0, 0.5 * f_.params_.seed_search),
+            f_.params_.seed_column_step > 0 ? f_.params_.seed_column_step : f_.params_.seed_step);
       if (f_.params_.slanted_windows && f_.params_.smooth_radius > 0)
         slantSeeds(f_.params_.smooth_radius * f_.params_.seed_step);
       if (f_.params_.smooth_radius > 0) smoothSeeds(f_.params_.smooth_radius * f_.params_.seed_step);
@@ -1121,9 +1122,11 @@ class CectFrameBuilder {
     V.swap(kept);
   }
 
-  /// Interior seeds on a grid of `step` pixels, matched within `search` of
-  /// their barycentric prediction, kept when they pass the constraints.
-  void seeds(int step, double search) {
+  /// Interior seeds on a grid of `step` pixels (rows; columns every
+  /// `column_step`, 0: `step`), matched within `search` of their barycentric
+  /// prediction, kept when they pass the constraints.
+  void seeds(int step, double search, int column_step = 0) {
+    const int cstep = column_step > 0 ? column_step : step;
     const CectParams& p = f_.params_;
     const int r = p.ncc_radius;
     const int ry = p.ncc_half_height > 0 ? p.ncc_half_height : r;
@@ -1150,7 +1153,7 @@ class CectFrameBuilder {
     };
     std::vector<Job> jobs;
     for (int y = step / 2; y < h; y += step)
-      for (int x = step / 2; x < w; x += step) {
+      for (int x = (step / 2) % cstep; x < w; x += cstep) {
         if (!inner.at<std::uint8_t>(y, x) || taken.at<std::uint8_t>(y, x)) continue;
         const cv::Point2f q(static_cast<float>(x), static_cast<float>(y));
         double spread = 0;
@@ -1166,7 +1169,7 @@ class CectFrameBuilder {
           const double z0 = fxb / std::max(d0, 1e-3);
           hi = z0 > p.max_relief ? fxb / (z0 - p.max_relief) + reach : maxDisparity();
         }
-        jobs.push_back({q, std::max(p.min_disparity, d0 - reach), std::min(maxDisparity(), hi), x / step, y / step});
+        jobs.push_back({q, std::max(p.min_disparity, d0 - reach), std::min(maxDisparity(), hi), x / cstep, y / step});
       }
     // Matching, the bulk of the work, on every core (each seed on its own).
     cv::parallel_for_(cv::Range(0, static_cast<int>(jobs.size())), [&](const cv::Range& range) {
@@ -1240,6 +1243,7 @@ CectFrame CectFrame::analyse(const cv::Mat& left, const cv::Mat& right, const St
     throw std::invalid_argument("CECT: images must be 8-bit BGR (CV_8UC3)");
   if (params.ncc_radius < 1) throw std::invalid_argument("CECT: ncc_radius must be >= 1");
   if (params.seed_step < 0) throw std::invalid_argument("CECT: seed_step must be >= 0");
+  if (params.seed_column_step < 0) throw std::invalid_argument("CECT: seed_column_step must be >= 0");
   if (!(params.sample_spacing > 0)) throw std::invalid_argument("CECT: sample_spacing must be > 0");
   CectFrame f;
   f.geometry_ = geometry;

@@ -60,6 +60,7 @@ cect::CectParams cectParams(const CECTConfig& c) {
   p.edge_window = c.edge_window;
   p.edge_min_bend = c.edge_min_bend;
   p.seed_step = c.seed_step;
+  p.seed_column_step = c.seed_column_step;
   p.ncc_radius = c.ncc_radius;
   p.bandpass_low = c.bandpass_low;
   p.bandpass_high = c.bandpass_high;

@@ -87,6 +87,7 @@ const std::map<std::string, std::function<void(cect::CectParams&, double)>>& par
       {"min_crossing_angle", [](P& p, double v) { p.min_crossing_angle = v; }},
       {"sample_spacing", [](P& p, double v) { p.sample_spacing = v; }},
       {"seed_step", [](P& p, double v) { p.seed_step = static_cast<int>(v); }},
+      {"seed_column_step", [](P& p, double v) { p.seed_column_step = static_cast<int>(v); }},
       {"ncc_radius", [](P& p, double v) { p.ncc_radius = static_cast<int>(v); }},
       {"ncc_half_height", [](P& p, double v) { p.ncc_half_height = static_cast<int>(v); }},
       {"bandpass_low", [](P& p, double v) { p.bandpass_low = v; }},

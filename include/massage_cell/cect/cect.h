@@ -55,6 +55,14 @@ struct CectParams {
   /// and the pixels under them are extrapolated from the seeds instead.
   double max_triangle_edge = 2.0;
   int seed_step = 16;           ///< interior seeds every N pixels (0: contour only, the plain thesis method)
+  /// ... and, in the final (seed_step) pass, every N columns (0: seed_step).
+  /// Across the body the back has its finest relief: the spine's groove
+  /// between the paraspinal ridges, ~40 px ridge to ridge at 640x480. With
+  /// seed_step columns its reconstruction depends on where the columns fall
+  /// (the body's place in the image: 2.97-3.11 mm over the grid's phases);
+  /// half-step columns make it independent of that. Along the body the back
+  /// changes slowly.
+  int seed_column_step = 8;
   int ncc_radius = 11;          ///< matching window half-width r for the refinement along the epipolar line
   /// Window half-height (0: = ncc_radius). Taller than wide suits the back:
   /// its few structures (spine groove, paraspinal ridges, scapulae) run
