@@ -430,7 +430,46 @@ bool fitQuadratic(const std::vector<Correspondence>& V, const std::vector<int>& 
   return true;
 }
 
+/// s rounded to the nearest power of 2^(1/4).
+double quantisedScale(double s) { return std::exp2(std::round(4.0 * std::log2(s)) / 4.0); }
+
 }  // namespace
+
+double viewScale(double median_disparity, double baseline) {
+  if (!(median_disparity > 0) || !(baseline > 0) || !std::isfinite(median_disparity / baseline)) return 1.0;
+  return quantisedScale(median_disparity / baseline / kReferencePixelsPerMetre);
+}
+
+CectParams scaledParams(const CectParams& p, double scale) {
+  CectParams q = p;
+  if (scale == 1.0 || !(scale > 0)) return q;
+  const double s = scale;
+  // A window's extent 2r + 1 scales (23 px -> 11.5 -> r = 5 at half size).
+  auto radius = [s](int r) { return std::max(1, static_cast<int>(std::lround(((2 * r + 1) * s - 1.0) / 2.0))); };
+  auto step = [s](int n) { return n > 0 ? std::max(2, static_cast<int>(std::lround(n * s))) : n; };
+  q.sample_spacing = p.sample_spacing * s;
+  q.edge_window = p.edge_window * s;
+  q.seed_step = step(p.seed_step);
+  q.seed_column_step = step(p.seed_column_step);
+  q.ncc_radius = radius(p.ncc_radius);
+  q.ncc_half_height = p.ncc_half_height > 0 ? radius(p.ncc_half_height) : 0;
+  q.bandpass_low = p.bandpass_low * s;
+  q.bandpass_high = p.bandpass_high * s;
+  q.sheen_sigma = p.sheen_sigma * s;
+  q.seed_margin = p.seed_margin >= 0 ? p.seed_margin * s : p.seed_margin;
+  q.direct_min_sharpness = p.direct_min_sharpness / (s * s);
+  q.seed_search = p.seed_search * s;
+  q.query_search = p.query_search * s;
+  q.max_candidate_spread = p.max_candidate_spread * s;
+  q.continuity_margin = p.continuity_margin * s;
+  q.min_slant = p.min_slant * s;
+  SegmentationParams& g = q.segmentation;
+  g.blur_sigma = p.segmentation.blur_sigma * s;
+  g.open_radius = std::max(1, static_cast<int>(std::lround(p.segmentation.open_radius * s)));
+  g.close_radius = std::max(1, static_cast<int>(std::lround(p.segmentation.close_radius * s)));
+  g.contour_spacing = p.segmentation.contour_spacing * s;
+  return q;
+}
 
 /// Builds a CectFrame step by step (friend of CectFrame).
 class CectFrameBuilder {
@@ -442,26 +481,26 @@ class CectFrameBuilder {
     f_.geometry_.rectify(left, right, &f_.left_rect_, &f_.right_rect_);
     f_.timings_.rectify_ms = msSince(t0);
 
+    // With auto_scale the segmentation and the contour's sampling scale with
+    // the image's width first (a prior); once the contour is matched, its
+    // median disparity gives the view's scale for everything after it.
+    const CectParams given = f_.params_;
+    if (given.auto_scale) {
+      const double s0 = quantisedScale(f_.left_rect_.cols / 640.0);
+      f_.params_ = scaledParams(given, s0);
+      f_.scale_ = s0;
+    }
+
     auto t = Clock::now();
     // The two views are independent until matching: one core each.
     cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& views) {
-      for (int v = views.start; v < views.end; ++v) {
-        const cv::Mat& img = v == 0 ? f_.left_rect_ : f_.right_rect_;
-        Segmentation& seg = v == 0 ? f_.left_seg_ : f_.right_seg_;
-        seg = segmentBack(img, f_.params_.segmentation);
-        if (seg.valid) (v == 0 ? f_.left_grey_ : f_.right_grey_) = matchingImage(img, seg.mask);
-      }
+      for (int v = views.start; v < views.end; ++v)
+        (v == 0 ? f_.left_seg_ : f_.right_seg_) =
+            segmentBack(v == 0 ? f_.left_rect_ : f_.right_rect_, f_.params_.segmentation);
     });
     f_.timings_.segment_ms = msSince(t);
     if (!f_.left_seg_.valid) return fail("left view: " + f_.left_seg_.reason, t0);
     if (!f_.right_seg_.valid) return fail("right view: " + f_.right_seg_.reason, t0);
-    const cv::Mat k3 = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(7, 7));
-    cv::erode(f_.left_seg_.mask, f_.left_inner_, k3);
-    cv::erode(f_.right_seg_.mask, f_.right_inner_, k3);
-    const int margin = f_.params_.seed_margin >= 0 ? cvRound(f_.params_.seed_margin) : f_.params_.ncc_radius + 2;
-    f_.seed_margin_ = margin;
-    cv::erode(f_.left_seg_.mask, f_.seed_region_,
-              cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * margin + 1, 2 * margin + 1)));
 
     t = Clock::now();
     foundational();
@@ -470,6 +509,34 @@ class CectFrameBuilder {
       return fail("only " + std::to_string(f_.vertices_.size()) +
                       " foundational correspondences (the contours' epipolar lines found no consistent crossings)",
                   t0);
+    if (given.auto_scale) {
+      std::vector<double> d;
+      d.reserve(f_.vertices_.size());
+      for (const auto& v : f_.vertices_) d.push_back(v.disparity);
+      const double s = viewScale(median(d), f_.geometry_.baseline());
+      CectParams scaled = scaledParams(given, s);
+      // What the segmentation and the contour's matching used stays.
+      scaled.segmentation = f_.params_.segmentation;
+      scaled.sample_spacing = f_.params_.sample_spacing;
+      scaled.edge_window = f_.params_.edge_window;
+      f_.params_ = scaled;
+      f_.scale_ = s;
+    }
+
+    t = Clock::now();
+    cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& views) {
+      for (int v = views.start; v < views.end; ++v)
+        (v == 0 ? f_.left_grey_ : f_.right_grey_) = matchingImage(v == 0 ? f_.left_rect_ : f_.right_rect_,
+                                                                  v == 0 ? f_.left_seg_.mask : f_.right_seg_.mask);
+    });
+    f_.timings_.segment_ms += msSince(t);
+    const cv::Mat k3 = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(7, 7));
+    cv::erode(f_.left_seg_.mask, f_.left_inner_, k3);
+    cv::erode(f_.right_seg_.mask, f_.right_inner_, k3);
+    const int margin = f_.params_.seed_margin >= 0 ? cvRound(f_.params_.seed_margin) : f_.params_.ncc_radius + 2;
+    f_.seed_margin_ = margin;
+    cv::erode(f_.left_seg_.mask, f_.seed_region_,
+              cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * margin + 1, 2 * margin + 1)));
 
     t = Clock::now();
     triangulate();

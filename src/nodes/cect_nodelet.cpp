@@ -53,6 +53,7 @@ cv::Mat toBgr(const sensor_msgs::ImageConstPtr& msg, const std::string& which) {
 
 cect::CectParams cectParams(const CECTConfig& c) {
   cect::CectParams p;
+  p.auto_scale = c.auto_scale;
   p.sample_spacing = c.sample_spacing;
   p.min_disparity = c.min_disparity;
   p.max_disparity = c.max_disparity;
@@ -403,6 +404,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
   last_measured_ = measured;
   rejected_outliers_ = filter_.rejected();
   last_cect_ms_ = frame->timings().total_ms;
+  if (frame->valid()) last_scale_ = frame->scale();
   if (stats_.processed() == 1) {
     NODELET_INFO_STREAM("first pair: " << valid << " of " << model_.points.size() << " acupoints valid, " << elapsed
                                        << " ms");
@@ -699,6 +701,7 @@ void CectNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) 
   status.add("acupoints measured in the last pair", last_measured_);
   status.add("outliers rejected", rejected_outliers_);
   stats_.addTimes(status, "last CECT time (ms)", last_cect_ms_);
+  status.add("view scale (auto_scale; 1 = the reference view)", last_scale_);
   status.add("last reason", last_problem_);
   status.add("last error", stats_.lastError());
 }

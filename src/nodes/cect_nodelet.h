@@ -153,6 +153,7 @@ class CectNodelet : public nodelet::Nodelet {
   int last_valid_ = 0, last_measured_ = 0;
   int rejected_outliers_ = 0;
   double last_cect_ms_ = 0.0;
+  double last_scale_ = 1.0;  ///< the last valid pair's view scale (auto_scale)
   std::string geometry_summary_;
 };
 

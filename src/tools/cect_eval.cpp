@@ -84,6 +84,7 @@ struct Options {
 const std::map<std::string, std::function<void(cect::CectParams&, double)>>& paramSetters() {
   using P = cect::CectParams;
   static const std::map<std::string, std::function<void(P&, double)>> m{
+      {"auto_scale", [](P& p, double v) { p.auto_scale = v != 0.0; }},
       {"min_crossing_angle", [](P& p, double v) { p.min_crossing_angle = v; }},
       {"sample_spacing", [](P& p, double v) { p.sample_spacing = v; }},
       {"seed_step", [](P& p, double v) { p.seed_step = static_cast<int>(v); }},

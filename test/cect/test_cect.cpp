@@ -208,8 +208,9 @@ TEST(Cect, BarycentricTransferIsExactUnderAnAffineWarp) {
   const AffineScene s = makeAffineScene(480, 360, false);
   auto [l, r] = rectifiedInfo(480, 360, 400, 0.1);
   cect::CectParams p;
-  p.seed_step = 0;      // contour only: the thesis's plain transfer
-  p.query_search = 0;   // no matching: transfer alone
+  p.auto_scale = false;  // a flat synthetic shape, not a back: the reference view's pixels as they are
+  p.seed_step = 0;       // contour only: the thesis's plain transfer
+  p.query_search = 0;    // no matching: transfer alone
   const cect::StereoGeometry g(l, r);
   const cect::CectFrame f = cect::CectFrame::analyse(s.left, s.right, g, p);
   ASSERT_TRUE(f.valid()) << f.reason();
@@ -253,9 +254,11 @@ namespace {
 
 /// Localises random back pixels of a rendered pair; returns errors in mm
 /// against the exact surface point and the share of valid answers.
-std::vector<double> renderedErrors(const Rendered& r, double* valid_share) {
+std::vector<double> renderedErrors(const Rendered& r, double* valid_share, const cect::CectParams& params = {},
+                                   double* scale = nullptr) {
   const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
-  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
+  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, params);
+  if (scale) *scale = f.scale();
   EXPECT_TRUE(f.valid()) << f.reason();
   std::cout << "CECT " << f.timings().total_ms << " ms, " << f.foundationalCount() << " foundational, "
             << f.vertices().size() << " vertices\n";
@@ -784,6 +787,48 @@ TEST(Cect, LongTrianglesAreDroppedAndTheirPixelsExtrapolated) {
             << " px in the long triangles\n";
   ASSERT_GT(e.size(), 20u);
   EXPECT_LT(medianOf(e), 0.8 * medianOf(e0));
+}
+
+TEST(Cect, PixelParametersScaleToTheView) {
+  // The scale: the contour's disparity over the baseline against the
+  // reference view's 550 px per metre, in steps of 2^(1/4).
+  EXPECT_DOUBLE_EQ(cect::viewScale(55.0, 0.1), 1.0);
+  EXPECT_DOUBLE_EQ(cect::viewScale(51.0, 0.1), 1.0);  // bodies differ: the reference rig stays at 1
+  EXPECT_DOUBLE_EQ(cect::viewScale(59.0, 0.1), 1.0);
+  EXPECT_NEAR(cect::viewScale(62.0, 0.1), std::exp2(0.25), 1e-12);
+  EXPECT_DOUBLE_EQ(cect::viewScale(27.5, 0.1), 0.5);
+  EXPECT_DOUBLE_EQ(cect::viewScale(66.0, 0.06), 2.0);
+  EXPECT_DOUBLE_EQ(cect::viewScale(0.0, 0.1), 1.0);
+  EXPECT_DOUBLE_EQ(cect::viewScale(55.0, 0.0), 1.0);
+  const cect::CectParams p;
+  const cect::CectParams h = cect::scaledParams(p, 0.5), d = cect::scaledParams(p, 2.0);
+  EXPECT_EQ(h.ncc_radius, 5);  // the window's extent: 23 px -> 11
+  EXPECT_EQ(d.ncc_radius, 23);
+  EXPECT_EQ(h.seed_step, 8);
+  EXPECT_EQ(h.seed_column_step, 4);
+  EXPECT_DOUBLE_EQ(h.bandpass_high, 3.0);
+  EXPECT_DOUBLE_EQ(h.continuity_margin, 1.5);
+  EXPECT_DOUBLE_EQ(h.direct_min_sharpness, 4.0 * p.direct_min_sharpness);
+  EXPECT_DOUBLE_EQ(h.segmentation.blur_sigma, 0.75);
+  EXPECT_DOUBLE_EQ(h.lr_tolerance, p.lr_tolerance);  // sub-pixel, scale-free and absolute ones stay
+  EXPECT_DOUBLE_EQ(h.smooth_radius, p.smooth_radius);
+  EXPECT_DOUBLE_EQ(h.min_disparity, p.min_disparity);
+  EXPECT_EQ(cect::scaledParams(p, 1.0).ncc_radius, p.ncc_radius);
+
+  // A half-size camera (320x240, fx 250): the reference parameters as given
+  // are too coarse for it; scaled, they mean the same on the skin.
+  const Rendered r = renderBack(true, 0, 320, 240, 250);
+  cect::CectParams fixed;
+  fixed.auto_scale = false;
+  double on_share = 0, off_share = 0, scale = 0, fixed_scale = 0;
+  const auto on = renderedErrors(r, &on_share, {}, &scale);
+  const auto off = renderedErrors(r, &off_share, fixed, &fixed_scale);
+  std::cout << "320x240: scaled " << meanOf(on) << " mm (valid " << on_share << "), as given " << meanOf(off)
+            << " mm (valid " << off_share << ")\n";
+  EXPECT_DOUBLE_EQ(scale, 0.5);
+  EXPECT_DOUBLE_EQ(fixed_scale, 1.0);
+  EXPECT_GT(on_share, 0.75);
+  EXPECT_LT(meanOf(on), 0.8 * meanOf(off));
 }
 
 TEST(Cect, RenderedBackRawPair) {
