@@ -44,8 +44,13 @@
 // line is shifted from the skin's midline by the parallax (~5.5 px at 640x480,
 // ~8 mm in the cell); levels are interpolated in image rows, which ignores
 // perspective along the back (~3 px around T10 at 640x480).
-// All rows are handled with the head at the image top; head_up = false turns
-// the segmentation by 180 degrees first and the results back afterwards.
+// All rows are handled in the body's frame: the head-up image (head_up =
+// false turns the segmentation by 180 degrees first), turned about the back
+// until the midline between C7 and L4 runs along the columns (a subject lying
+// askew on the table: on the image's rows a turn of 10 degrees put the
+// acupoints 15 mm from the anatomical ones instead of 6-7 mm). A back within
+// 1 degree of the columns keeps the image's rows. BackLandmarks::to_image maps
+// the frame back; levelPixel() and placeAcupoints() answer in image pixels.
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
 
@@ -60,6 +65,7 @@
 #include <utility>
 
 #include <yaml-cpp/yaml.h>
+#include <opencv2/imgproc.hpp>
 
 namespace massage_cell::cect {
 
@@ -332,7 +338,36 @@ BackLandmarks invalid(const std::string& reason) {
   return l;
 }
 
-BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& model) {
+/// Where the body's frame lies in the (head-up) image: findLandmarksHeadUp
+/// needs the image's bottom edge, which is slanted in a turned frame.
+struct ImageEdge {
+  bool cut_at_bottom = false;  ///< the back reaches the image's last row
+  int rows = 0;                ///< image rows
+  cv::Matx23d to_head_up = cv::Matx23d(1, 0, 0, 0, 1, 0);  ///< body frame -> head-up image
+};
+
+cv::Point2f apply(const cv::Matx23d& a, const cv::Point2f& p) {
+  return {static_cast<float>(a(0, 0) * p.x + a(0, 1) * p.y + a(0, 2)),
+          static_cast<float>(a(1, 0) * p.x + a(1, 1) * p.y + a(1, 2))};
+}
+
+/// a after b (both affine).
+cv::Matx23d compose(const cv::Matx23d& a, const cv::Matx23d& b) {
+  const cv::Matx33d A(a(0, 0), a(0, 1), a(0, 2), a(1, 0), a(1, 1), a(1, 2), 0, 0, 1);
+  const cv::Matx33d B(b(0, 0), b(0, 1), b(0, 2), b(1, 0), b(1, 1), b(1, 2), 0, 0, 1);
+  const cv::Matx33d C = A * B;
+  return cv::Matx23d(C(0, 0), C(0, 1), C(0, 2), C(1, 0), C(1, 1), C(1, 2));
+}
+
+cv::Matx23d inverse(const cv::Matx23d& a) {
+  cv::Matx23d b;
+  cv::invertAffineTransform(a, b);
+  return b;
+}
+
+bool isIdentity(const cv::Matx23d& a) { return a == cv::Matx23d(1, 0, 0, 0, 1, 0); }
+
+BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& model, const ImageEdge& edge) {
   Rows rows = usableContour(seg.contour) ? rowsFromContour(seg.contour) : rowsFromMask(seg.mask);
   tidyRows(rows);
   const int n = rows.size();
@@ -366,8 +401,7 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   // clear maximum); waist: narrowest row between the shoulders and the hips.
   // A back cut by the image's bottom (camera shifted toward the head) ends in
   // the hips' start, not in a tapering end: a smaller drop marks the waist.
-  const bool cut_at_bottom = !seg.mask.empty() && cv::countNonZero(seg.mask.row(seg.mask.rows - 1)) > 0;
-  const double hip_drop = cut_at_bottom ? kHipDropCut : kHipDrop;
+  const double hip_drop = edge.cut_at_bottom ? kHipDropCut : kHipDrop;
   int ih = n - 1;
   int up = n - 1;
   for (; up > ish; --up) {
@@ -409,7 +443,8 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   // from C7 and the waist, and the points beyond the image are reported
   // invalid by the placement and the localisation, each with its reason.
   // Its own silhouette ending above L4 is not a back, or not this model's.
-  const bool cut_by_image = bottom >= static_cast<double>(seg.mask.rows) - 1.0;
+  const cv::Point2f bottom_point(static_cast<float>(mid.x(bottom)), static_cast<float>(bottom));
+  const bool cut_by_image = apply(edge.to_head_up, bottom_point).y >= static_cast<double>(edge.rows) - 1.0;
   if (!(l4_row < bottom) && !(cut_by_image && l4_row < bottom + kMaxOutOfView * length)) {
     return invalid("the iliac-crest line (row " + num(l4_row) + ") is below the back's bottom (row " + num(bottom) +
                    ")");
@@ -432,31 +467,93 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   return l;
 }
 
-/// 180-degree turn of a segmentation (only what findLandmarks uses).
-Segmentation turned(const Segmentation& seg) {
+/// The 180-degree turn of an image of `cols` x `rows` (its own inverse).
+cv::Matx23d halfTurn(int cols, int rows) { return cv::Matx23d(-1, 0, cols - 1.0, 0, -1, rows - 1.0); }
+
+/// A segmentation in the frame `to` maps it into (only what findLandmarks
+/// uses): the contour exactly, the mask resampled (nearest) on a canvas that
+/// holds the whole back.
+Segmentation turnedBy(const Segmentation& seg, const cv::Matx23d& to, cv::Size canvas) {
   Segmentation t;
   t.valid = seg.valid;
   t.reason = seg.reason;
-  cv::flip(seg.mask, t.mask, -1);
-  const float w1 = static_cast<float>(seg.mask.cols - 1), h1 = static_cast<float>(seg.mask.rows - 1);
   t.contour.reserve(seg.contour.size());
-  for (const auto& p : seg.contour) t.contour.emplace_back(w1 - p.x, h1 - p.y);
+  for (const auto& p : seg.contour) t.contour.push_back(apply(to, p));
+  cv::warpAffine(seg.mask, t.mask, to, canvas, cv::INTER_NEAREST, cv::BORDER_CONSTANT, 0);
   return t;
 }
 
-BackLandmarks turnedBack(BackLandmarks l, int cols, int rows) {
-  const float w1 = static_cast<float>(cols - 1), h1 = static_cast<float>(rows - 1);
-  auto turn = [&](cv::Point2f p) { return cv::Point2f(w1 - p.x, h1 - p.y); };
-  for (auto& p : l.midline) p = turn(p);
-  for (auto& v : l.lateral) v = -v;
-  std::reverse(l.midline.begin(), l.midline.end());  // keep increasing rows
-  std::reverse(l.lateral.begin(), l.lateral.end());
-  l.c7 = turn(l.c7);
-  l.l4 = turn(l.l4);
-  l.shoulder_row = h1 - l.shoulder_row;
-  l.waist_row = h1 - l.waist_row;
-  l.iliac_row = h1 - l.iliac_row;
-  return l;
+/// The turn of the frame a contour is in by `angle` (radians) about its
+/// centroid, shifted so that the turned contour starts `margin` pixels from
+/// the frame's origin; *canvas: a size that holds it.
+cv::Matx23d turnAbout(const std::vector<cv::Point2f>& contour, double angle, cv::Size* canvas) {
+  cv::Point2d c(0, 0);
+  for (const auto& p : contour) c += cv::Point2d(p.x, p.y);
+  c *= 1.0 / static_cast<double>(contour.size());
+  const double co = std::cos(angle), si = std::sin(angle);
+  cv::Matx23d r(co, -si, c.x - co * c.x + si * c.y, si, co, c.y - si * c.x - co * c.y);
+  float x0 = std::numeric_limits<float>::max(), y0 = x0, x1 = -x0, y1 = -x0;
+  for (const auto& p : contour) {
+    const cv::Point2f q = apply(r, p);
+    x0 = std::min(x0, q.x);
+    y0 = std::min(y0, q.y);
+    x1 = std::max(x1, q.x);
+    y1 = std::max(y1, q.y);
+  }
+  constexpr double margin = 8.0;
+  r(0, 2) += margin - std::floor(x0);
+  r(1, 2) += margin - std::floor(y0);
+  *canvas = cv::Size(static_cast<int>(std::ceil(x1 - std::floor(x0) + 2 * margin)),
+                     static_cast<int>(std::ceil(y1 - std::floor(y0) + 2 * margin)));
+  return r;
+}
+
+/// The midline's tilt between C7 and L4 (radians; + when it runs toward the
+/// frame's right going down): the turn that would bring it onto the columns.
+double midlineTilt(const BackLandmarks& l) {
+  const double dy = static_cast<double>(l.l4.y) - l.c7.y;
+  return dy > 0 ? std::atan2(static_cast<double>(l.l4.x) - l.c7.x, dy) : 0.0;
+}
+
+/// The tilt of the mask's long axis against the columns (radians, as
+/// midlineTilt) from its second moments; NaN when the mask is not clearly
+/// longer than wide or lies across the columns. The first turn's guess: the
+/// row-by-row midline of a turned back leans more than the back (30 degrees
+/// read as 42-48 on the simulator's subjects), and the image's own rows find
+/// no waist on a back turned by ~20 degrees or more; the moments were within
+/// 0.2 degree of the turn there.
+double momentsTilt(const cv::Mat& mask) {
+  const cv::Moments m = cv::moments(mask, true);
+  const double a = m.mu20, c = m.mu02, b = m.mu11;
+  const double root = std::sqrt(0.25 * (a - c) * (a - c) + b * b);
+  const double major = 0.5 * (a + c) + root, minor = 0.5 * (a + c) - root;
+  if (!(minor > 0.0) || major < 1.1 * minor) return kNaN;
+  const double theta = 0.5 * std::atan2(2.0 * b, a - c);  // the long axis against the image's x
+  double dx = std::cos(theta), dy = std::sin(theta);
+  if (dy < 0) {
+    dx = -dx;
+    dy = -dy;
+  }
+  const double tilt = std::atan2(dx, dy);
+  return std::abs(tilt) <= CV_PI / 4.0 ? tilt : kNaN;
+}
+
+/// The image's mask in the body's frame (for the landmarks' rows).
+cv::Mat maskInBodyFrame(const BackLandmarks& l, const cv::Mat& mask) {
+  if (isIdentity(l.to_image)) return mask;
+  const cv::Matx23d to_body = inverse(l.to_image);
+  float x1 = 0.0f, y1 = 0.0f;
+  for (const cv::Point2f corner : {cv::Point2f(0, 0), cv::Point2f(static_cast<float>(mask.cols), 0),
+                                   cv::Point2f(0, static_cast<float>(mask.rows)),
+                                   cv::Point2f(static_cast<float>(mask.cols), static_cast<float>(mask.rows))}) {
+    const cv::Point2f q = apply(to_body, corner);
+    x1 = std::max(x1, q.x);
+    y1 = std::max(y1, q.y);
+  }
+  cv::Mat out;
+  cv::warpAffine(mask, out, to_body, cv::Size(static_cast<int>(std::ceil(x1)) + 1, static_cast<int>(std::ceil(y1)) + 1),
+                 cv::INTER_NEAREST, cv::BORDER_CONSTANT, 0);
+  return out;
 }
 
 // ---------------------------------------------------------------------------
@@ -499,6 +596,15 @@ double midlineScale(const BackLandmarks& l, double y, const PixelScale& scale) {
   return m;
 }
 
+/// The body frame's row of a level (its fraction of C7 -> L4).
+double levelRow(const BackLandmarks& l, double fraction) { return l.c7.y + fraction * (l.l4.y - l.c7.y); }
+
+/// A scale of image pixels as one of the body frame's pixels.
+PixelScale bodyScale(const BackLandmarks& l, const PixelScale& image_scale) {
+  if (isIdentity(l.to_image) || !image_scale) return image_scale;
+  return [&l, image_scale](const cv::Point2f& q) { return image_scale(toImage(l, q)); };
+}
+
 // --- YAML helpers: errors name the key.
 
 template <typename T>
@@ -514,10 +620,15 @@ T get(const YAML::Node& node, const std::string& key, const std::string& where) 
 
 }  // namespace
 
-double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left, const PointLookup& point) {
+double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left, const PointLookup& image_point) {
   BackLandmarks& l = *landmarks;
-  if (!l.valid || l.midline.size() < 10 || left.mask.empty() || !point) return kNaN;
-  const cv::Mat& mask = left.mask;
+  if (!l.valid || l.midline.size() < 10 || left.mask.empty() || !image_point) return kNaN;
+  // Rows of the body's frame.
+  const cv::Mat mask = maskInBodyFrame(l, left.mask);
+  PointLookup point = image_point;
+  if (!isIdentity(l.to_image)) {
+    point = [&l, &image_point](const cv::Point2f& q, cv::Point3d* p) { return image_point(toImage(l, q), p); };
+  }
   auto dot = [](const cv::Point3d& a, const cv::Point3d& b) { return a.x * b.x + a.y * b.y + a.z * b.z; };
   std::vector<double> ys, shifts;
   const double y0 = std::min(l.c7.y, l.l4.y), y1 = std::max(l.c7.y, l.l4.y);
@@ -745,9 +856,58 @@ BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model
   if (left.mask.type() != CV_8UC1) return invalid("mask is not CV_8UC1");
   if (cv::countNonZero(left.mask) == 0) return invalid("mask is empty (no back)");
   if (!(model.c7_below_top + model.waist_fraction > 0.0)) return invalid("model constants not set");
-  if (model.head_up) return findLandmarksHeadUp(left, model);
-  BackLandmarks l = findLandmarksHeadUp(turned(left), model);
-  return l.valid ? turnedBack(std::move(l), left.mask.cols, left.mask.rows) : l;
+  // The head-up image: the image itself, or turned by 180 degrees.
+  const cv::Matx23d image_from_up =
+      model.head_up ? cv::Matx23d(1, 0, 0, 0, 1, 0) : halfTurn(left.mask.cols, left.mask.rows);
+  const Segmentation up = model.head_up ? left : turnedBy(left, image_from_up, left.mask.size());
+  ImageEdge edge;
+  edge.rows = up.mask.rows;
+  edge.cut_at_bottom = cv::countNonZero(up.mask.row(up.mask.rows - 1)) > 0;
+  BackLandmarks l = findLandmarksHeadUp(up, model, edge);
+  l.to_image = image_from_up;
+  // A body turned on the table: the rows of the head-up image cut it
+  // slantwise (wider, and the levels sheared across the body). Turn the
+  // frame until the midline between C7 and L4 runs along its columns; the
+  // row-by-row midline of a turned back leans less than the back itself, so
+  // this takes a few turns. Within kMinTurn the image's own rows are kept.
+  constexpr double kMinTurn = 1.0 * CV_PI / 180.0, kTolerance = 0.1 * CV_PI / 180.0,
+                   kMaxTurn = 45.0 * CV_PI / 180.0;
+  constexpr int kMaxTurns = 6;
+  if (!usableContour(up.contour)) return l;
+  if (l.valid && std::abs(midlineTilt(l)) < kMinTurn) return l;
+  // First turn: the mask's long axis (the row-by-row midline of a turned
+  // back can lean more than the back), else the midline.
+  const double moments = momentsTilt(up.mask);
+  double tilt = std::isfinite(moments) ? moments : l.valid ? midlineTilt(l) : kNaN, total = 0.0;
+  if (!(std::abs(tilt) >= kMinTurn)) return l;  // also NaN: no axis to turn to
+  cv::Matx23d body_from_up(1, 0, 0, 0, 1, 0);
+  Segmentation body = up;
+  for (int turn = 0; turn < kMaxTurns && std::abs(tilt) >= kTolerance; ++turn) {
+    total += tilt;
+    if (std::abs(total) > kMaxTurn) {
+      return invalid("the body lies turned by more than 45 degrees against the image's columns (" +
+                     num(std::round(-total * 180.0 / CV_PI)) + " degrees): not this model's view of a back");
+    }
+    cv::Size canvas;
+    const cv::Matx23d step = turnAbout(body.contour, tilt, &canvas);
+    body_from_up = compose(step, body_from_up);
+    body = turnedBy(up, body_from_up, canvas);
+    edge.to_head_up = inverse(body_from_up);
+    BackLandmarks turned = findLandmarksHeadUp(body, model, edge);
+    if (!turned.valid) {
+      turned.reason = "body turned by " + num(std::round(-total * 180.0 / CV_PI)) + " degrees: " + turned.reason;
+      return turned;
+    }
+    l = turned;
+    l.to_image = compose(image_from_up, edge.to_head_up);
+    l.body_angle_deg = -total * 180.0 / CV_PI;  // the midline's tilt is + with the head toward the left
+    tilt = midlineTilt(l);
+  }
+  return l;
+}
+
+cv::Point2f toImage(const BackLandmarks& landmarks, const cv::Point2f& body_pixel) {
+  return apply(landmarks.to_image, body_pixel);
 }
 
 cv::Point2f levelPixel(const BackLandmarks& landmarks, const AcupointModel& model, const std::string& level) {
@@ -757,12 +917,12 @@ cv::Point2f levelPixel(const BackLandmarks& landmarks, const AcupointModel& mode
     const float nan = std::numeric_limits<float>::quiet_NaN();
     return {nan, nan};
   }
-  const double y = landmarks.c7.y + it->second * (landmarks.l4.y - landmarks.c7.y);
-  return midlineAt(landmarks, y);
+  return toImage(landmarks, midlineAt(landmarks, levelRow(landmarks, it->second)));
 }
 
-double cunMetres(const BackLandmarks& landmarks, const AcupointModel& model, const PixelScale& scale) {
-  if (!landmarks.valid || landmarks.midline.empty() || !scale) return kNaN;
+double cunMetres(const BackLandmarks& landmarks, const AcupointModel& model, const PixelScale& image_scale) {
+  if (!landmarks.valid || landmarks.midline.empty() || !image_scale) return kNaN;
+  const PixelScale scale = bodyScale(landmarks, image_scale);
   // Metres per pixel on the shoulder line: median over its central half (the
   // skin there; robust to holes and outliers of a measured depth).
   const cv::Point2f centre = midlineAt(landmarks, landmarks.shoulder_row);
@@ -781,6 +941,7 @@ std::vector<AcupointPixel> placeAcupoints(const BackLandmarks& landmarks, const 
   std::vector<AcupointPixel> out;
   out.reserve(model.points.size());
   const double cun = landmarks.valid ? cunMetres(landmarks, model, scale) : kNaN;
+  const PixelScale body_scale = bodyScale(landmarks, scale);
   for (const auto& spec : model.points) {
     AcupointPixel a;
     a.name = spec.name;
@@ -795,9 +956,10 @@ std::vector<AcupointPixel> placeAcupoints(const BackLandmarks& landmarks, const 
       out.push_back(a);
       continue;
     }
-    const cv::Point2f p0 = levelPixel(landmarks, model, spec.level);
+    // In the body's frame, then into the image.
+    const cv::Point2f p0 = midlineAt(landmarks, levelRow(landmarks, level->second));
     if (spec.lateral_cun == 0.0) {
-      a.pixel = p0;
+      a.pixel = toImage(landmarks, p0);
       a.valid = true;
       out.push_back(a);
       continue;
@@ -807,14 +969,14 @@ std::vector<AcupointPixel> placeAcupoints(const BackLandmarks& landmarks, const 
       out.push_back(a);
       continue;
     }
-    const double mpp = midlineScale(landmarks, p0.y, scale);
+    const double mpp = midlineScale(landmarks, p0.y, body_scale);
     if (!std::isfinite(mpp)) {
       a.reason = "no metres per pixel on the midline at " + spec.level;
       out.push_back(a);
       continue;
     }
     const double offset = spec.lateral_cun * cun / mpp;  // pixels toward the subject's left
-    a.pixel = p0 + static_cast<float>(offset) * lateralAt(landmarks, p0.y);
+    a.pixel = toImage(landmarks, p0 + static_cast<float>(offset) * lateralAt(landmarks, p0.y));
     a.valid = true;
     out.push_back(a);
   }

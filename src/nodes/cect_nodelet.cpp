@@ -336,6 +336,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
   std::string frame_problem;  // non-empty: the pair gives no acupoint at all
   const double stamp = header.stamp.toSec();
   int measured = 0;
+  double body_angle = std::numeric_limits<double>::quiet_NaN();
   if (!frame->valid()) {
     frame_problem = "no usable view of the back: " + frame->reason();
   } else {
@@ -343,6 +344,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
     if (!landmarks.valid) {
       frame_problem = "no landmarks of the back: " + landmarks.reason;
     } else {
+      body_angle = landmarks.body_angle_deg;
       if (config.correct_parallax) cect::correctMidlineParallax(&landmarks, frame->left(), cect::framePoints(*frame));
       const std::vector<cect::AcupointPixel> placed = cect::placeAcupoints(landmarks, model_, cect::frameScale(*frame));
       std::map<std::string, const cect::AcupointPixel*> by_name;
@@ -405,6 +407,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
   rejected_outliers_ = filter_.rejected();
   last_cect_ms_ = frame->timings().total_ms;
   if (frame->valid()) last_scale_ = frame->scale();
+  if (std::isfinite(body_angle)) last_body_angle_ = body_angle;
   if (stats_.processed() == 1) {
     NODELET_INFO_STREAM("first pair: " << valid << " of " << model_.points.size() << " acupoints valid, " << elapsed
                                        << " ms");
@@ -702,6 +705,7 @@ void CectNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) 
   status.add("outliers rejected", rejected_outliers_);
   stats_.addTimes(status, "last CECT time (ms)", last_cect_ms_);
   status.add("view scale (auto_scale; 1 = the reference view)", last_scale_);
+  status.add("body turned on the table (degrees, + head toward the image right)", last_body_angle_);
   status.add("last reason", last_problem_);
   status.add("last error", stats_.lastError());
 }

@@ -13,6 +13,7 @@
 #include <sstream>
 #include <string>
 #include <vector>
+#include <limits>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -34,7 +35,7 @@ using Clock = std::chrono::steady_clock;
 
 const char* kUsage = R"(Usage: cect_eval [--experiments ideal,lighting,shift] [--subjects N] [--condition-subjects K]
                  [--random-points N] [--width W --height H --fx F --baseline B --camera-height Z]
-                 [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX]
+                 [--yaw DEG] [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX]
                  [--param NAME=VALUE,...] [--csv] [--per-point] [--no-parallax-correction]
 
 Renders prone subjects with the scene simulator and localises points on their
@@ -53,6 +54,10 @@ acc_rate: share of the queried points localised with an error < 10 mm (a point
 a method cannot localise counts as a miss). `model` reports how far the model's
 placed acupoints lie from the anatomical ones (independent of the matching).
 CECT ms: segmentation to 3D acupoints per pair (2 cores).
+  --yaw DEG    the subject lies turned by DEG degrees on the table (about the
+               vertical through the back's centre; + turns the head toward the
+               image right, clockwise on screen): every condition, the ground
+               truth turned with it
   --param      set CECT parameters by their CectParams names, e.g.
                --param ncc_radius=9,smooth_radius=2 (see cect.h)
   --csv        print CSV: condition,subject,method,points,mean_mm,max_mm,acc_rate
@@ -70,6 +75,7 @@ struct Options {
   int random_points = 100;
   int width = 640, height = 480;
   double fx = 500.0, baseline = 0.10, camera_height = 0.95;
+  double yaw_deg = 0.0;  ///< the subject turned on the table
   bool raw = false;
   bool csv = false;
   bool per_point = false;
@@ -189,7 +195,25 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   PairResult res;
   const sim::BodyParameters body = sim::BodyParameters::subject(subject);
   const sim::BackModel back(body);
-  const sim::Renderer renderer(sim::makeBackScene(back, 1));
+  sim::Scene scene = sim::makeBackScene(back, 1);
+  // The subject turned on the table: the back's mesh and its anatomical
+  // acupoints about the vertical through the mesh's centre.
+  Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();
+  if (o.yaw_deg != 0.0) {
+    for (sim::Mesh& m : scene.meshes) {
+      if (m.label != sim::kLabelBack) continue;
+      Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max()), hi = -lo;
+      for (const auto& v : m.vertices) {
+        lo = lo.cwiseMin(v);
+        hi = hi.cwiseMax(v);
+      }
+      const Eigen::Vector3d c(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0.0);
+      turn = Eigen::Translation3d(c) * Eigen::AngleAxisd(-o.yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()) *
+             Eigen::Translation3d(-c);
+      sim::transform(m, turn.linear().cast<float>(), turn.translation().cast<float>());
+    }
+  }
+  const sim::Renderer renderer(scene);
   sim::RigParameters rig;
   rig.width = o.width;
   rig.height = o.height;
@@ -310,7 +334,9 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   score(rnd, "random", static_cast<int>(rnd.size()));
 
   // Model placement against the anatomical acupoints.
-  const auto anatomical = sim::toCameraFrame(back.acupoints(), pair.left);
+  auto turned = back.acupoints();
+  for (auto& [name, point] : turned) point = turn * point;
+  const auto anatomical = sim::toCameraFrame(turned, pair.left);
   res.model.queried = static_cast<int>(expected);
   for (const auto& a : placed) {
     if (!a.valid) continue;
@@ -369,6 +395,7 @@ void run(const Options& o) {
   else
     std::cout << "CECT vs StereoSGBM at the same left pixels; " << o.width << "x" << o.height << ", fx " << o.fx
               << " px, baseline " << o.baseline << " m, camera " << o.camera_height << " m above the table"
+              << (o.yaw_deg != 0.0 ? ", subject turned " + fmt(o.yaw_deg, 1) + " deg" : std::string())
               << (o.raw ? ", raw (distorted, unrectified) pairs" : ", rectified pairs") << "\n\n"
               << std::left << std::setw(18) << "condition" << std::setw(8) << "method" << std::setw(11) << "points"
               << std::right << std::setw(8) << "queried" << std::setw(8) << "valid%" << std::setw(9) << "mean mm"
@@ -461,6 +488,10 @@ int main(int argc, char** argv) {
         };
         t.values["--camera-height"] = [&](const std::string& opt, const std::string& v) {
           o.camera_height = tools::parseDouble(opt, v);
+        };
+        t.values["--yaw"] = [&](const std::string& opt, const std::string& v) {
+          o.yaw_deg = tools::parseDouble(opt, v);
+          tools::require(std::abs(o.yaw_deg) <= 45.0, opt + " must be within +-45 degrees");
         };
         t.values["--acupoints"] = [&](const std::string&, const std::string& v) { o.acupoints = v; };
         t.values["--seed-step"] = [&](const std::string& opt, const std::string& v) {

@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <map>
 #include <set>
 #include <string>
@@ -708,12 +709,17 @@ TEST(AcupointPlacement, HeadDownIsTheSameBackTurnedAround) {
   head_down.head_up = false;
   const cect::BackLandmarks t = cect::findLandmarks(segmentationFromMask(mask), head_down);
   ASSERT_TRUE(t.valid) << t.reason;
-  EXPECT_LT(distance(t.c7, turn(l.c7)), 0.3);
-  EXPECT_LT(distance(t.l4, turn(l.l4)), 0.3);
-  EXPECT_GT(t.c7.y, t.l4.y);  // head toward the image bottom
-  EXPECT_NEAR(t.shoulder_row, h1 - l.shoulder_row, 1.0);
+  // The landmarks are in the body's frame (head up): the turned image.
+  EXPECT_LT(distance(cect::toImage(t, t.c7), turn(l.c7)), 0.3);
+  EXPECT_LT(distance(cect::toImage(t, t.l4), turn(l.l4)), 0.3);
+  EXPECT_LT(distance(t.c7, l.c7), 0.3);
+  EXPECT_GT(cect::toImage(t, t.c7).y, cect::toImage(t, t.l4).y);  // head toward the image bottom
+  EXPECT_NEAR(t.shoulder_row, l.shoulder_row, 1.0);
+  EXPECT_DOUBLE_EQ(t.body_angle_deg, 0.0);
   ASSERT_FALSE(t.lateral.empty());
-  EXPECT_GT(t.lateral.front().x, 0.99f);  // the subject's left is now on the image right
+  const cv::Point2f left_in_image = cect::toImage(t, t.c7 + t.lateral.front()) - cect::toImage(t, t.c7);
+  EXPECT_GT(left_in_image.x, 0.99f);  // the subject's left is now on the image right
+  EXPECT_LT(distance(cect::levelPixel(t, head_down, "C7"), turn(l.c7)), 0.3);
   const auto turned = cect::placeAcupoints(t, head_down, depthScale(depth, r.fx));
   double worst = 0.0;
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -721,6 +727,58 @@ TEST(AcupointPlacement, HeadDownIsTheSameBackTurnedAround) {
   }
   std::printf("head down: largest difference from the turned head-up points %.3f px\n", worst);
   EXPECT_LT(worst, 0.5);
+}
+
+TEST(AcupointPlacement, ABodyTurnedOnTheTableIsFoundInItsOwnFrame) {
+  // The mean subject's mask and depth turned by 12 degrees about the image
+  // centre (the subject lying askew): the landmarks are found in the body's
+  // own frame, and the placed acupoints are the upright ones turned with it.
+  // On the image's rows a 12-degree turn shears the levels across the body
+  // and widens the shoulder line.
+  const Rendered& r = meanSubject640();
+  const cect::BackLandmarks l = cect::findLandmarks(groundTruthSegmentation(r), model());
+  ASSERT_TRUE(l.valid) << l.reason;
+  EXPECT_DOUBLE_EQ(l.body_angle_deg, 0.0);
+  const auto points = cect::placeAcupoints(l, model(), depthScale(r.view.depth, r.fx));
+  for (const double deg : {12.0, -12.0, 25.0}) {
+    const cv::Point2f centre(0.5f * static_cast<float>(r.view.labels.cols - 1),
+                             0.5f * static_cast<float>(r.view.labels.rows - 1));
+    // Image rotation by -deg in OpenCV's convention turns the head toward the image right for deg > 0.
+    const cv::Mat turn = cv::getRotationMatrix2D(centre, -deg, 1.0);
+    auto turned = [&](const cv::Point2f& p) {
+      return cv::Point2f(static_cast<float>(turn.at<double>(0, 0) * p.x + turn.at<double>(0, 1) * p.y + turn.at<double>(0, 2)),
+                         static_cast<float>(turn.at<double>(1, 0) * p.x + turn.at<double>(1, 1) * p.y + turn.at<double>(1, 2)));
+    };
+    cv::Mat mask, depth;
+    cv::warpAffine(r.view.labels == sim::kLabelBack, mask, turn, r.view.labels.size(), cv::INTER_NEAREST);
+    cv::warpAffine(r.view.depth, depth, turn, r.view.depth.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT,
+                   cv::Scalar::all(std::numeric_limits<double>::quiet_NaN()));
+    const cect::BackLandmarks t = cect::findLandmarks(segmentationFromMask(mask), model());
+    ASSERT_TRUE(t.valid) << deg << " degrees: " << t.reason;
+    EXPECT_NEAR(t.body_angle_deg, deg, 0.5);
+    EXPECT_LT(distance(cect::levelPixel(t, model(), "C7"), turned(l.c7)), 2.0) << deg;
+    EXPECT_LT(distance(cect::levelPixel(t, model(), "L4"), turned(l.l4)), 3.0) << deg;
+    EXPECT_NEAR(t.shoulder_width, l.shoulder_width, 0.02 * l.shoulder_width) << deg;
+    const auto placed = cect::placeAcupoints(t, model(), depthScale(depth, r.fx));
+    ASSERT_EQ(placed.size(), points.size());
+    double worst = 0.0, sum = 0.0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      ASSERT_TRUE(placed[i].valid) << placed[i].name << ": " << placed[i].reason;
+      const double e = distance(placed[i].pixel, turned(points[i].pixel));
+      worst = std::max(worst, e);
+      sum += e;
+    }
+    std::printf("turned %+.0f deg: found %+.2f deg; acupoints off the turned upright ones by %.2f px mean, %.2f max\n",
+                deg, t.body_angle_deg, sum / static_cast<double>(points.size()), worst);
+    EXPECT_LT(sum / static_cast<double>(points.size()), 1.5) << deg;
+    EXPECT_LT(worst, 4.0) << deg;
+  }
+  // Turned across the image: refused with the reason.
+  cv::Mat across;
+  cv::rotate(r.view.labels == sim::kLabelBack, across, cv::ROTATE_90_CLOCKWISE);
+  const cect::BackLandmarks x = cect::findLandmarks(segmentationFromMask(across), model());
+  EXPECT_FALSE(x.valid);
+  EXPECT_FALSE(x.reason.empty());
 }
 
 // ---------------------------------------------------------------------------

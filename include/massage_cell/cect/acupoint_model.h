@@ -56,24 +56,43 @@ struct AcupointModel {
 /// the file and the problem.
 AcupointModel loadAcupointModel(const std::string& path);
 
-/// Landmarks in the rectified left image (pixels).
+/// Landmarks of the back, in pixels of the body's frame: the rectified left
+/// image turned (about the back) so that the body lies along the columns with
+/// the head up, rows running across the body. For a subject lying along the
+/// image's columns head up (within 1 degree) that frame is the image itself;
+/// a subject lying turned on the table, or head down (`head_up: false`), has
+/// its landmarks in the turned frame, and `to_image` (toImage()) maps them
+/// into the image. levelPixel() and placeAcupoints() return image pixels.
 struct BackLandmarks {
   bool valid = false;
   std::string reason;
-  /// The spine's midline, one point per image row from the top of the back
-  /// to its bottom (x = middle of the back's extent on that row, smoothed).
+  /// The spine's midline, one point per row of the body's frame from the top
+  /// of the back to its bottom (x = middle of the back's extent on that row,
+  /// smoothed).
   std::vector<cv::Point2f> midline;
   cv::Point2f c7, l4;          ///< on the midline
   double shoulder_row = 0.0;   ///< the shoulder line (widest row of the upper back)
   double shoulder_width = 0.0; ///< pixels, across the back at the shoulder line
   double waist_row = 0.0;      ///< narrowest row between shoulders and hips
   double iliac_row = 0.0;      ///< iliac-crest line (~L4)
-  /// Unit image direction toward the subject's left, perpendicular to the midline (per midline row).
+  /// Unit direction toward the subject's left, perpendicular to the midline (per midline row).
   std::vector<cv::Point2f> lateral;
+  /// The body's frame -> the rectified left image (a rotation and a shift).
+  cv::Matx23d to_image = cv::Matx23d(1, 0, 0, 0, 1, 0);
+  /// How far the body is turned against the image's columns, degrees
+  /// (+: the head toward the image right of a head-up view, clockwise on screen); 0 within
+  /// 1 degree.
+  double body_angle_deg = 0.0;
 };
 
-/// Finds the landmarks from the left view's segmentation. Never throws for
-/// image content (valid = false with a reason).
+/// A point of the body's frame (BackLandmarks) in the rectified left image.
+cv::Point2f toImage(const BackLandmarks& landmarks, const cv::Point2f& body_pixel);
+
+/// Finds the landmarks from the left view's segmentation. The body's frame:
+/// the axis of the midline between C7 and L4 (fitted row by row) is turned
+/// onto the columns and the landmarks found again, until it stays within
+/// 0.1 degree (at most a few turns; a body turned by more than 45 degrees is
+/// refused). Never throws for image content (valid = false with a reason).
 BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model);
 
 /// Metres per pixel at a rectified left pixel (depth / fx), NaN if unknown.
@@ -91,8 +110,9 @@ using PointLookup = std::function<bool(const cv::Point2f& rect_pixel, cv::Point3
 /// to rim parallel to the image plane: the camera looks down at the table;
 /// rolled against the body is fine): per row the 3D points of the outermost
 /// back pixels, Newton steps along the row, then a robust line
-/// fitted to the shifts over the torso's rows. Returns the mean shift in
-/// pixels (toward the image right: +); leaves the landmarks as they are and
+/// fitted to the shifts over the torso's rows (rows of the body's frame;
+/// `left` and `point` are the image's). Returns the mean shift in pixels
+/// (toward the body frame's right: +); leaves the landmarks as they are and
 /// returns NaN when fewer than 10 rows have the 3D points.
 double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left, const PointLookup& point);
 
@@ -109,7 +129,7 @@ struct AcupointPixel {
   std::string reason;
 };
 
-/// Midline pixel of `level` (interpolated along the midline with level_fraction).
+/// Midline pixel of `level` in the image (interpolated along the midline with level_fraction).
 cv::Point2f levelPixel(const BackLandmarks& landmarks, const AcupointModel& model, const std::string& level);
 /// cun in metres from the shoulder width (scale gives metres per pixel on the shoulder line).
 double cunMetres(const BackLandmarks& landmarks, const AcupointModel& model, const PixelScale& scale);
