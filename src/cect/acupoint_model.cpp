@@ -64,8 +64,9 @@
 #include <stdexcept>
 #include <utility>
 
-#include <yaml-cpp/yaml.h>
+#include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
+#include <yaml-cpp/yaml.h>
 
 namespace massage_cell::cect {
 
@@ -575,6 +576,17 @@ cv::Point2f lateralAt(const BackLandmarks& l, double y) {
   return v[static_cast<std::size_t>(std::lround(t))];
 }
 
+/// along[] at row y of the body frame (linear between midline points); NaN
+/// where not measured.
+double interpolateAlong(const BackLandmarks& l, double y) {
+  if (l.along.size() != l.midline.size() || l.midline.empty()) return kNaN;
+  const double t = y - l.midline.front().y;
+  if (t < 0.0 || t > double(l.midline.size() - 1)) return kNaN;
+  const std::size_t i = std::min(static_cast<std::size_t>(t), l.midline.size() - 2);
+  const double f = t - double(i);
+  return (1.0 - f) * l.along[i] + f * l.along[i + 1];
+}
+
 /// Median metres-per-pixel along the midline within +-kScaleWindow of C7->L4
 /// around row y. A level out of view (a back cut by the image) takes the
 /// nearest window along the midline that has a scale, at most
@@ -596,8 +608,26 @@ double midlineScale(const BackLandmarks& l, double y, const PixelScale& scale) {
   return m;
 }
 
-/// The body frame's row of a level (its fraction of C7 -> L4).
-double levelRow(const BackLandmarks& l, double fraction) { return l.c7.y + fraction * (l.l4.y - l.c7.y); }
+/// The body frame's row of a level (its fraction of C7 -> L4): along the
+/// body's axis in 3D when measured (measureLevelsIn3D), else in rows.
+double levelRow(const BackLandmarks& l, double fraction) {
+  const double by_rows = l.c7.y + fraction * (l.l4.y - l.c7.y);
+  if (l.along.size() != l.midline.size()) return by_rows;
+  // along[] is increasing where finite; C7 is at 0 and L4 at its length.
+  const double l4_along = interpolateAlong(l, l.l4.y);
+  if (!(l4_along > 0.0)) return by_rows;
+  const double target = fraction * l4_along;
+  std::size_t prev = l.along.size();
+  for (std::size_t i = 0; i < l.along.size(); ++i) {
+    if (!std::isfinite(l.along[i])) continue;
+    if (prev < l.along.size() && l.along[prev] <= target && target <= l.along[i]) {
+      const double t = (target - l.along[prev]) / std::max(1e-12, l.along[i] - l.along[prev]);
+      return l.midline[prev].y + t * (l.midline[i].y - l.midline[prev].y);
+    }
+    prev = i;
+  }
+  return by_rows;  // beyond the measured stretch
+}
 
 /// A scale of image pixels as one of the body frame's pixels.
 PixelScale bodyScale(const BackLandmarks& l, const PixelScale& image_scale) {
@@ -710,6 +740,68 @@ double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left
   l.c7.x += shiftAt(l.c7.y);
   l.l4.x += shiftAt(l.l4.y);
   return mean / static_cast<double>(l.midline.size());
+}
+
+double measureLevelsIn3D(BackLandmarks* landmarks, const PointLookup& image_point) {
+  BackLandmarks& l = *landmarks;
+  if (!l.valid || l.midline.size() < 10 || !image_point) return kNaN;
+  const double length_rows = static_cast<double>(l.l4.y) - l.c7.y;
+  if (!(length_rows > 10.0)) return kNaN;
+  // The 3D points of the midline from just above C7 to a quarter of C7 -> L4
+  // below L4 (the model's lowest levels), as functions of u = 0 at C7, 1 at L4.
+  const double u_lo = -0.05, u_hi = 1.25;
+  std::vector<double> us;
+  std::vector<Eigen::Vector3d> ps;
+  int near_c7 = 0, near_l4 = 0;
+  for (const cv::Point2f& m : l.midline) {
+    const double u = (m.y - l.c7.y) / length_rows;
+    if (u < u_lo || u > u_hi) continue;
+    cv::Point3d p;
+    if (!image_point(toImage(l, m), &p)) continue;
+    us.push_back(u);
+    ps.emplace_back(p.x, p.y, p.z);
+    near_c7 += std::abs(u) < 0.1 ? 1 : 0;
+    near_l4 += std::abs(u - 1.0) < 0.1 ? 1 : 0;
+  }
+  if (us.size() < 30 || near_c7 < 5 || near_l4 < 5) return kNaN;
+  // Each coordinate a cubic in u (least squares, Eigen), refitted twice with
+  // Huber weights on the 3D residual (a hole or a wrong point in the surface).
+  const Eigen::Index n = static_cast<Eigen::Index>(us.size());
+  Eigen::MatrixXd A(n, 4), B(n, 3);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double u = us[static_cast<std::size_t>(i)];
+    A.row(i) << 1.0, u, u * u, u * u * u;
+    B.row(i) = ps[static_cast<std::size_t>(i)].transpose();
+  }
+  Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
+  Eigen::Matrix<double, 4, 3> C;
+  for (int pass = 0; pass < 3; ++pass) {
+    const Eigen::MatrixXd Aw = w.asDiagonal() * A, Bw = w.asDiagonal() * B;
+    C = Aw.colPivHouseholderQr().solve(Bw);
+    if (!C.allFinite()) return kNaN;
+    Eigen::VectorXd r = (A * C - B).rowwise().norm();
+    std::vector<double> sorted(r.data(), r.data() + n);
+    std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
+    const double k = 1.5 * std::max(1e-3, 1.4826 * sorted[static_cast<std::size_t>(n / 2)]);
+    for (Eigen::Index i = 0; i < n; ++i) w(i) = r(i) <= k ? 1.0 : std::sqrt(k / r(i));
+  }
+  auto P = [&](double u) { return Eigen::Vector3d((Eigen::RowVector4d(1.0, u, u * u, u * u * u) * C).transpose()); };
+  const Eigen::Vector3d c7 = P(0.0), chord = P(1.0) - c7;
+  const double length = chord.norm();
+  if (!(length > 0.0)) return kNaN;
+  const Eigen::Vector3d axis = chord / length;
+  const double u_min = *std::min_element(us.begin(), us.end()), u_max = *std::max_element(us.begin(), us.end());
+  std::vector<double> along(l.midline.size(), kNaN);
+  double last = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < l.midline.size(); ++i) {
+    const double u = (l.midline[i].y - l.c7.y) / length_rows;
+    if (u < u_min || u > u_max) continue;
+    along[i] = (P(u) - c7).dot(axis);
+    if (!(along[i] > last)) return kNaN;  // not monotonic: not a back lying along its axis
+    last = along[i];
+  }
+  l.along = std::move(along);
+  return length;
 }
 
 PixelScale frameScale(const CectFrame& frame) {

@@ -37,6 +37,7 @@ const char* kUsage = R"(Usage: cect_eval [--experiments ideal,lighting,shift] [-
                  [--random-points N] [--width W --height H --fx F --baseline B --camera-height Z]
                  [--yaw DEG] [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX]
                  [--param NAME=VALUE,...] [--csv] [--per-point] [--no-parallax-correction]
+                 [--no-3d-levels]
 
 Renders prone subjects with the scene simulator and localises points on their
 backs with CECT (segmentation -> contour correspondences -> barycentric
@@ -61,6 +62,9 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
   --param      set CECT parameters by their CectParams names, e.g.
                --param ncc_radius=9,smooth_radius=2 (see cect.h)
   --csv        print CSV: condition,subject,method,points,mean_mm,max_mm,acc_rate
+  --no-3d-levels  space the vertebral levels between C7 and L4 in image rows
+               (the default spaces them along the body's axis in CECT's 3D:
+               measureLevelsIn3D)
   --no-parallax-correction  place the acupoints from the silhouette's centre
                line as it is (the default moves it onto the skin's midline in 3D:
                correctMidlineParallax)
@@ -80,6 +84,7 @@ struct Options {
   bool csv = false;
   bool per_point = false;
   bool parallax = true;  ///< the model's midline corrected for the silhouette's parallax (3D)
+  bool levels_3d = true;  ///< the levels spaced along the body's axis in 3D
   std::string acupoints;
   int seed_step = -1;
   double query_search = -1.0;
@@ -247,6 +252,7 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
     cect::BackLandmarks lm = cect::findLandmarks(f.left(), model);
     if (lm.valid) {
       if (o.parallax) cect::correctMidlineParallax(&lm, f.left(), cect::framePoints(f));
+      if (o.levels_3d) cect::measureLevelsIn3D(&lm, cect::framePoints(f));
       placed = cect::placeAcupoints(lm, model, cect::frameScale(f));
       for (const auto& a : placed)
         located.push_back(a.valid ? f.localizeRectified(a.pixel) : cect::LocalizedPoint{});
@@ -515,6 +521,7 @@ int main(int argc, char** argv) {
         t.flags["--csv"] = [&] { o.csv = true; };
         t.flags["--per-point"] = [&] { o.per_point = true; };
         t.flags["--no-parallax-correction"] = [&] { o.parallax = false; };
+        t.flags["--no-3d-levels"] = [&] { o.levels_3d = false; };
         if (!tools::parseArguments(argc, argv, t, kUsage)) return false;
         tools::require(o.width >= 64 && o.height >= 48, "--width/--height too small");
         tools::require(o.fx > 0 && o.baseline > 0 && o.camera_height > 0.3,

@@ -595,6 +595,53 @@ TEST(AcupointLandmarks, WaistFoundWhenTheImageCutsTheHipsStart) {
   EXPECT_FALSE(cect::findLandmarks(segmentationFromMask(short_back), model()).valid);
 }
 
+TEST(AcupointLandmarks, LevelsAreSpacedAlongTheBodyIn3D) {
+  const Rendered& r = meanSubject640();
+  const cect::BackLandmarks rows = cect::findLandmarks(groundTruthSegmentation(r), model());
+  ASSERT_TRUE(rows.valid) << rows.reason;
+  const double c7 = rows.c7.y, l4 = rows.l4.y;
+  // A back whose length along its axis grows as a square of the row
+  // fraction u from C7: 0.25 (u + 1)^2 - 0.25 m (0.75 m at L4), so level f
+  // lies at u = sqrt(1 + 3 f) - 1 in rows. The cubic fit holds a square exactly.
+  auto along = [&](double y) { const double u = (y - c7) / (l4 - c7); return 0.25 * (u + 1) * (u + 1) - 0.25; };
+  const cect::PointLookup curved = [&](const cv::Point2f& q, cv::Point3d* p) {
+    *p = cv::Point3d(0.01 * q.x, along(q.y), 0.8);
+    return true;
+  };
+  cect::BackLandmarks l = rows;
+  EXPECT_NEAR(cect::measureLevelsIn3D(&l, curved), 0.75, 1e-4);  // the chord also spans the midline's x
+  ASSERT_EQ(l.along.size(), l.midline.size());
+  for (const char* level : {"T3", "T7", "T10", "L2"}) {
+    const double f = model().level_fraction.at(level);
+    EXPECT_NEAR(cect::levelPixel(l, model(), level).y, c7 + (std::sqrt(1.0 + 3.0 * f) - 1.0) * (l4 - c7), 0.05) << level;
+    EXPECT_GT(std::abs(cect::levelPixel(l, model(), level).y - cect::levelPixel(rows, model(), level).y), 5.0)
+        << level << ": the curved back must move it";
+  }
+  EXPECT_NEAR(cect::levelPixel(l, model(), "C7").y, c7, 0.05);
+  EXPECT_NEAR(cect::levelPixel(l, model(), "L4").y, l4, 0.05);
+  // A flat back parallel to the image: the same spacing as the rows.
+  const cect::PointLookup flat = [](const cv::Point2f& q, cv::Point3d* p) {
+    *p = cv::Point3d(0.0016 * q.x, 0.0016 * q.y, 0.8);
+    return true;
+  };
+  cect::BackLandmarks even = rows;
+  EXPECT_GT(cect::measureLevelsIn3D(&even, flat), 0.0);
+  for (const auto& [level, f] : model().level_fraction)
+    EXPECT_NEAR(cect::levelPixel(even, model(), level).y, cect::levelPixel(rows, model(), level).y, 0.05) << level;
+  // Refused (landmarks left as they are): no 3D, a back folding back on itself.
+  cect::BackLandmarks none = rows;
+  EXPECT_TRUE(std::isnan(cect::measureLevelsIn3D(&none, [](const cv::Point2f&, cv::Point3d*) { return false; })));
+  EXPECT_TRUE(none.along.empty());
+  const cect::PointLookup folded = [&](const cv::Point2f& q, cv::Point3d* p) {
+    const double u = (q.y - c7) / (l4 - c7);
+    *p = cv::Point3d(0.0, 0.5 * u * (u - 0.6), 0.8);  // runs back toward the head over the upper third
+    return true;
+  };
+  cect::BackLandmarks bad = rows;
+  EXPECT_TRUE(std::isnan(cect::measureLevelsIn3D(&bad, folded)));
+  EXPECT_TRUE(bad.along.empty());
+}
+
 TEST(AcupointLandmarks, ParallaxCorrectionPutsTheMidlineOnTheSpine) {
   // The silhouette's centre line is the table-level image of the midline;
   // with the back in 3D (CECT on the mean subject's stereo pair: the rims'

@@ -77,6 +77,10 @@ struct BackLandmarks {
   double iliac_row = 0.0;      ///< iliac-crest line (~L4)
   /// Unit direction toward the subject's left, perpendicular to the midline (per midline row).
   std::vector<cv::Point2f> lateral;
+  /// With the back's 3D (measureLevelsIn3D): per midline point, metres along
+  /// the body's axis in 3D (the chord from C7 to L4) from C7; NaN where
+  /// unknown. Empty: the levels are spaced in the frame's rows.
+  std::vector<double> along;
   /// The body's frame -> the rectified left image (a rotation and a shift).
   cv::Matx23d to_image = cv::Matx23d(1, 0, 0, 0, 1, 0);
   /// How far the body is turned against the image's columns, degrees
@@ -115,6 +119,20 @@ using PointLookup = std::function<bool(const cv::Point2f& rect_pixel, cv::Point3
 /// (toward the body frame's right: +); leaves the landmarks as they are and
 /// returns NaN when fewer than 10 rows have the 3D points.
 double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left, const PointLookup& point);
+
+/// The levels between C7 and L4 are fractions of the spine's length, but the
+/// image's rows are not proportional to length along the body: the upper
+/// back rises toward the camera (magnified) and a camera off the back's
+/// centre sees it in perspective; spaced in rows, T6-T12 came out 4-8 px
+/// (6-12 mm) toward the head with the camera centred and 12-21 px with it
+/// 4-14 cm along the table. With the back in 3D this measures every midline
+/// point's position along the body's axis (the chord C7 -> L4; a robust cubic
+/// in the row fitted to the 3D points, so depth noise does not add length),
+/// and levelPixel() / placeAcupoints() then space the levels along it. C7 and
+/// L4 stay where the silhouette put them. Returns C7 -> L4 in metres; leaves
+/// the landmarks as they are and returns NaN when too few midline points
+/// between C7 and L4 have 3D points or the fit is not monotonic.
+double measureLevelsIn3D(BackLandmarks* landmarks, const PointLookup& point);
 
 class CectFrame;
 /// A CECT frame's surface as the model wants it: metres per pixel (depth / fx)
