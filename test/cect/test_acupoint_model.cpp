@@ -820,6 +820,31 @@ TEST(AcupointPlacement, ABodyTurnedOnTheTableIsFoundInItsOwnFrame) {
     EXPECT_LT(sum / static_cast<double>(points.size()), 1.5) << deg;
     EXPECT_LT(worst, 4.0) << deg;
   }
+  // Head down and turned: the same back turned by 180 + 12 degrees.
+  {
+    const cv::Point2f centre(0.5f * static_cast<float>(r.view.labels.cols - 1),
+                             0.5f * static_cast<float>(r.view.labels.rows - 1));
+    const cv::Mat turn = cv::getRotationMatrix2D(centre, 180.0 - 12.0, 1.0);
+    auto turned = [&](const cv::Point2f& p) {
+      return cv::Point2f(static_cast<float>(turn.at<double>(0, 0) * p.x + turn.at<double>(0, 1) * p.y + turn.at<double>(0, 2)),
+                         static_cast<float>(turn.at<double>(1, 0) * p.x + turn.at<double>(1, 1) * p.y + turn.at<double>(1, 2)));
+    };
+    cv::Mat mask, depth;
+    cv::warpAffine(r.view.labels == sim::kLabelBack, mask, turn, r.view.labels.size(), cv::INTER_NEAREST);
+    cv::warpAffine(r.view.depth, depth, turn, r.view.depth.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT,
+                   cv::Scalar::all(std::numeric_limits<double>::quiet_NaN()));
+    cect::AcupointModel head_down = model();
+    head_down.head_up = false;
+    const cect::BackLandmarks t = cect::findLandmarks(segmentationFromMask(mask), head_down);
+    ASSERT_TRUE(t.valid) << "head down, turned: " << t.reason;
+    EXPECT_NEAR(t.body_angle_deg, 12.0, 0.5);  // in the head-up view: the head toward its right
+    const auto placed = cect::placeAcupoints(t, head_down, depthScale(depth, r.fx));
+    double sum = 0.0;
+    for (std::size_t i = 0; i < points.size(); ++i) sum += distance(placed[i].pixel, turned(points[i].pixel));
+    std::printf("head down, turned 12 deg: acupoints off the turned upright ones by %.2f px mean\n",
+                sum / static_cast<double>(points.size()));
+    EXPECT_LT(sum / static_cast<double>(points.size()), 1.5);
+  }
   // Turned across the image: refused with the reason.
   cv::Mat across;
   cv::rotate(r.view.labels == sim::kLabelBack, across, cv::ROTATE_90_CLOCKWISE);
