@@ -14,6 +14,11 @@ cp "$work/mean/preview.png" "$root/docs/back_mean_subject.png"
 cp "$work/s21/preview.png" "$root/docs/back_subject21_top_left.png"
 "$tool" --preset back $small --subject 5 --light top_right --shift 0.14 --raw --out "$work/s5"
 cp "$work/s5/preview.png" "$root/docs/back_subject5_raw_shift14.png"
+# CECT on a subject lying turned by 12 degrees: contour, the model's midline in
+# the body's frame, placed acupoints coloured by CECT's error, anatomical ones.
+"$root/_build/devel/lib/massage_cell/cect_eval" --experiments ideal --subjects 1 --random-points 0 --yaw 12 \
+  --pictures "$work/cect" > /dev/null
+cp "$work/cect/ideal_s01.png" "$root/docs/cect_subject1_turned12.png"
 "$tool" --preset boxes $small --out "$work/boxes"
 cp "$work/boxes/left.png" "$root/docs/boxes_left.png"
 # Dense stereo on Middlebury Teddy (third-party data, read from ../shared; the

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <iomanip>
 #include <iostream>
@@ -16,6 +17,7 @@
 #include <limits>
 
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "cli.h"
@@ -37,7 +39,7 @@ const char* kUsage = R"(Usage: cect_eval [--experiments ideal,lighting,shift] [-
                  [--random-points N] [--width W --height H --fx F --baseline B --camera-height Z]
                  [--yaw DEG] [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX]
                  [--param NAME=VALUE,...] [--csv] [--per-point] [--no-parallax-correction]
-                 [--no-3d-levels]
+                 [--no-3d-levels] [--pictures DIR]
 
 Renders prone subjects with the scene simulator and localises points on their
 backs with CECT (segmentation -> contour correspondences -> barycentric
@@ -62,6 +64,11 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
   --param      set CECT parameters by their CectParams names, e.g.
                --param ncc_radius=9,smooth_radius=2 (see cect.h)
   --csv        print CSV: condition,subject,method,points,mean_mm,max_mm,acc_rate
+  --pictures DIR  write every pair's picture to DIR/<condition>_s<subject>.png:
+               the rectified left view, the back's contour (magenta), the model's
+               midline (yellow), each placed acupoint coloured by CECT's 3D error
+               there (green < 5 mm, orange < 10 mm, red >= 10 mm or not
+               localised) and the anatomical acupoints (white crosses)
   --no-3d-levels  space the vertebral levels between C7 and L4 in image rows
                (the default spaces them along the body's axis in CECT's 3D:
                measureLevelsIn3D)
@@ -86,6 +93,7 @@ struct Options {
   bool parallax = true;  ///< the model's midline corrected for the silhouette's parallax (3D)
   bool levels_3d = true;  ///< the levels spaced along the body's axis in 3D
   std::string acupoints;
+  std::string pictures;  ///< --pictures: a folder for every pair's picture
   int seed_step = -1;
   double query_search = -1.0;
   std::vector<std::pair<std::string, double>> params;  ///< --param
@@ -195,6 +203,53 @@ struct PairResult {
   std::string failure;                 ///< CECT's reason when the frame was not usable
 };
 
+/// --pictures: one pair's picture (see the usage).
+void writePicture(const Options& o, const Condition& c, int subject, const cect::CectFrame& f,
+                  const cect::BackLandmarks& lm, const std::vector<cect::AcupointPixel>& placed,
+                  const std::vector<cect::LocalizedPoint>& located,
+                  const std::map<std::string, Eigen::Vector3d>& anatomical, const cect::StereoGeometry& geometry,
+                  const std::function<bool(const cv::Point2f&, Eigen::Vector3d*)>& truth) {
+  cv::Mat img;
+  if (!f.leftRectified().empty()) {
+    img = f.leftRectified().clone();
+  } else {
+    img = cv::Mat(o.height, o.width, CV_8UC3, cv::Scalar::all(0));
+  }
+  if (!f.left().contour.empty()) {
+    std::vector<cv::Point> contour;
+    for (const auto& p : f.left().contour) contour.emplace_back(cvRound(p.x), cvRound(p.y));
+    cv::polylines(img, contour, true, cv::Scalar(255, 0, 255), 1, cv::LINE_AA);
+  }
+  if (lm.valid && lm.midline.size() > 1) {
+    std::vector<cv::Point> mid;
+    for (const auto& p : lm.midline) {
+      const cv::Point2f q = cect::toImage(lm, p);
+      mid.emplace_back(cvRound(q.x), cvRound(q.y));
+    }
+    cv::polylines(img, mid, false, cv::Scalar(0, 255, 255), 1, cv::LINE_AA);
+  }
+  for (const auto& [name, p] : anatomical) {
+    const Eigen::Vector3d q = geometry.project(p);
+    cv::drawMarker(img, cv::Point(cvRound(q.x()), cvRound(q.y())), cv::Scalar(255, 255, 255), cv::MARKER_CROSS, 5, 1);
+  }
+  for (std::size_t i = 0; i < placed.size() && i < located.size(); ++i) {
+    if (!placed[i].valid) continue;
+    Eigen::Vector3d gt;
+    double err = std::numeric_limits<double>::infinity();
+    if (located[i].valid && truth(placed[i].pixel, &gt)) err = 1000.0 * (located[i].position - gt).norm();
+    const cv::Scalar colour = err < 5.0 ? cv::Scalar(0, 220, 0) : err < 10.0 ? cv::Scalar(0, 165, 255) : cv::Scalar(0, 0, 255);
+    cv::circle(img, cv::Point(cvRound(placed[i].pixel.x), cvRound(placed[i].pixel.y)), 2, colour, -1, cv::LINE_AA);
+  }
+  std::ostringstream text;
+  text << c.name << ", subject " << subject;
+  if (lm.valid && lm.body_angle_deg != 0.0) text << ", turned " << std::fixed << std::setprecision(1) << lm.body_angle_deg << " deg";
+  if (!lm.valid) text << ": " << (f.valid() ? lm.reason : f.reason());
+  cv::putText(img, text.str(), cv::Point(8, 18), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+  std::ostringstream name;
+  name << o.pictures << "/" << c.name << "_s" << std::setw(2) << std::setfill('0') << subject << ".png";
+  if (!cv::imwrite(name.str(), img)) throw std::runtime_error("cannot write '" + name.str() + "'");
+}
+
 PairResult evaluatePair(const Options& o, const Condition& c, int subject, const cect::AcupointModel& model,
                         const cect::CectParams& params) {
   PairResult res;
@@ -248,8 +303,9 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   const cect::CectFrame f = cect::CectFrame::analyse(frame.left.image, frame.right.image, geometry, params);
   std::vector<cect::AcupointPixel> placed;
   std::vector<cect::LocalizedPoint> located;
+  cect::BackLandmarks lm;
   if (f.valid()) {
-    cect::BackLandmarks lm = cect::findLandmarks(f.left(), model);
+    lm = cect::findLandmarks(f.left(), model);
     if (lm.valid) {
       if (o.parallax) cect::correctMidlineParallax(&lm, f.left(), cect::framePoints(f));
       if (o.levels_3d) cect::measureLevelsIn3D(&lm, cect::framePoints(f));
@@ -351,6 +407,7 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
     if (it == anatomical.end() || !truth(a.pixel, &gt)) continue;
     res.model.errors_mm.push_back(1000.0 * (gt - it->second).norm());
   }
+  if (!o.pictures.empty()) writePicture(o, c, subject, f, lm, placed, located, anatomical, geometry, truth);
   return res;
 }
 
@@ -522,6 +579,13 @@ int main(int argc, char** argv) {
         t.flags["--per-point"] = [&] { o.per_point = true; };
         t.flags["--no-parallax-correction"] = [&] { o.parallax = false; };
         t.flags["--no-3d-levels"] = [&] { o.levels_3d = false; };
+        t.values["--pictures"] = [&](const std::string& opt, const std::string& v) {
+          tools::require(!v.empty(), opt + " needs a folder");
+          std::error_code ec;
+          std::filesystem::create_directories(v, ec);
+          tools::require(!ec && std::filesystem::is_directory(v), opt + ": cannot create the folder '" + v + "'");
+          o.pictures = v;
+        };
         if (!tools::parseArguments(argc, argv, t, kUsage)) return false;
         tools::require(o.width >= 64 && o.height >= 48, "--width/--height too small");
         tools::require(o.fx > 0 && o.baseline > 0 && o.camera_height > 0.3,
