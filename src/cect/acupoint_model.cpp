@@ -465,6 +465,7 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   l.shoulder_width = W(ish);
   l.waist_row = waist_row;
   l.iliac_row = l4_row;
+  l.top_row = top;
   return l;
 }
 
@@ -742,6 +743,77 @@ double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left
   return mean / static_cast<double>(l.midline.size());
 }
 
+double correctWaistParallax(BackLandmarks* landmarks, const AcupointModel& model, const Segmentation& left,
+                            const PointLookup& image_point) {
+  BackLandmarks& l = *landmarks;
+  if (!l.valid || l.midline.size() < 10 || left.mask.empty() || !image_point) return kNaN;
+  const double c = model.c7_below_top, q = model.waist_fraction;
+  if (!(c + q > 0.0)) return kNaN;
+  const cv::Mat mask = maskInBodyFrame(l, left.mask);
+  auto point = [&](const cv::Point2f& body, Eigen::Vector3d* out) {
+    cv::Point3d p;
+    if (!image_point(toImage(l, body), &p)) return false;
+    *out = Eigen::Vector3d(p.x, p.y, p.z);
+    return true;
+  };
+  // The waist's rims in 3D: the mean of the midpoints between the outermost
+  // back pixels of the rows around the waist.
+  Eigen::Vector3d rims = Eigen::Vector3d::Zero();
+  int n = 0;
+  const int wy = static_cast<int>(std::lround(l.waist_row));
+  for (int y = wy - 3; y <= wy + 3; ++y) {
+    if (y < 0 || y >= mask.rows) continue;
+    const std::uint8_t* row = mask.ptr<std::uint8_t>(y);
+    int xl = -1, xr = -1;
+    for (int x = 0; x < mask.cols; ++x)
+      if (row[x]) {
+        if (xl < 0) xl = x;
+        xr = x;
+      }
+    Eigen::Vector3d pl, pr;
+    const float fy = static_cast<float>(y);
+    if (xl < 0 || xr - xl < 20 || !point(cv::Point2f(static_cast<float>(xl), fy), &pl) ||
+        !point(cv::Point2f(static_cast<float>(xr), fy), &pr))
+      continue;
+    rims += 0.5 * (pl + pr);
+    ++n;
+  }
+  if (n < 3) return kNaN;
+  rims /= n;
+  // Along the body parallel to the image plane (the camera looks down at the
+  // table: the rims and the spine differ in height, so a chord that tilts
+  // with the spine would pair them at different places): the body frame's
+  // columns in the image.
+  const Eigen::Vector3d axis = Eigen::Vector3d(l.to_image(0, 1), l.to_image(1, 1), 0.0).normalized();
+  // The midline row at the rims' position along the axis (a sign change of
+  // the distance along it, between C7 and L4).
+  double spine_row = kNaN, prev_d = kNaN, prev_y = kNaN;
+  for (const cv::Point2f& m : l.midline) {
+    if (m.y < l.c7.y || m.y > l.l4.y) continue;
+    Eigen::Vector3d p;
+    if (!point(m, &p)) continue;
+    const double d = (p - rims).dot(axis);
+    if (std::isfinite(prev_d) && prev_d < 0.0 && d >= 0.0) {
+      spine_row = prev_y + (m.y - prev_y) * (-prev_d) / (d - prev_d);
+      break;
+    }
+    prev_d = d;
+    prev_y = m.y;
+  }
+  if (!std::isfinite(spine_row)) return kNaN;
+  const double length = static_cast<double>(l.l4.y) - l.c7.y;
+  const double move = (spine_row - l.waist_row) - model.waist_rim_offset * length;
+  const double waist = l.waist_row + move;
+  const double new_length = (waist - l.top_row) / (c + q);
+  if (!(new_length > 0.0)) return kNaN;
+  const double c7_row = l.top_row + c * new_length, l4_row = c7_row + new_length;
+  l.c7 = midlineAt(l, c7_row);
+  l.l4 = midlineAt(l, l4_row);
+  l.waist_row = waist;
+  l.iliac_row = l4_row;
+  return move;
+}
+
 double measureLevelsIn3D(BackLandmarks* landmarks, const PointLookup& image_point) {
   BackLandmarks& l = *landmarks;
   if (!l.valid || l.midline.size() < 10 || !image_point) return kNaN;
@@ -867,6 +939,7 @@ void AcupointModel::validate() const {
     fail("cun_per_shoulder_width = " + num(cun_per_shoulder_width) + " is not in (0, 0.5)");
   }
   if (!(c7_below_top >= 0.0 && c7_below_top < 0.5)) fail("c7_below_top = " + num(c7_below_top) + " is not in [0, 0.5)");
+  if (!(std::abs(waist_rim_offset) < 0.2)) fail("waist_rim_offset = " + num(waist_rim_offset) + " is not in (-0.2, 0.2)");
   if (!(waist_fraction > 0.0 && waist_fraction < 1.5)) {
     fail("waist_fraction = " + num(waist_fraction) + " is not in (0, 1.5)");
   }
@@ -904,6 +977,7 @@ AcupointModel loadAcupointModel(const std::string& path) {
   m.cun_per_shoulder_width = get<double>(root, "cun_per_shoulder_width", where);
   m.c7_below_top = get<double>(root, "c7_below_top", where);
   m.waist_fraction = get<double>(root, "waist_fraction", where);
+  if (root["waist_rim_offset"]) m.waist_rim_offset = get<double>(root, "waist_rim_offset", where);
   const YAML::Node levels = root["level_fraction"];
   if (!levels || !levels.IsMap()) throw std::runtime_error(where + ": missing mapping 'level_fraction'");
   for (const auto& kv : levels) {

@@ -346,7 +346,10 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
     } else {
       body_angle = landmarks.body_angle_deg;
       if (config.correct_parallax) cect::correctMidlineParallax(&landmarks, frame->left(), cect::framePoints(*frame));
-      if (config.levels_in_3d) cect::measureLevelsIn3D(&landmarks, cect::framePoints(*frame));
+      if (config.levels_in_3d) {
+        cect::correctWaistParallax(&landmarks, model_, frame->left(), cect::framePoints(*frame));
+        cect::measureLevelsIn3D(&landmarks, cect::framePoints(*frame));
+      }
       const std::vector<cect::AcupointPixel> placed = cect::placeAcupoints(landmarks, model_, cect::frameScale(*frame));
       std::map<std::string, const cect::AcupointPixel*> by_name;
       for (const auto& p : placed) by_name[p.name] = &p;

@@ -69,8 +69,9 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
                midline (yellow), each placed acupoint coloured by CECT's 3D error
                there (green < 5 mm, orange < 10 mm, red >= 10 mm or not
                localised) and the anatomical acupoints (white crosses)
-  --no-3d-levels  space the vertebral levels between C7 and L4 in image rows
-               (the default spaces them along the body's axis in CECT's 3D:
+  --no-3d-levels  the waist and the vertebral levels in image rows only (the
+               default moves the waist to the spine's height and spaces the
+               levels along the body's axis in CECT's 3D: correctWaistParallax,
                measureLevelsIn3D)
   --no-parallax-correction  place the acupoints from the silhouette's centre
                line as it is (the default moves it onto the skin's midline in 3D:
@@ -308,7 +309,10 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
     lm = cect::findLandmarks(f.left(), model);
     if (lm.valid) {
       if (o.parallax) cect::correctMidlineParallax(&lm, f.left(), cect::framePoints(f));
-      if (o.levels_3d) cect::measureLevelsIn3D(&lm, cect::framePoints(f));
+      if (o.levels_3d) {
+        cect::correctWaistParallax(&lm, model, f.left(), cect::framePoints(f));
+        cect::measureLevelsIn3D(&lm, cect::framePoints(f));
+      }
       placed = cect::placeAcupoints(lm, model, cect::frameScale(f));
       for (const auto& a : placed)
         located.push_back(a.valid ? f.localizeRectified(a.pixel) : cect::LocalizedPoint{});

@@ -357,6 +357,12 @@ TEST(AcupointModelValidation, OtherProblemsThrowWithClearMessages) {
                 .find("'lateral_cun' has the wrong type"),
             std::string::npos);
   EXPECT_NE(load("acu_syntax.yaml", "points: [\n").find("not valid YAML"), std::string::npos);
+  std::string offset = text;
+  offset.insert(offset.find("cun_per_shoulder_width"), "waist_rim_offset: 0.5\n");
+  EXPECT_NE(load("acu_offset.yaml", offset).find("waist_rim_offset = 0.5 is not in (-0.2, 0.2)"), std::string::npos);
+  std::string offset_type = text;
+  offset_type.insert(offset_type.find("cun_per_shoulder_width"), "waist_rim_offset: low\n");
+  EXPECT_NE(load("acu_offset_type.yaml", offset_type).find("'waist_rim_offset' has the wrong type"), std::string::npos);
   EXPECT_THROW(cect::levelPixel(cect::BackLandmarks{}, model(), "T13"), std::invalid_argument);
 }
 
@@ -691,6 +697,82 @@ TEST(AcupointLandmarks, ParallaxCorrectionPutsTheMidlineOnTheSpine) {
   EXPECT_TRUE(std::isnan(cect::correctMidlineParallax(&none, f.left(), nothing)));
   EXPECT_FLOAT_EQ(none.c7.x, uncorrected.c7.x);
   EXPECT_FLOAT_EQ(none.midline[10].x, uncorrected.midline[10].x);
+}
+
+/// The mean subject's rendered pair with the camera moved `shift` metres along
+/// the table, CECT on it, and the landmarks with the midline's parallax corrected.
+struct ShiftedMeanSubject {
+  sim::BackModel back{sim::BodyParameters::subject(0)};
+  sim::StereoPairModel pair;
+  cect::CectFrame frame;
+  cect::BackLandmarks landmarks;
+};
+
+ShiftedMeanSubject shiftedMeanSubject(double shift) {
+  ShiftedMeanSubject m;
+  const sim::Renderer renderer(sim::makeBackScene(m.back, 1));
+  sim::RigParameters rig;
+  rig.rectified = true;
+  rig.shift = shift;
+  m.pair = sim::makeStereoPair(rig);
+  sim::RenderOptions ro;
+  ro.supersample = 1;
+  const sim::StereoFrame stereo =
+      sim::renderStereoFrame(renderer, m.pair, sim::Lighting::preset(sim::LightPreset::kTopCentre), ro);
+  m.frame = cect::CectFrame::analyse(stereo.left.image, stereo.right.image,
+                                     cect::StereoGeometry(m.pair.left_info, m.pair.right_info), {});
+  EXPECT_TRUE(m.frame.valid()) << m.frame.reason();
+  m.landmarks = cect::findLandmarks(m.frame.left(), model());
+  EXPECT_TRUE(m.landmarks.valid) << m.landmarks.reason;
+  if (m.frame.valid() && m.landmarks.valid)
+    cect::correctMidlineParallax(&m.landmarks, m.frame.left(), cect::framePoints(m.frame));
+  return m;
+}
+
+TEST(AcupointLandmarks, CalibratedWaistRimOffsetMatchesTheMeanSubject) {
+  // How waist_rim_offset was calibrated: the mean subject, the centred camera,
+  // CECT's 3D; the offset implied is the waist's move with the constant at 0.
+  const ShiftedMeanSubject m = shiftedMeanSubject(0.0);
+  ASSERT_TRUE(m.landmarks.valid);
+  cect::AcupointModel zero = model();
+  zero.waist_rim_offset = 0.0;
+  cect::BackLandmarks l = m.landmarks;
+  const double length = l.l4.y - l.c7.y;
+  const double move = cect::correctWaistParallax(&l, zero, m.frame.left(), cect::framePoints(m.frame));
+  ASSERT_TRUE(std::isfinite(move));
+  std::printf("implied by the mean subject: waist_rim_offset %.4f (yaml %.4f): the spine's waist %.1f px below the "
+              "silhouette's\n",
+              move / length, model().waist_rim_offset, move);
+  EXPECT_GT(move, 5.0);  // the rims are lower than the spine: the parallax is there
+  EXPECT_NEAR(model().waist_rim_offset, move / length, 0.002);
+  // With the calibrated constant the mean subject's own waist stays (nearly) where it was.
+  cect::BackLandmarks same = m.landmarks;
+  EXPECT_LT(std::abs(cect::correctWaistParallax(&same, model(), m.frame.left(), cect::framePoints(m.frame))), 1.0);
+  // Without 3D: NaN, landmarks unchanged.
+  cect::BackLandmarks none = m.landmarks;
+  EXPECT_TRUE(std::isnan(cect::correctWaistParallax(&none, model(), m.frame.left(),
+                                                    [](const cv::Point2f&, cv::Point3d*) { return false; })));
+  EXPECT_FLOAT_EQ(none.l4.y, m.landmarks.l4.y);
+}
+
+TEST(AcupointLandmarks, WaistParallaxKeepsL4WithTheCameraMovedAlongTheTable) {
+  // The camera 7 cm along the table: the silhouette's waist (rims ~0.1 m
+  // below the spine) lags the body, and L4 with it; with the back's 3D the
+  // waist is taken at the spine's height.
+  const ShiftedMeanSubject m = shiftedMeanSubject(0.07);
+  ASSERT_TRUE(m.landmarks.valid);
+  const double l4_true = project(m.pair.left, m.back.landmarks().at("L4")).y;
+  const double c7_true = project(m.pair.left, m.back.landmarks().at("C7")).y;
+  cect::BackLandmarks l = m.landmarks;
+  const double move = cect::correctWaistParallax(&l, model(), m.frame.left(), cect::framePoints(m.frame));
+  ASSERT_TRUE(std::isfinite(move));
+  const double before = m.landmarks.l4.y - l4_true, after = l.l4.y - l4_true;
+  std::printf("camera 7 cm along the table: L4 row error %+.2f px from the silhouette, %+.2f px with the waist in 3D "
+              "(moved %+.2f px); C7 %+.2f -> %+.2f px\n",
+              before, after, move, m.landmarks.c7.y - c7_true, l.c7.y - c7_true);
+  EXPECT_GT(std::abs(before), 4.0);
+  EXPECT_LT(std::abs(after), 0.5 * std::abs(before));
+  EXPECT_LT(std::abs(l.c7.y - c7_true), std::abs(m.landmarks.c7.y - c7_true) + 0.5);
 }
 
 TEST(AcupointPlacement, LeftAndRightPointsAreMirrorImagesAboutTheMidline) {

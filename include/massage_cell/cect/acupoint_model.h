@@ -42,6 +42,12 @@ struct AcupointModel {
   /// of the C7 -> L4 distance below C7 in the image: with c7_below_top it
   /// fixes C7 and L4 from the top of the back and the waist (see acupoint_model.cpp).
   double waist_fraction = 0.0;
+  /// On the mean subject seen from the cell's centred camera, the spine's
+  /// level of the waist lies this fraction of C7 -> L4 below the silhouette's
+  /// narrowest row (the flanks' rims are lower than the spine: parallax along
+  /// the body). correctWaistParallax measures the subject's own offset in 3D
+  /// and moves the waist by the difference. Optional in the YAML (0).
+  double waist_rim_offset = 0.0;
   bool head_up = true;  ///< head toward the image top
   std::vector<AcupointSpec> points;
 
@@ -75,6 +81,7 @@ struct BackLandmarks {
   double shoulder_width = 0.0; ///< pixels, across the back at the shoulder line
   double waist_row = 0.0;      ///< narrowest row between shoulders and hips
   double iliac_row = 0.0;      ///< iliac-crest line (~L4)
+  double top_row = 0.0;        ///< where the midline leaves the back at the head end (the neck base)
   /// Unit direction toward the subject's left, perpendicular to the midline (per midline row).
   std::vector<cv::Point2f> lateral;
   /// With the back's 3D (measureLevelsIn3D): per midline point, metres along
@@ -119,6 +126,21 @@ using PointLookup = std::function<bool(const cv::Point2f& rect_pixel, cv::Point3
 /// (toward the body frame's right: +); leaves the landmarks as they are and
 /// returns NaN when fewer than 10 rows have the 3D points.
 double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left, const PointLookup& point);
+
+/// The waist is the silhouette's narrowest row, read from the flanks' rims,
+/// which lie ~0.1 m below the spine: seen from a camera off the waist the
+/// rims' row and the spine's row at the same place along the body differ by
+/// the parallax (~10 px at 640x480 for the cell's centred camera, calibrated
+/// into waist_fraction with `waist_rim_offset`), and a camera moved along the
+/// table changes it (the waist, and L4 with it, lagged the body by 3 px at
+/// 4 cm and ~15 px at 14 cm). With the back in 3D this finds the midline row
+/// at the same position along the body's axis as the waist's rims, moves the
+/// waist by that offset less the calibrated one, and places C7 and L4 again
+/// from the top and the waist. Call after correctMidlineParallax and before
+/// measureLevelsIn3D. Returns the waist's move in rows of the body frame;
+/// leaves the landmarks as they are and returns NaN without the 3D points.
+double correctWaistParallax(BackLandmarks* landmarks, const AcupointModel& model, const Segmentation& left,
+                            const PointLookup& point);
 
 /// The levels between C7 and L4 are fractions of the spine's length, but the
 /// image's rows are not proportional to length along the body: the upper
