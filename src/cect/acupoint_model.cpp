@@ -540,6 +540,17 @@ double momentsTilt(const cv::Mat& mask) {
   return std::abs(tilt) <= CV_PI / 4.0 ? tilt : kNaN;
 }
 
+/// The first and last back pixel of mask row y (-1 when the row has none).
+void rowExtent(const cv::Mat& mask, int y, int* first, int* last) {
+  *first = *last = -1;
+  const std::uint8_t* row = mask.ptr<std::uint8_t>(y);
+  for (int x = 0; x < mask.cols; ++x)
+    if (row[x]) {
+      if (*first < 0) *first = x;
+      *last = x;
+    }
+}
+
 /// The image's mask in the body's frame (for the landmarks' rows).
 cv::Mat maskInBodyFrame(const BackLandmarks& l, const cv::Mat& mask) {
   if (isIdentity(l.to_image)) return mask;
@@ -667,13 +678,8 @@ double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left
     if (m.y < y0 || m.y > y1) continue;  // the torso between C7 and L4
     const int y = cvRound(m.y);
     if (y < 0 || y >= mask.rows) continue;
-    const std::uint8_t* row = mask.ptr<std::uint8_t>(y);
     int xl = -1, xr = -1;
-    for (int x = 0; x < mask.cols; ++x)
-      if (row[x]) {
-        if (xl < 0) xl = x;
-        xr = x;
-      }
+    rowExtent(mask, y, &xl, &xr);
     if (xl < 0 || xr - xl < 20) continue;
     cv::Point3d pl, pr;
     const float fy = static_cast<float>(y);
@@ -763,13 +769,8 @@ double correctWaistParallax(BackLandmarks* landmarks, const AcupointModel& model
   const int wy = static_cast<int>(std::lround(l.waist_row));
   for (int y = wy - 3; y <= wy + 3; ++y) {
     if (y < 0 || y >= mask.rows) continue;
-    const std::uint8_t* row = mask.ptr<std::uint8_t>(y);
     int xl = -1, xr = -1;
-    for (int x = 0; x < mask.cols; ++x)
-      if (row[x]) {
-        if (xl < 0) xl = x;
-        xr = x;
-      }
+    rowExtent(mask, y, &xl, &xr);
     Eigen::Vector3d pl, pr;
     const float fy = static_cast<float>(y);
     if (xl < 0 || xr - xl < 20 || !point(cv::Point2f(static_cast<float>(xl), fy), &pl) ||
