@@ -858,6 +858,28 @@ TEST(AcupointPlacement, HeadDownIsTheSameBackTurnedAround) {
   EXPECT_LT(worst, 0.5);
 }
 
+/// A render's back mask and depth turned about the image centre by `ccw_deg`
+/// (OpenCV's convention: counter-clockwise on screen), and the turn itself.
+struct TurnedView {
+  cv::Mat mask, depth;
+  std::function<cv::Point2f(const cv::Point2f&)> turned;
+};
+
+TurnedView turnedView(const Rendered& r, double ccw_deg) {
+  const cv::Point2f centre(0.5f * static_cast<float>(r.view.labels.cols - 1),
+                           0.5f * static_cast<float>(r.view.labels.rows - 1));
+  const cv::Matx23d m(cv::getRotationMatrix2D(centre, ccw_deg, 1.0));
+  TurnedView v;
+  cv::warpAffine(r.view.labels == sim::kLabelBack, v.mask, m, r.view.labels.size(), cv::INTER_NEAREST);
+  cv::warpAffine(r.view.depth, v.depth, m, r.view.depth.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT,
+                 cv::Scalar::all(std::numeric_limits<double>::quiet_NaN()));
+  v.turned = [m](const cv::Point2f& p) {
+    return cv::Point2f(static_cast<float>(m(0, 0) * p.x + m(0, 1) * p.y + m(0, 2)),
+                       static_cast<float>(m(1, 0) * p.x + m(1, 1) * p.y + m(1, 2)));
+  };
+  return v;
+}
+
 TEST(AcupointPlacement, ABodyTurnedOnTheTableIsFoundInItsOwnFrame) {
   // The mean subject's mask and depth turned by 12 degrees about the image
   // centre (the subject lying askew): the landmarks are found in the body's
@@ -870,18 +892,11 @@ TEST(AcupointPlacement, ABodyTurnedOnTheTableIsFoundInItsOwnFrame) {
   EXPECT_DOUBLE_EQ(l.body_angle_deg, 0.0);
   const auto points = cect::placeAcupoints(l, model(), depthScale(r.view.depth, r.fx));
   for (const double deg : {12.0, -12.0, 25.0}) {
-    const cv::Point2f centre(0.5f * static_cast<float>(r.view.labels.cols - 1),
-                             0.5f * static_cast<float>(r.view.labels.rows - 1));
-    // Image rotation by -deg in OpenCV's convention turns the head toward the image right for deg > 0.
-    const cv::Mat turn = cv::getRotationMatrix2D(centre, -deg, 1.0);
-    auto turned = [&](const cv::Point2f& p) {
-      return cv::Point2f(static_cast<float>(turn.at<double>(0, 0) * p.x + turn.at<double>(0, 1) * p.y + turn.at<double>(0, 2)),
-                         static_cast<float>(turn.at<double>(1, 0) * p.x + turn.at<double>(1, 1) * p.y + turn.at<double>(1, 2)));
-    };
-    cv::Mat mask, depth;
-    cv::warpAffine(r.view.labels == sim::kLabelBack, mask, turn, r.view.labels.size(), cv::INTER_NEAREST);
-    cv::warpAffine(r.view.depth, depth, turn, r.view.depth.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT,
-                   cv::Scalar::all(std::numeric_limits<double>::quiet_NaN()));
+    // OpenCV's angle is counter-clockwise on screen: -deg turns the head toward the image right for deg > 0.
+    const TurnedView v = turnedView(r, -deg);
+    const cv::Mat& mask = v.mask;
+    const cv::Mat& depth = v.depth;
+    const auto& turned = v.turned;
     const cect::BackLandmarks t = cect::findLandmarks(segmentationFromMask(mask), model());
     ASSERT_TRUE(t.valid) << deg << " degrees: " << t.reason;
     EXPECT_NEAR(t.body_angle_deg, deg, 0.5);
@@ -904,17 +919,10 @@ TEST(AcupointPlacement, ABodyTurnedOnTheTableIsFoundInItsOwnFrame) {
   }
   // Head down and turned: the same back turned by 180 + 12 degrees.
   {
-    const cv::Point2f centre(0.5f * static_cast<float>(r.view.labels.cols - 1),
-                             0.5f * static_cast<float>(r.view.labels.rows - 1));
-    const cv::Mat turn = cv::getRotationMatrix2D(centre, 180.0 - 12.0, 1.0);
-    auto turned = [&](const cv::Point2f& p) {
-      return cv::Point2f(static_cast<float>(turn.at<double>(0, 0) * p.x + turn.at<double>(0, 1) * p.y + turn.at<double>(0, 2)),
-                         static_cast<float>(turn.at<double>(1, 0) * p.x + turn.at<double>(1, 1) * p.y + turn.at<double>(1, 2)));
-    };
-    cv::Mat mask, depth;
-    cv::warpAffine(r.view.labels == sim::kLabelBack, mask, turn, r.view.labels.size(), cv::INTER_NEAREST);
-    cv::warpAffine(r.view.depth, depth, turn, r.view.depth.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT,
-                   cv::Scalar::all(std::numeric_limits<double>::quiet_NaN()));
+    const TurnedView v = turnedView(r, 180.0 - 12.0);
+    const cv::Mat& mask = v.mask;
+    const cv::Mat& depth = v.depth;
+    const auto& turned = v.turned;
     cect::AcupointModel head_down = model();
     head_down.head_up = false;
     const cect::BackLandmarks t = cect::findLandmarks(segmentationFromMask(mask), head_down);
