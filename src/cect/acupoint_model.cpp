@@ -812,6 +812,7 @@ double correctWaistParallax(BackLandmarks* landmarks, const AcupointModel& model
   l.l4 = midlineAt(l, l4_row);
   l.waist_row = waist;
   l.iliac_row = l4_row;
+  l.along.clear();  // measured from the old C7: measureLevelsIn3D again
   return move;
 }
 

@@ -137,7 +137,7 @@ double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left
 /// at the same position along the body's axis as the waist's rims, moves the
 /// waist by that offset less the calibrated one, and places C7 and L4 again
 /// from the top and the waist. Call after correctMidlineParallax and before
-/// measureLevelsIn3D. Returns the waist's move in rows of the body frame;
+/// measureLevelsIn3D (it clears `along`, which is measured from C7). Returns the waist's move in rows of the body frame;
 /// leaves the landmarks as they are and returns NaN without the 3D points.
 double correctWaistParallax(BackLandmarks* landmarks, const AcupointModel& model, const Segmentation& left,
                             const PointLookup& point);
