@@ -1081,14 +1081,27 @@ class CectFrameBuilder {
       double ss = rim_weight * std::pow(rim.disparity - model(0, 0), 2);
       for (const Obs& o : obs) ss += std::pow(o.d - model(o.u, o.t), 2);
       if (std::sqrt(ss / (static_cast<double>(obs.size()) + rim_weight)) > 2.0 * f_.params_.pixel_sigma) continue;
+      // The profile interpolates between the rim and the seeds: a value
+      // outside their range (beyond the continuity margin) is an
+      // extrapolation of a fit the seeds do not hold, e.g. next to the
+      // image's edge, where the back is cut and the seeds lie to one side.
+      double lo = rim.disparity, hi = rim.disparity;
+      for (const Obs& o : obs) {
+        lo = std::min(lo, o.d);
+        hi = std::max(hi, o.d);
+      }
+      lo -= f_.params_.continuity_margin;
+      hi += f_.params_.continuity_margin;
       for (double u : {2.0, 5.0, 9.0, 14.0, 20.0, 27.0, 35.0, 44.0}) {
         if (u > u_min - 0.5 * step) break;
+        const double d = model(u, 0.0);
+        if (d < lo || d > hi) break;
         const cv::Point2f q = rim.left + static_cast<float>(u) * n;
         const int x = cvRound(q.x), y = cvRound(q.y);
         if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows || !mask.at<std::uint8_t>(y, x)) break;
         Correspondence c;
         c.left = q;
-        c.disparity = static_cast<float>(model(u, 0.0));
+        c.disparity = static_cast<float>(d);
         c.sigma = static_cast<float>(f_.params_.pixel_sigma);
         c.source = Correspondence::Source::kRimProfile;
         added.push_back(c);

@@ -39,7 +39,7 @@ const char* kUsage = R"(Usage: cect_eval [--experiments ideal,lighting,shift] [-
                  [--random-points N] [--width W --height H --fx F --baseline B --camera-height Z]
                  [--yaw DEG] [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX]
                  [--param NAME=VALUE,...] [--csv] [--per-point] [--no-parallax-correction]
-                 [--no-3d-levels] [--pictures DIR]
+                 [--no-3d-levels] [--pictures DIR] [--by-border]
 
 Renders prone subjects with the scene simulator and localises points on their
 backs with CECT (segmentation -> contour correspondences -> barycentric
@@ -78,6 +78,11 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
                correctMidlineParallax)
   --per-point  also print, per condition, every acupoint's CECT figures over the
                subjects and the commonest reason it was not localised
+  --by-border  also print, per condition, both methods' figures on every 4th
+               back pixel (seen by both cameras) by its distance to the back's
+               border in the left view (bands 0-8, 8-15, 15-30, 30-45, >= 45 px,
+               scaled by the width / 640): what a caller of ~localize_pixels
+               gets near the flanks and the shoulders' top
 )";
 
 struct Options {
@@ -91,6 +96,7 @@ struct Options {
   bool raw = false;
   bool csv = false;
   bool per_point = false;
+  bool by_border = false;  ///< --by-border
   bool parallax = true;  ///< the model's midline corrected for the silhouette's parallax (3D)
   bool levels_3d = true;  ///< the levels spaced along the body's axis in 3D
   std::string acupoints;
@@ -196,10 +202,18 @@ bool sampleMap(const cv::Mat& m, double x, double y, Eigen::Vector3d* out) {
   return true;
 }
 
+/// --by-border: the bands' lower edges (px at 640 columns) and names.
+const std::vector<std::pair<double, std::string>>& borderBands() {
+  static const std::vector<std::pair<double, std::string>> b{
+      {0.0, "0-8 px"}, {8.0, "8-15 px"}, {15.0, "15-30 px"}, {30.0, "30-45 px"}, {45.0, ">=45 px"}};
+  return b;
+}
+
 struct PairResult {
   std::map<std::string, Stats> stats;  ///< "cect/acupoints", "sgbm/random", ...
   Stats model;                         ///< placed vs anatomical acupoints
   std::map<std::string, Stats> per_point;  ///< CECT on each acupoint (by name)
+  std::map<std::string, Stats> border;     ///< --by-border: "cect/<band>", "sgbm/<band>"
   double cect_ms = 0.0, sgbm_ms = 0.0;
   std::string failure;                 ///< CECT's reason when the frame was not usable
 };
@@ -398,6 +412,30 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   };
   score(acu, "acupoints", static_cast<int>(expected));
   score(rnd, "random", static_cast<int>(rnd.size()));
+  if (o.by_border) {
+    // Every 4th back pixel, by its distance to the back's border.
+    cv::Mat back_mask = (frame.left.labels == sim::kLabelBack) & (frame.left_visible > 0);
+    cv::Mat dist;
+    cv::distanceTransform(back_mask, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+    const double k = o.width / 640.0;
+    std::map<std::string, std::vector<Query>> bands;
+    for (int y = 2; y < back_mask.rows; y += 4)
+      for (int x = 2; x < back_mask.cols; x += 4) {
+        if (!back_mask.at<std::uint8_t>(y, x)) continue;
+        const double dpx = dist.at<float>(y, x) / k;
+        std::size_t b = 0;
+        while (b + 1 < borderBands().size() && dpx >= borderBands()[b + 1].first) ++b;
+        const cv::Point2f raw(static_cast<float>(x), static_cast<float>(y));
+        bands[borderBands()[b].second].push_back(Query{geometry.toRectified(raw), nullptr, {}});
+      }
+    const auto stats = res.stats;
+    for (const auto& [band, qs] : bands) {
+      score(qs, band, static_cast<int>(qs.size()));
+      res.border["cect/" + band] = res.stats["cect/" + band];
+      res.border["sgbm/" + band] = res.stats["sgbm/" + band];
+    }
+    res.stats = stats;
+  }
 
   // Model placement against the anatomical acupoints.
   auto turned = back.acupoints();
@@ -468,7 +506,7 @@ void run(const Options& o) {
               << std::right << std::setw(8) << "queried" << std::setw(8) << "valid%" << std::setw(9) << "mean mm"
               << std::setw(9) << "max mm" << std::setw(9) << "acc<1cm" << "\n";
   for (const Condition& c : conditions) {
-    std::map<std::string, Stats> total, per_point;
+    std::map<std::string, Stats> total, per_point, border;
     Stats model_total;
     std::vector<double> cect_ms, sgbm_ms;
     std::vector<std::string> failures;
@@ -484,6 +522,7 @@ void run(const Options& o) {
       }
       model_total.add(r.model);
       for (const auto& [name, st] : r.per_point) per_point[name].add(st);
+      for (const auto& [key, st] : r.border) border[key].add(st);
       cect_ms.push_back(r.cect_ms);
       sgbm_ms.push_back(r.sgbm_ms);
       if (!r.failure.empty()) failures.push_back("subject " + std::to_string(s) + ": " + r.failure);
@@ -502,6 +541,23 @@ void run(const Options& o) {
               << fmt(medianOf(cect_ms), 1) << " ms median (max " << fmt(*std::max_element(cect_ms.begin(), cect_ms.end()), 1)
               << "), SGBM " << fmt(medianOf(sgbm_ms), 1) << " ms; " << c.subjects.size() << " subjects\n";
     for (const auto& f : failures) std::cout << "  CECT failed on " << f << "\n";
+    if (o.by_border) {
+      std::cout << "  back pixels by distance to the border (every 4th pixel, both views):\n"
+                << "  " << std::left << std::setw(10) << "band" << std::setw(8) << "method" << std::right
+                << std::setw(8) << "queried" << std::setw(8) << "valid%" << std::setw(9) << "mean mm" << std::setw(9)
+                << "max mm" << std::setw(9) << "acc<1cm" << "\n";
+      for (const auto& [edge, band] : borderBands())
+        for (const char* method : {"cect", "sgbm"}) {
+          const auto it = border.find(std::string(method) + "/" + band);
+          if (it == border.end()) continue;
+          const Stats& st = it->second;
+          std::cout << "  " << std::left << std::setw(10) << band << std::setw(8) << method << std::right
+                    << std::setw(8) << st.queried << std::setw(8)
+                    << fmt(st.queried ? 100.0 * st.errors_mm.size() / st.queried : std::nan(""), 1) << std::setw(9)
+                    << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(8) << fmt(100.0 * st.accRate(), 1)
+                    << "%\n";
+        }
+    }
     if (o.per_point) {
       std::cout << "  " << std::left << std::setw(14) << "acupoint" << std::right << std::setw(8) << "queried"
                 << std::setw(8) << "valid%" << std::setw(9) << "mean mm" << std::setw(9) << "max mm" << std::setw(9)
@@ -581,6 +637,7 @@ int main(int argc, char** argv) {
         t.flags["--raw"] = [&] { o.raw = true; };
         t.flags["--csv"] = [&] { o.csv = true; };
         t.flags["--per-point"] = [&] { o.per_point = true; };
+        t.flags["--by-border"] = [&] { o.by_border = true; };
         t.flags["--no-parallax-correction"] = [&] { o.parallax = false; };
         t.flags["--no-3d-levels"] = [&] { o.levels_3d = false; };
         t.values["--pictures"] = [&](const std::string& opt, const std::string& v) {

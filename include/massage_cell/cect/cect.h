@@ -124,7 +124,9 @@ struct CectParams {
   double min_slant = 1.5;
   /// Fill the band between the contour and the first seeds from a rim
   /// profile (disparity ~ sqrt of the distance to the occluding contour,
-  /// fitted to the seeds nearby) instead of interpolating linearly.
+  /// fitted to the seeds nearby) instead of interpolating linearly. The
+  /// profile's values stay within the range of the rim's and those seeds'
+  /// disparities (+- continuity_margin): beyond it the fit extrapolates.
   bool rim_profile = true;
   double query_search = 0.0;    ///< pixels searched either side of a query's prediction (0: transfer only, the default: single windows on skin are noisier than the smoothed seeds)
   /// Weakest accepted correlation peak. Low on purpose: on dark skin and
