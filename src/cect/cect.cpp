@@ -463,6 +463,8 @@ CectParams scaledParams(const CectParams& p, double scale) {
   q.max_candidate_spread = p.max_candidate_spread * s;
   q.continuity_margin = p.continuity_margin * s;
   q.min_slant = p.min_slant * s;
+  q.border_sigma = p.border_sigma * s;
+  q.slope_sigma = p.slope_sigma * s;
   SegmentationParams& g = q.segmentation;
   g.blur_sigma = p.segmentation.blur_sigma * s;
   g.open_radius = std::max(1, static_cast<int>(std::lround(p.segmentation.open_radius * s)));
@@ -537,6 +539,7 @@ class CectFrameBuilder {
     f_.seed_margin_ = margin;
     cv::erode(f_.left_seg_.mask, f_.seed_region_,
               cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * margin + 1, 2 * margin + 1)));
+    cv::distanceTransform(f_.left_seg_.mask, f_.border_distance_, cv::DIST_L2, 3);
 
     t = Clock::now();
     triangulate();
@@ -1338,9 +1341,10 @@ std::size_t CectFrame::foundationalCount() const {
                                                 [](const Correspondence& c) { return c.foundational(); }));
 }
 
-double CectFrame::transfer(const cv::Point2f& q, double* spread, int* count) const {
+double CectFrame::transfer(const cv::Point2f& q, double* spread, int* count, cv::Point2d* gradient) const {
   *spread = 0.0;
   *count = 0;
+  if (gradient) *gradient = cv::Point2d(0.0, 0.0);
   const int x = cvRound(q.x), y = cvRound(q.y);
   if (x < 0 || y < 0 || x >= triangle_index_.cols || y >= triangle_index_.rows)
     return std::numeric_limits<double>::quiet_NaN();
@@ -1370,7 +1374,17 @@ double CectFrame::transfer(const cv::Point2f& q, double* spread, int* count) con
     // The right point is the same barycentric combination of the right
     // vertices; on a common row its x gives the disparity directly.
     const double d = l0 * a.disparity + l1 * b.disparity + l2 * c.disparity;
-    if (k == t) own = d;
+    if (k == t) {
+      own = d;
+      if (gradient) {
+        // The plane through the three vertices: [ab ac]^T g = [d_b - d_a, d_c - d_a].
+        const double ux = b.left.x - a.left.x, uy = b.left.y - a.left.y;
+        const double vx = c.left.x - a.left.x, vy = c.left.y - a.left.y;
+        const double det = ux * vy - uy * vx;
+        const double du = b.disparity - a.disparity, dv = c.disparity - a.disparity;
+        if (std::abs(det) > 1e-9) *gradient = cv::Point2d((du * vy - dv * uy) / det, (dv * ux - du * vx) / det);
+      }
+    }
     cands.push_back(d);
     lo = std::min(lo, d);
     hi = std::max(hi, d);
@@ -1419,7 +1433,8 @@ LocalizedPoint CectFrame::localizeRectified(const cv::Point2f& q) const {
   }
   double spread = 0;
   int count = 0;
-  const double d0 = transfer(q, &spread, &count);
+  cv::Point2d gradient;
+  const double d0 = transfer(q, &spread, &count, &gradient);
   if (!std::isfinite(d0)) return extrapolate(q, out);
   out.spread = spread;
   out.candidates = count;
@@ -1429,7 +1444,7 @@ LocalizedPoint CectFrame::localizeRectified(const cv::Point2f& q) const {
     return out;
   }
   double d = d0;
-  double sigma = std::sqrt(params_.pixel_sigma * params_.pixel_sigma + 0.0625 * spread * spread);
+  double sigma = std::hypot(matchingSigma(), 0.25 * spread);
   if (params_.direct_min_sharpness > 0 && inRowBorderBand(x, y)) {
     // Next to a border running along the rows (the shoulders' top, the neck
     // base, the waist) the transfer leans on the first seeds, whose windows
@@ -1453,11 +1468,25 @@ LocalizedPoint CectFrame::localizeRectified(const cv::Point2f& q) const {
                         params_.ncc_radius, ry, true);
       if (back.ok && std::abs(back.disparity - m.disparity) <= params_.lr_tolerance) {  // constraint 3
         d = m.disparity;
-        sigma = params_.pixel_sigma;
+        sigma = matchingSigma();
       }
     }
   }
-  return triangulated(q, d, sigma, std::move(out));
+  return triangulated(q, d, structuralSigma(q, sigma, gradient), std::move(out));
+}
+
+double CectFrame::structuralSigma(const cv::Point2f& q, double sigma, const cv::Point2d& gradient,
+                                  bool interpolated) const {
+  double var = sigma * sigma;
+  const int x = cvRound(q.x), y = cvRound(q.y);
+  const double reach = params_.border_sigma_reach * std::max(1, params_.seed_step);
+  if (interpolated && params_.border_sigma > 0 && reach > 0 && !border_distance_.empty() && x >= 0 && y >= 0 &&
+      x < border_distance_.cols && y < border_distance_.rows) {
+    const double ramp = std::max(0.0, 1.0 - border_distance_.at<float>(y, x) / reach);
+    var += std::pow(params_.border_sigma * ramp, 2);
+  }
+  if (params_.slope_sigma > 0) var += std::pow(params_.slope_sigma * std::hypot(gradient.x, gradient.y), 2);
+  return std::sqrt(var);
 }
 
 bool CectFrame::directMatch(const cv::Point2f& q, double d, int rx, int ry, double* disparity) const {
@@ -1496,11 +1525,12 @@ LocalizedPoint CectFrame::extrapolate(const cv::Point2f& q, LocalizedPoint out) 
   // uncertainty.
   const double step = std::max(1, params_.seed_step);
   double d = 0.0, rms = 0.0, nearest = 0.0;
+  cv::Point2d gradient;
   std::vector<int> idx;
   for (std::size_t i = 0; i < vertices_.size(); ++i)
     if (!vertices_[i].foundational()) idx.push_back(static_cast<int>(i));
   if (params_.max_extrapolation <= 0 || params_.seed_step <= 0 ||
-      !fitQuadratic(vertices_, idx, q, 4.0 * step, 12, &d, &rms, &nearest) ||
+      !fitQuadratic(vertices_, idx, q, 4.0 * step, 12, &d, &rms, &nearest, &gradient) ||
       nearest > params_.max_extrapolation * step) {
     out.reason = "pixel outside the triangulated back (too close to its border)";
     return out;
@@ -1517,11 +1547,13 @@ LocalizedPoint CectFrame::extrapolate(const cv::Point2f& q, LocalizedPoint out) 
     // enough texture.
     const int ry = params_.ncc_half_height > 0 ? params_.ncc_half_height : params_.ncc_radius;
     double dm = 0.0;
-    if (directMatch(q, d, params_.ncc_radius, ry, &dm)) return triangulated(q, dm, params_.pixel_sigma, std::move(out));
+    if (directMatch(q, d, params_.ncc_radius, ry, &dm))
+      // Its own measurement: no interpolation across the band.
+      return triangulated(q, dm, structuralSigma(q, matchingSigma(), gradient, false), std::move(out));
   }
-  const double sigma = std::hypot(params_.pixel_sigma, rms) * (1.0 + nearest / step);
+  const double sigma = std::hypot(matchingSigma(), rms) * (1.0 + nearest / step);
   out.extrapolated = true;
-  return triangulated(q, d, sigma, std::move(out));
+  return triangulated(q, d, structuralSigma(q, sigma, gradient), std::move(out));
 }
 
 LocalizedPoint CectFrame::triangulated(const cv::Point2f& q, double d, double sigma, LocalizedPoint out) const {
@@ -1534,7 +1566,7 @@ LocalizedPoint CectFrame::triangulated(const cv::Point2f& q, double d, double si
     return out;
   }
   Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
-  S(0, 0) = S(1, 1) = params_.pixel_sigma * params_.pixel_sigma;
+  S(0, 0) = S(1, 1) = matchingSigma() * matchingSigma();
   S(2, 2) = sigma * sigma;
   out.covariance = J * S * J.transpose();
   out.disparity = d;

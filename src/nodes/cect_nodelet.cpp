@@ -82,6 +82,9 @@ cect::CectParams cectParams(const CECTConfig& c) {
   p.continuity_margin = c.continuity_margin;
   p.lr_tolerance = c.lr_tolerance;
   p.pixel_sigma = c.pixel_sigma;
+  p.border_sigma = c.border_sigma;
+  p.border_sigma_reach = c.border_sigma_reach;
+  p.slope_sigma = c.slope_sigma;
   return p;
 }
 

@@ -13,6 +13,8 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 #include <limits>
 
@@ -82,7 +84,9 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
                back pixel (seen by both cameras) by its distance to the back's
                border in the left view (bands 0-8, 8-15, 15-30, 30-45, >= 45 px,
                scaled by the width / 640): what a caller of ~localize_pixels
-               gets near the flanks and the shoulders' top
+               gets near the flanks and the shoulders' top, and how well CECT's
+               uncertainty covers it (median disparity sigma; share of the
+               disparity errors within 2 sigma, 95 % when calibrated)
 )";
 
 struct Options {
@@ -140,6 +144,9 @@ const std::map<std::string, std::function<void(cect::CectParams&, double)>>& par
       {"continuity_margin", [](P& p, double v) { p.continuity_margin = v; }},
       {"lr_tolerance", [](P& p, double v) { p.lr_tolerance = v; }},
       {"pixel_sigma", [](P& p, double v) { p.pixel_sigma = v; }},
+      {"border_sigma", [](P& p, double v) { p.border_sigma = v; }},
+      {"border_sigma_reach", [](P& p, double v) { p.border_sigma_reach = v; }},
+      {"slope_sigma", [](P& p, double v) { p.slope_sigma = v; }},
   };
   return m;
 }
@@ -168,9 +175,20 @@ struct Stats {
            queried;
   }
   std::map<std::string, int> misses;  ///< why queried points were not localised
+  /// CECT's uncertainty: per localised point its disparity sigma (px) and
+  /// |disparity error| / sigma.
+  std::vector<double> sigma_px, z;
+  /// Share of the localised points whose disparity error is within 2 sigma
+  /// (95 % for a calibrated Gaussian sigma).
+  double within2Sigma() const {
+    if (z.empty()) return std::nan("");
+    return static_cast<double>(std::count_if(z.begin(), z.end(), [](double v) { return v <= 2.0; })) / z.size();
+  }
   void add(const Stats& o) {
     queried += o.queried;
     errors_mm.insert(errors_mm.end(), o.errors_mm.begin(), o.errors_mm.end());
+    sigma_px.insert(sigma_px.end(), o.sigma_px.begin(), o.sigma_px.end());
+    z.insert(z.end(), o.z.begin(), o.z.end());
     for (const auto& [why, n] : o.misses) misses[why] += n;
   }
   std::string commonestMiss() const {
@@ -385,7 +403,8 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
       rnd.push_back(Query{geometry.toRectified(raw), nullptr, {}});
     }
   }
-  auto score = [&](const std::vector<Query>& qs, const std::string& set, int queried) {
+  // CECT's and SGBM's figures on a point set.
+  auto score = [&](const std::vector<Query>& qs, int queried) {
     Stats sc, ss;
     sc.queried = ss.queried = queried;
     for (const Query& q : qs) {
@@ -397,7 +416,11 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
         continue;
       }
       const cect::LocalizedPoint lp = q.cect ? *q.cect : f.localizeRectified(q.rect);
-      if (lp.valid) sc.errors_mm.push_back(1000.0 * (lp.position - gt).norm());
+      if (lp.valid) {
+        sc.errors_mm.push_back(1000.0 * (lp.position - gt).norm());
+        sc.sigma_px.push_back(lp.disparity_sigma);
+        sc.z.push_back(std::abs(lp.disparity - geometry.project(gt).z()) / std::max(lp.disparity_sigma, 1e-9));
+      }
       if (!q.name.empty()) {
         Stats& pp = res.per_point[q.name];
         pp.queried = 1;
@@ -407,11 +430,10 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
       Eigen::Vector3d ps;
       if (sgbmPoint(q.rect, &ps)) ss.errors_mm.push_back(1000.0 * (ps - gt).norm());
     }
-    res.stats["cect/" + set] = sc;
-    res.stats["sgbm/" + set] = ss;
+    return std::make_pair(sc, ss);
   };
-  score(acu, "acupoints", static_cast<int>(expected));
-  score(rnd, "random", static_cast<int>(rnd.size()));
+  std::tie(res.stats["cect/acupoints"], res.stats["sgbm/acupoints"]) = score(acu, static_cast<int>(expected));
+  std::tie(res.stats["cect/random"], res.stats["sgbm/random"]) = score(rnd, static_cast<int>(rnd.size()));
   if (o.by_border) {
     // Every 4th back pixel, by its distance to the back's border.
     cv::Mat back_mask = (frame.left.labels == sim::kLabelBack) & (frame.left_visible > 0);
@@ -428,13 +450,8 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
         const cv::Point2f raw(static_cast<float>(x), static_cast<float>(y));
         bands[borderBands()[b].second].push_back(Query{geometry.toRectified(raw), nullptr, {}});
       }
-    const auto stats = res.stats;
-    for (const auto& [band, qs] : bands) {
-      score(qs, band, static_cast<int>(qs.size()));
-      res.border["cect/" + band] = res.stats["cect/" + band];
-      res.border["sgbm/" + band] = res.stats["sgbm/" + band];
-    }
-    res.stats = stats;
+    for (const auto& [band, qs] : bands)
+      std::tie(res.border["cect/" + band], res.border["sgbm/" + band]) = score(qs, static_cast<int>(qs.size()));
   }
 
   // Model placement against the anatomical acupoints.
@@ -541,11 +558,20 @@ void run(const Options& o) {
               << fmt(medianOf(cect_ms), 1) << " ms median (max " << fmt(*std::max_element(cect_ms.begin(), cect_ms.end()), 1)
               << "), SGBM " << fmt(medianOf(sgbm_ms), 1) << " ms; " << c.subjects.size() << " subjects\n";
     for (const auto& f : failures) std::cout << "  CECT failed on " << f << "\n";
+    {
+      const Stats& a = total["cect/acupoints"];
+      const Stats& r = total["cect/random"];
+      std::cout << std::left << std::setw(18) << c.name << "CECT's disparity sigma: acupoints median "
+                << fmt(medianOf(a.sigma_px)) << " px, " << fmt(100.0 * a.within2Sigma(), 1)
+                << " % of their errors within 2 sigma; random points " << fmt(medianOf(r.sigma_px)) << " px, "
+                << fmt(100.0 * r.within2Sigma(), 1) << " %\n";
+    }
     if (o.by_border) {
       std::cout << "  back pixels by distance to the border (every 4th pixel, both views):\n"
                 << "  " << std::left << std::setw(10) << "band" << std::setw(8) << "method" << std::right
                 << std::setw(8) << "queried" << std::setw(8) << "valid%" << std::setw(9) << "mean mm" << std::setw(9)
-                << "max mm" << std::setw(9) << "acc<1cm" << "\n";
+                << "max mm" << std::setw(9) << "acc<1cm" << std::setw(10) << "sigma px" << std::setw(9) << "in 2sig"
+                << "\n";
       for (const auto& [edge, band] : borderBands())
         for (const char* method : {"cect", "sgbm"}) {
           const auto it = border.find(std::string(method) + "/" + band);
@@ -555,7 +581,8 @@ void run(const Options& o) {
                     << std::setw(8) << st.queried << std::setw(8)
                     << fmt(st.queried ? 100.0 * st.errors_mm.size() / st.queried : std::nan(""), 1) << std::setw(9)
                     << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(8) << fmt(100.0 * st.accRate(), 1)
-                    << "%\n";
+                    << "%" << std::setw(10) << fmt(medianOf(st.sigma_px)) << std::setw(8)
+                    << fmt(100.0 * st.within2Sigma(), 1) << (st.z.empty() ? " " : "%") << "\n";
         }
     }
     if (o.per_point) {

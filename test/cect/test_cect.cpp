@@ -688,7 +688,7 @@ TEST(Cect, TexturedPixelsInTheBorderBandAreMatchedDirectly) {
   ASSERT_TRUE(c.both.on.valid() && c.both.off.valid());
   const cect::CectFrame &f = c.both.on, &f0 = c.both.off;
   const cv::Rect box = cv::boundingRect(f.left().mask);
-  std::vector<double> e, e0;
+  std::vector<double> e, e0, sigma;
   int extrapolated = 0;
   for (int y = box.y + 2; y < box.y + 14; ++y)
     for (int x = box.x + box.width / 3; x < box.x + 2 * box.width / 3; x += 2) {
@@ -703,13 +703,17 @@ TEST(Cect, TexturedPixelsInTheBorderBandAreMatchedDirectly) {
         EXPECT_DOUBLE_EQ(p.disparity, p0.disparity) << q;  // untextured: the same extrapolation
         continue;
       }
-      EXPECT_DOUBLE_EQ(p.disparity_sigma, cect::CectParams{}.pixel_sigma);
+      // Its own measurement: the matching noise and the slope's part, not
+      // the border band's (interpolation) part the extrapolation carries.
+      EXPECT_GE(p.disparity_sigma, cect::CectParams{}.pixel_sigma);
+      EXPECT_LT(p.disparity_sigma, p0.disparity_sigma) << q;
+      sigma.push_back(p.disparity_sigma);
       e.push_back(std::abs(p.disparity - truth));
       e0.push_back(std::abs(p0.disparity - truth));
     }
   std::cout << "neck-base band: " << e.size() << " of " << extrapolated
             << " extrapolated pixels matched directly, median |error| " << medianOf(e) << " px (extrapolated "
-            << medianOf(e0) << " px)\n";
+            << medianOf(e0) << " px); median sigma " << medianOf(sigma) << " px\n";
   ASSERT_GE(e.size(), 10u);
   // (~0.25 against ~0.4 px; the direct match's share of the gain shrank when
   // the sheen's smoothing was twiced, which made the seeds, and so the
@@ -851,6 +855,9 @@ TEST(Cect, PixelParametersScaleToTheView) {
   EXPECT_DOUBLE_EQ(h.continuity_margin, 1.5);
   EXPECT_DOUBLE_EQ(h.direct_min_sharpness, 4.0 * p.direct_min_sharpness);
   EXPECT_DOUBLE_EQ(h.segmentation.blur_sigma, 0.75);
+  EXPECT_DOUBLE_EQ(h.border_sigma, 0.5 * p.border_sigma);  // disparities, like the tolerances
+  EXPECT_DOUBLE_EQ(d.slope_sigma, 2.0 * p.slope_sigma);
+  EXPECT_DOUBLE_EQ(h.border_sigma_reach, p.border_sigma_reach);  // seed steps
   EXPECT_DOUBLE_EQ(h.lr_tolerance, p.lr_tolerance);  // sub-pixel, scale-free and absolute ones stay
   EXPECT_DOUBLE_EQ(h.smooth_radius, p.smooth_radius);
   EXPECT_DOUBLE_EQ(h.min_disparity, p.min_disparity);
@@ -870,6 +877,76 @@ TEST(Cect, PixelParametersScaleToTheView) {
   EXPECT_DOUBLE_EQ(fixed_scale, 1.0);
   EXPECT_GT(on_share, 0.75);
   EXPECT_LT(meanOf(on), 0.8 * meanOf(off));
+}
+
+namespace {
+
+/// Over every 2nd back pixel whose distance to the left contour lies in
+/// [lo, hi) px: the share of the localised ones whose |disparity error| is
+/// within 2 disparity_sigma, and their median sigma.
+struct Coverage {
+  double within2 = 0.0, median_sigma = 0.0;
+  std::size_t count = 0;
+};
+Coverage coverage(const Rendered& r, const cect::CectFrame& f, double lo, double hi) {
+  cv::Mat dist;
+  cv::distanceTransform(f.left().mask, dist, cv::DIST_L2, 5);
+  std::vector<double> sigma;
+  int within = 0;
+  for (int y = 0; y < dist.rows; y += 2)
+    for (int x = 0; x < dist.cols; x += 2) {
+      const float d = dist.at<float>(y, x);
+      const float truth = r.frame.left_disparity.at<float>(y, x);
+      if (d < lo || d >= hi || !std::isfinite(truth) || r.frame.left.labels.at<std::uint8_t>(y, x) != sim::kLabelBack)
+        continue;
+      const cect::LocalizedPoint q = f.localizeRectified(cv::Point2f(static_cast<float>(x), static_cast<float>(y)));
+      if (!q.valid) continue;
+      sigma.push_back(q.disparity_sigma);
+      within += std::abs(q.disparity - truth) <= 2.0 * q.disparity_sigma;
+    }
+  Coverage c;
+  c.count = sigma.size();
+  c.within2 = sigma.empty() ? 0.0 : static_cast<double>(within) / sigma.size();
+  c.median_sigma = medianOf(sigma);
+  return c;
+}
+
+}  // namespace
+
+TEST(Cect, DisparitySigmaCoversTheBorderBandsLargerErrors) {
+  // Next to the back's border the disparity is interpolated from the rim
+  // profile and the first seeds and errs ~1 px, against ~0.3 px inside:
+  // the reported sigma grows toward the border (and with the slope), so
+  // that ~95 % of the errors lie within 2 sigma in the band as inside.
+  const Rendered r = renderBack(true);
+  cect::CectParams with, without;
+  without.border_sigma = without.slope_sigma = 0.0;
+  const OnOff both = analyseOnOff(r, with, without);
+  ASSERT_TRUE(both.on.valid() && both.off.valid());
+  const Coverage band = coverage(r, both.on, 0.0, 15.0), band0 = coverage(r, both.off, 0.0, 15.0);
+  const Coverage mid = coverage(r, both.on, 15.0, 45.0), inner = coverage(r, both.on, 45.0, 1e9);
+  const Coverage inner0 = coverage(r, both.off, 45.0, 1e9);
+  std::cout << "within 2 sigma (median sigma): 0-15 px " << band.within2 << " (" << band.median_sigma
+            << " px), without the structural parts " << band0.within2 << " (" << band0.median_sigma
+            << " px); 15-45 px " << mid.within2 << " (" << mid.median_sigma << " px); >= 45 px " << inner.within2
+            << " (" << inner.median_sigma << " px), without " << inner0.within2 << "\n";
+  ASSERT_GT(band.count, 500u);
+  ASSERT_GT(inner.count, 2000u);
+  EXPECT_GT(band.within2, 0.9);
+  EXPECT_GT(mid.within2, 0.9);
+  EXPECT_GT(inner.within2, 0.9);
+  EXPECT_LT(band0.within2, band.within2 - 0.1);  // the matching noise alone does not cover the band
+  // Sigma falls from the border inward, and inside stays near the matching noise.
+  EXPECT_GT(band.median_sigma, 2.0 * with.pixel_sigma);
+  EXPECT_GT(band.median_sigma, mid.median_sigma);
+  EXPECT_GT(mid.median_sigma, inner.median_sigma);
+  EXPECT_LT(inner.median_sigma, 1.25 * with.pixel_sigma);
+  // Only the uncertainty changes: the same disparities.
+  for (const cv::Point2f q : {cv::Point2f(320, 240), cv::Point2f(300, 120), cv::Point2f(250, 300)}) {
+    const cect::LocalizedPoint a = both.on.localizeRectified(q), b = both.off.localizeRectified(q);
+    ASSERT_EQ(a.valid, b.valid);
+    if (a.valid) EXPECT_DOUBLE_EQ(a.disparity, b.disparity);
+  }
 }
 
 TEST(Cect, RenderedBackRawPair) {
