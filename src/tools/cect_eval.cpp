@@ -55,6 +55,7 @@ Experiments (the thesis's Sec. 3.3):
 Point sets: `acupoints` (every point of the acupoint model, placed by the model
 from the left view) and `random` (N random back pixels seen by both cameras,
 at least 8 px inside the back's border; default 100 per pair).
+p95: the 95th percentile of the localised points' errors.
 acc_rate: share of the queried points localised with an error < 10 mm (a point
 a method cannot localise counts as a miss). `model` reports how far the model's
 placed acupoints lie from the anatomical ones (independent of the matching).
@@ -169,6 +170,14 @@ struct Stats {
     return s / static_cast<double>(errors_mm.size());
   }
   double max() const { return errors_mm.empty() ? std::nan("") : *std::max_element(errors_mm.begin(), errors_mm.end()); }
+  /// The q-quantile of the errors (nearest rank).
+  double quantile(double q) const {
+    if (errors_mm.empty()) return std::nan("");
+    std::vector<double> v = errors_mm;
+    const auto k = static_cast<std::size_t>(std::min(v.size() - 1.0, std::max(0.0, std::ceil(q * v.size()) - 1.0)));
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+    return v[k];
+  }
   double accRate() const {
     if (queried == 0) return std::nan("");
     return static_cast<double>(std::count_if(errors_mm.begin(), errors_mm.end(), [](double e) { return e < 10.0; })) /
@@ -521,7 +530,7 @@ void run(const Options& o) {
               << (o.raw ? ", raw (distorted, unrectified) pairs" : ", rectified pairs") << "\n\n"
               << std::left << std::setw(18) << "condition" << std::setw(8) << "method" << std::setw(11) << "points"
               << std::right << std::setw(8) << "queried" << std::setw(8) << "valid%" << std::setw(9) << "mean mm"
-              << std::setw(9) << "max mm" << std::setw(9) << "acc<1cm" << "\n";
+              << std::setw(9) << "max mm" << std::setw(9) << "p95 mm" << std::setw(9) << "acc<1cm" << "\n";
   for (const Condition& c : conditions) {
     std::map<std::string, Stats> total, per_point, border;
     Stats model_total;
@@ -550,8 +559,8 @@ void run(const Options& o) {
       std::cout << std::left << std::setw(18) << c.name << std::setw(8) << key.substr(0, slash) << std::setw(11)
                 << key.substr(slash + 1) << std::right << std::setw(8) << st.queried << std::setw(8)
                 << fmt(st.queried ? 100.0 * st.errors_mm.size() / st.queried : std::nan(""), 1) << std::setw(9)
-                << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(8)
-                << fmt(100.0 * st.accRate(), 1) << "%\n";
+                << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(9) << fmt(st.quantile(0.95))
+                << std::setw(8) << fmt(100.0 * st.accRate(), 1) << "%\n";
     }
     std::cout << std::left << std::setw(18) << c.name << "model placement vs anatomical acupoints: mean "
               << fmt(model_total.mean(), 1) << " mm, max " << fmt(model_total.max(), 1) << " mm; CECT "
