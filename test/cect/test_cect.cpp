@@ -340,23 +340,30 @@ TEST(Cect, InteriorSeedsOnRenderedSkinAreSubPixelAndAccountedFor) {
 
 namespace {
 
-/// Signed disparity errors (px) of localizeRectified at every 2nd back pixel
-/// whose distance to the left contour lies in [lo, hi) px.
-std::vector<double> bandErrors(const Rendered& r, const cect::CectFrame& f, double lo, double hi, int* asked) {
+/// localizeRectified at every 2nd back pixel (with a true disparity) whose
+/// distance to the left contour lies in [lo, hi) px: visit(point, truth).
+template <typename Visit>
+void forBandPixels(const Rendered& r, const cect::CectFrame& f, double lo, double hi, Visit visit) {
   cv::Mat dist;
   cv::distanceTransform(f.left().mask, dist, cv::DIST_L2, 5);
-  std::vector<double> err;
-  *asked = 0;
   for (int y = 0; y < dist.rows; y += 2)
     for (int x = 0; x < dist.cols; x += 2) {
       const float d = dist.at<float>(y, x);
       const float truth = r.frame.left_disparity.at<float>(y, x);
       if (d < lo || d >= hi || !std::isfinite(truth) || r.frame.left.labels.at<std::uint8_t>(y, x) != sim::kLabelBack)
         continue;
-      ++*asked;
-      const cect::LocalizedPoint q = f.localizeRectified(cv::Point2f(static_cast<float>(x), static_cast<float>(y)));
-      if (q.valid) err.push_back(q.disparity - truth);
+      visit(f.localizeRectified(cv::Point2f(static_cast<float>(x), static_cast<float>(y))), truth);
     }
+}
+
+/// Signed disparity errors (px) of the valid points of forBandPixels.
+std::vector<double> bandErrors(const Rendered& r, const cect::CectFrame& f, double lo, double hi, int* asked) {
+  std::vector<double> err;
+  *asked = 0;
+  forBandPixels(r, f, lo, hi, [&](const cect::LocalizedPoint& q, float truth) {
+    ++*asked;
+    if (q.valid) err.push_back(q.disparity - truth);
+  });
   return err;
 }
 
@@ -881,29 +888,20 @@ TEST(Cect, PixelParametersScaleToTheView) {
 
 namespace {
 
-/// Over every 2nd back pixel whose distance to the left contour lies in
-/// [lo, hi) px: the share of the localised ones whose |disparity error| is
-/// within 2 disparity_sigma, and their median sigma.
+/// Over forBandPixels: the share of the localised ones whose |disparity
+/// error| is within 2 disparity_sigma, and their median sigma.
 struct Coverage {
   double within2 = 0.0, median_sigma = 0.0;
   std::size_t count = 0;
 };
 Coverage coverage(const Rendered& r, const cect::CectFrame& f, double lo, double hi) {
-  cv::Mat dist;
-  cv::distanceTransform(f.left().mask, dist, cv::DIST_L2, 5);
   std::vector<double> sigma;
   int within = 0;
-  for (int y = 0; y < dist.rows; y += 2)
-    for (int x = 0; x < dist.cols; x += 2) {
-      const float d = dist.at<float>(y, x);
-      const float truth = r.frame.left_disparity.at<float>(y, x);
-      if (d < lo || d >= hi || !std::isfinite(truth) || r.frame.left.labels.at<std::uint8_t>(y, x) != sim::kLabelBack)
-        continue;
-      const cect::LocalizedPoint q = f.localizeRectified(cv::Point2f(static_cast<float>(x), static_cast<float>(y)));
-      if (!q.valid) continue;
-      sigma.push_back(q.disparity_sigma);
-      within += std::abs(q.disparity - truth) <= 2.0 * q.disparity_sigma;
-    }
+  forBandPixels(r, f, lo, hi, [&](const cect::LocalizedPoint& q, float truth) {
+    if (!q.valid) return;
+    sigma.push_back(q.disparity_sigma);
+    within += std::abs(q.disparity - truth) <= 2.0 * q.disparity_sigma;
+  });
   Coverage c;
   c.count = sigma.size();
   c.within2 = sigma.empty() ? 0.0 : static_cast<double>(within) / sigma.size();
