@@ -180,7 +180,8 @@ struct CectParams {
   ///   compares pixels of different disparities.
   /// Calibrated on the simulator's 28 subjects by maximum likelihood (every
   /// 4th back pixel, ideal conditions; it holds under the side lights and
-  /// the camera shifts: 95-98 % of the errors within 2 sigma in every band).
+  /// the camera shifts and on raw pairs: 94-99 % of the errors within 2 sigma
+  /// in every band).
   /// 0 turns a part off.
   double border_sigma = 1.0;
   double border_sigma_reach = 3.0;  ///< seed steps
