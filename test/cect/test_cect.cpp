@@ -451,7 +451,9 @@ TEST(Cect, RimProfileStaysBetweenTheRimAndTheSeedsWhereTheImageCutsTheBack) {
   for (int x = 200; x < 300; x += 2) {
     const auto q = f.localize(cv::Point2f(static_cast<float>(x), 474.0f));
     const float gt = r.frame.left_disparity.at<float>(474, x);
-    if (q.valid && std::isfinite(gt)) EXPECT_LT(std::abs(q.disparity - gt), 4.0) << "at x " << x;
+    if (q.valid && std::isfinite(gt)) {
+      EXPECT_LT(std::abs(q.disparity - gt), 4.0) << "at x " << x;
+    }
   }
 }
 
@@ -943,7 +945,9 @@ TEST(Cect, DisparitySigmaCoversTheBorderBandsLargerErrors) {
   for (const cv::Point2f q : {cv::Point2f(320, 240), cv::Point2f(300, 120), cv::Point2f(250, 300)}) {
     const cect::LocalizedPoint a = both.on.localizeRectified(q), b = both.off.localizeRectified(q);
     ASSERT_EQ(a.valid, b.valid);
-    if (a.valid) EXPECT_DOUBLE_EQ(a.disparity, b.disparity);
+    if (a.valid) {
+      EXPECT_DOUBLE_EQ(a.disparity, b.disparity);
+    }
   }
 }
 

@@ -128,7 +128,7 @@ struct CectParams {
   /// profile's values stay within the range of the rim's and those seeds'
   /// disparities (+- continuity_margin): beyond it the fit extrapolates.
   bool rim_profile = true;
-  double query_search = 0.0;    ///< pixels searched either side of a query's prediction (0: transfer only, the default: single windows on skin are noisier than the smoothed seeds)
+  double query_search = 0.0;    ///< pixels searched either side of a query's prediction (0: transfer only, the default: single windows on skin are noisier than the smoothed seeds, and the reported sigma undercovers them: 78 % of the acupoints' errors within 2 sigma at query_search=2)
   /// Weakest accepted correlation peak. Low on purpose: on dark skin and
   /// under sheen the skin's texture correlates weakly, and a gap without
   /// seeds is extrapolated far worse (up to 30 mm) than weak seeds err;
