@@ -33,8 +33,17 @@ std::vector<std::string> checkCalibration(const CameraCalibration& c, cv::Size i
   }
   if (!(c.K[0] > 0.0) || !(c.K[4] > 0.0)) problems.push_back(which + " calibration: focal lengths K[0], K[4] must be > 0");
   if (!(c.P[0] > 0.0) || !(c.P[5] > 0.0)) problems.push_back(which + " calibration: projection P[0], P[5] must be > 0");
-  for (double v : c.K)
-    if (!std::isfinite(v)) problems.push_back(which + " calibration: K holds a non-finite value");
+  auto finite = [&](const auto& values, const char* name) {
+    for (double v : values)
+      if (!std::isfinite(v)) {
+        problems.push_back(which + " calibration: " + name + " holds a non-finite value");
+        return;
+      }
+  };
+  finite(c.K, "K");
+  finite(c.D, "D");
+  finite(c.R, "R");
+  finite(c.P, "P");
   const Eigen::Matrix3d R = mat3(c.R);
   if (!(R.transpose() * R).isIdentity(1e-3) || std::abs(R.determinant() - 1.0) > 1e-3) {
     problems.push_back(which + " calibration: rectification_matrix R is not a rotation");

@@ -86,6 +86,8 @@ constexpr double kNeckNarrower = 0.85;    // something above the shoulder line n
 constexpr double kWaistNarrower = 0.95;   // waist narrower than this x shoulders
 constexpr double kHipWider = 0.015;       // hips wider than the waist by this fraction (+ 0.5 px)
 constexpr double kMaxOutOfView = 0.25;    // L4 at most this fraction of C7 -> L4 below a back cut by the image
+constexpr double kNeckFlare = 0.1;        // the neck's base: within 10 % of the way from the neck's width to the shoulders'
+constexpr double kNeckRows = 0.04;        // a neck in view spans at least this fraction of the back's rows
 constexpr int kMinRows = 24;              // fewer rows: too small to find anything
 constexpr double kScaleWindow = 0.03;     // metres-per-pixel median over +-3 % of C7->L4 along the midline
 
@@ -343,6 +345,7 @@ BackLandmarks invalid(const std::string& reason) {
 /// needs the image's bottom edge, which is slanted in a turned frame.
 struct ImageEdge {
   bool cut_at_bottom = false;  ///< the back reaches the image's last row
+  bool cut_at_top = false;     ///< the back reaches the image's first row
   int rows = 0;                ///< image rows
   cv::Matx23d to_head_up = cv::Matx23d(1, 0, 0, 0, 1, 0);  ///< body frame -> head-up image
 };
@@ -367,6 +370,25 @@ cv::Matx23d inverse(const cv::Matx23d& a) {
 }
 
 bool isIdentity(const cv::Matx23d& a) { return a == cv::Matx23d(1, 0, 0, 0, 1, 0); }
+
+/// The neck's base (row index into the smoothed widths `w`): a neck in view
+/// above the shoulder line `ish` is a run of narrow rows at the top; its base
+/// is the lowest of them, where the width starts to flare toward the
+/// shoulders (within kNeckFlare of the way from the neck's width to the
+/// shoulders'). -1 when the narrow rows are fewer than kNeckRows of the back
+/// (the back's own top: no neck in view).
+int neckBase(const std::vector<double>& w, int ish, int n) {
+  double neck = w[static_cast<std::size_t>(ish)];
+  for (int i = 0; i < ish; ++i) neck = std::min(neck, w[static_cast<std::size_t>(i)]);
+  const double limit = neck + kNeckFlare * (w[static_cast<std::size_t>(ish)] - neck);
+  int base = -1, narrow = 0;
+  for (int i = ish; i >= 0; --i) {
+    if (w[static_cast<std::size_t>(i)] > limit) continue;
+    if (base < 0) base = i;
+    ++narrow;
+  }
+  return narrow >= kNeckRows * n ? base : -1;
+}
 
 BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& model, const ImageEdge& edge) {
   Rows rows = usableContour(seg.contour) ? rowsFromContour(seg.contour) : rowsFromMask(seg.mask);
@@ -394,9 +416,11 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   }
   double above = W(ish);
   for (int i = 0; i < ish; ++i) above = std::min(above, W(i));
-  if (ish == 0 || above > kNeckNarrower * W(ish)) {
-    return invalid("not a back: no widening from the neck to the shoulders");
-  }
+  // C7: at the neck's base when a neck is in view, else from the back's top;
+  // a back cut by the image's top edge with no neck has C7 above the image.
+  const bool no_neck = ish == 0 || above > kNeckNarrower * W(ish);
+  if (no_neck && !edge.cut_at_top) return invalid("not a back: no widening from the neck to the shoulders");
+  const int ineck = no_neck ? -1 : neckBase(w, ish, n);
   // Hips: walking up from the bottom, the widest row before the width has
   // dropped kHipDrop below the widest so far (past the tapering end, the first
   // clear maximum); waist: narrowest row between the shoulders and the hips.
@@ -409,22 +433,27 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
     if (W(up) > W(ih)) ih = up;
     if (W(up) < (1.0 - hip_drop) * W(ih)) break;
   }
-  if (up == ish) return invalid("not a back: no waist (no narrowing between the shoulders and the bottom)");
   int iw = ish;
   for (int k = ish; k <= ih; ++k) {
     if (W(k) < W(iw)) iw = k;
   }
-  if (W(iw) > kWaistNarrower * W(ish)) return invalid("not a back: no narrowing at the waist");
-  if (W(ih) < (1.0 + kHipWider) * W(iw) + 0.5) {
-    return invalid("not a back: no widening below the waist (hips out of view?)");
-  }
+  // No waist in view: a back cut by the image's bottom above its hips has
+  // its levels from C7 and the shoulder width instead.
+  std::string no_waist;
+  if (up == ish) no_waist = "no waist (no narrowing between the shoulders and the bottom)";
+  else if (W(iw) > kWaistNarrower * W(ish)) no_waist = "no narrowing at the waist";
+  else if (W(ih) < (1.0 + kHipWider) * W(iw) + 0.5) no_waist = "no widening below the waist (hips out of view?)";
+  if (!no_waist.empty() && (!edge.cut_at_bottom || no_neck)) return invalid("not a back: " + no_waist);
   const int iend = n - 1 - std::max(1, static_cast<int>(kBottomMargin * n));  // end of the midline fit
   if (iend < ish + 3) return invalid("not a back: too short below the shoulders");
-  const double threshold = W(iw) + kWaistPlateau * (W(ih) - W(iw));
-  int wa = iw, wb = iw;
-  while (wa > ish && W(wa - 1) <= threshold) --wa;
-  while (wb < ih && W(wb + 1) <= threshold) ++wb;
-  const double waist_row = rows.y0 + 0.5 * (wa + wb);
+  double waist_row = kNaN;
+  if (no_waist.empty()) {
+    const double threshold = W(iw) + kWaistPlateau * (W(ih) - W(iw));
+    int wa = iw, wb = iw;
+    while (wa > ish && W(wa - 1) <= threshold) --wa;
+    while (wb < ih && W(wb + 1) <= threshold) ++wb;
+    waist_row = rows.y0 + 0.5 * (wa + wb);
+  }
 
   // Midline over the torso rows, then the top and bottom where it meets the outline.
   Midline mid;
@@ -433,12 +462,20 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   if (!midlineCrossings(seg, mid, &top, &bottom)) return invalid("the midline does not cross the back's outline");
   top -= 0.5;  // pixel centre of the boundary -> its outer edge
   bottom += 0.5;
+  const double shoulder_row = rows.y0 + ish;
+  const double anchor = ineck >= 0 ? rows.y0 + ineck : top;  // C7 lies c * length below it
 
-  // C7 and L4 from the top and the waist.
+  // C7 and L4 from what is in view: the anchor and the waist; else one of
+  // them and the model's proportions.
   const double c = model.c7_below_top, q = model.waist_fraction;
-  const double length = (waist_row - top) / (c + q);
+  double length = kNaN;
+  if (!no_neck && no_waist.empty()) length = (waist_row - anchor) / (c + q);
+  else if (!no_neck) length = model.length_per_shoulder_width * W(ish);
+  else length = (waist_row - shoulder_row) / (q - model.shoulder_below_c7);
   if (!(length > 0.0)) return invalid("the waist is not below the top of the back");
-  const double c7_row = top + c * length, l4_row = c7_row + length;
+  const double c7_row = no_neck ? shoulder_row - model.shoulder_below_c7 * length : anchor + c * length;
+  const double l4_row = c7_row + length;
+  if (!no_waist.empty()) waist_row = c7_row + q * length;  // where the model puts it
   // A back that leaves the image at its bottom (the camera shifted toward the
   // head) may have its iliac-crest line out of view: the levels still follow
   // from C7 and the waist, and the points beyond the image are reported
@@ -465,7 +502,13 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   l.shoulder_width = W(ish);
   l.waist_row = waist_row;
   l.iliac_row = l4_row;
-  l.top_row = top;
+  l.top_row = anchor;
+  l.c7_measured = !no_neck;
+  l.waist_measured = no_waist.empty();
+  l.measured.push_back(ineck >= 0 ? "C7 at the neck's base" : no_neck ? "the shoulder line" : "C7 at the back's top");
+  if (l.waist_measured) l.measured.push_back("the waist");
+  if (!l.c7_measured) l.inferred.push_back("C7 from the shoulder line (the neck is out of view)");
+  if (!l.waist_measured) l.inferred.push_back("L4 from C7 and the shoulder width (" + no_waist + ")");
   return l;
 }
 
@@ -753,6 +796,7 @@ double correctWaistParallax(BackLandmarks* landmarks, const AcupointModel& model
                             const PointLookup& image_point) {
   BackLandmarks& l = *landmarks;
   if (!l.valid || l.midline.size() < 10 || left.mask.empty() || !image_point) return kNaN;
+  if (!l.c7_measured || !l.waist_measured) return kNaN;  // C7 and L4 do not hang on the top and the waist
   const double c = model.c7_below_top, q = model.waist_fraction;
   if (!(c + q > 0.0)) return kNaN;
   const cv::Mat mask = maskInBodyFrame(l, left.mask);
@@ -942,6 +986,10 @@ void AcupointModel::validate() const {
   }
   if (!(c7_below_top >= 0.0 && c7_below_top < 0.5)) fail("c7_below_top = " + num(c7_below_top) + " is not in [0, 0.5)");
   if (!(std::abs(waist_rim_offset) < 0.2)) fail("waist_rim_offset = " + num(waist_rim_offset) + " is not in (-0.2, 0.2)");
+  if (!(shoulder_below_c7 >= 0.0 && shoulder_below_c7 < 0.5))
+    fail("shoulder_below_c7 = " + num(shoulder_below_c7) + " is not in [0, 0.5)");
+  if (!(length_per_shoulder_width > 0.3 && length_per_shoulder_width < 3.0))
+    fail("length_per_shoulder_width = " + num(length_per_shoulder_width) + " is not in (0.3, 3)");
   if (!(waist_fraction > 0.0 && waist_fraction < 1.5)) {
     fail("waist_fraction = " + num(waist_fraction) + " is not in (0, 1.5)");
   }
@@ -980,6 +1028,9 @@ AcupointModel loadAcupointModel(const std::string& path) {
   m.c7_below_top = get<double>(root, "c7_below_top", where);
   m.waist_fraction = get<double>(root, "waist_fraction", where);
   if (root["waist_rim_offset"]) m.waist_rim_offset = get<double>(root, "waist_rim_offset", where);
+  if (root["shoulder_below_c7"]) m.shoulder_below_c7 = get<double>(root, "shoulder_below_c7", where);
+  if (root["length_per_shoulder_width"])
+    m.length_per_shoulder_width = get<double>(root, "length_per_shoulder_width", where);
   const YAML::Node levels = root["level_fraction"];
   if (!levels || !levels.IsMap()) throw std::runtime_error(where + ": missing mapping 'level_fraction'");
   for (const auto& kv : levels) {
@@ -1031,6 +1082,7 @@ BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model
   ImageEdge edge;
   edge.rows = up.mask.rows;
   edge.cut_at_bottom = cv::countNonZero(up.mask.row(up.mask.rows - 1)) > 0;
+  edge.cut_at_top = cv::countNonZero(up.mask.row(0)) > 0;
   BackLandmarks l = findLandmarksHeadUp(up, model, edge);
   l.to_image = image_from_up;
   // A body turned on the table: the rows of the head-up image cut it

@@ -440,6 +440,15 @@ double viewScale(double median_disparity, double baseline) {
   return quantisedScale(median_disparity / baseline / kReferencePixelsPerMetre);
 }
 
+cv::Vec2d disparityRange(const CectParams& p, const StereoGeometry& geometry) {
+  const double width = geometry.size().width;
+  double lo = p.min_disparity, hi = p.max_disparity;
+  if (!(lo > 0)) lo = std::max(0.5, geometry.disparityAtDepth(p.max_depth));
+  if (!(hi > 0)) hi = std::min(width - 1.0, geometry.disparityAtDepth(p.min_depth));
+  if (!std::isfinite(lo) || !std::isfinite(hi)) return cv::Vec2d(0.0, 0.0);
+  return cv::Vec2d(lo, hi);
+}
+
 CectParams scaledParams(const CectParams& p, double scale) {
   CectParams q = p;
   if (scale == 1.0 || !(scale > 0)) return q;
@@ -470,7 +479,7 @@ CectParams scaledParams(const CectParams& p, double scale) {
   g.open_radius = std::max(1, static_cast<int>(std::lround(p.segmentation.open_radius * s)));
   g.close_radius = std::max(1, static_cast<int>(std::lround(p.segmentation.close_radius * s)));
   g.contour_spacing = p.segmentation.contour_spacing * s;
-  return q;
+  return q;  // (the trunk's pixel sizes scale with the body itself: trunk.h)
 }
 
 /// Builds a CectFrame step by step (friend of CectFrame).
@@ -482,6 +491,11 @@ class CectFrameBuilder {
     const auto t0 = Clock::now();
     f_.geometry_.rectify(left, right, &f_.left_rect_, &f_.right_rect_);
     f_.timings_.rectify_ms = msSince(t0);
+    f_.disparity_range_ = disparityRange(f_.params_, f_.geometry_);
+    if (!(f_.disparity_range_[1] > f_.disparity_range_[0]))
+      return fail("empty disparity range " + std::to_string(f_.disparity_range_[0]) + ".." +
+                      std::to_string(f_.disparity_range_[1]) + " px (min_depth / max_depth or min / max_disparity)",
+                  t0);
 
     // With auto_scale the segmentation and the contour's sampling scale with
     // the image's width first (a prior); once the contour is matched, its
@@ -685,9 +699,8 @@ class CectFrameBuilder {
 
 
 
-  double maxDisparity() const {
-    return f_.params_.max_disparity > 0 ? f_.params_.max_disparity : 0.5 * f_.left_rect_.cols;
-  }
+  double minDisparity() const { return f_.disparity_range_[0]; }
+  double maxDisparity() const { return f_.disparity_range_[1]; }
 
   /// Step 2: contour samples -> row crossings in the right view.
   void foundational() {
@@ -748,7 +761,7 @@ class CectFrameBuilder {
         if (rr[k] != rising) continue;
         ++right_same;
         const double d = s.left.x - rx[k];
-        if (d >= p.min_disparity && d <= maxDisparity()) {
+        if (d >= minDisparity() && d <= maxDisparity()) {
           if (r_rank == rank) s.unique = static_cast<int>(s.cands.size());
           s.cands.push_back(d);
         }
@@ -761,13 +774,14 @@ class CectFrameBuilder {
     // Resolve ambiguous samples by continuity along the contour with the
     // unambiguous ones (order in `samples` follows the contour).
     const int m = static_cast<int>(samples.size());
-    const int reach = 8;
+    // Up to 8 samples either side, each counted once on a short contour.
+    const int reach = std::min(8, (m - 1) / 2);
     for (int i = 0; i < m; ++i) {
       Sample& s = samples[static_cast<std::size_t>(i)];
       std::vector<double> near;
       for (int k = -reach; k <= reach; ++k) {
         if (k == 0) continue;
-        const Sample& o = samples[static_cast<std::size_t>((i + k + m) % m)];
+        const Sample& o = samples[static_cast<std::size_t>(((i + k) % m + m) % m)];
         if (o.unique >= 0) near.push_back(o.cands[static_cast<std::size_t>(o.unique)]);
       }
       double d = std::numeric_limits<double>::quiet_NaN();
@@ -878,7 +892,7 @@ class CectFrameBuilder {
         d_hi = std::max(d_hi, static_cast<double>(f_.vertices_[v].disparity));
       }
       if (!std::isfinite(d_lo)) continue;  // no prior nearby: too risky on a flat edge
-      d_lo = std::max(p.min_disparity, d_lo - 4.0);
+      d_lo = std::max(minDisparity(), d_lo - 4.0);
       d_hi = std::min(maxDisparity(), d_hi + 4.0);
       // The left curve over [xi - W, xi + W], the right one over the
       // columns those can shift to.
@@ -1252,7 +1266,7 @@ class CectFrameBuilder {
           const double z0 = fxb / std::max(d0, 1e-3);
           hi = z0 > p.max_relief ? fxb / (z0 - p.max_relief) + reach : maxDisparity();
         }
-        jobs.push_back({q, std::max(p.min_disparity, d0 - reach), std::min(maxDisparity(), hi), x / cstep, y / step});
+        jobs.push_back({q, std::max(minDisparity(), d0 - reach), std::min(maxDisparity(), hi), x / cstep, y / step});
       }
     // Matching, the bulk of the work, on every core (each seed on its own).
     cv::parallel_for_(cv::Range(0, static_cast<int>(jobs.size())), [&](const cv::Range& range) {
@@ -1328,6 +1342,12 @@ CectFrame CectFrame::analyse(const cv::Mat& left, const cv::Mat& right, const St
   if (params.seed_step < 0) throw std::invalid_argument("CECT: seed_step must be >= 0");
   if (params.seed_column_step < 0) throw std::invalid_argument("CECT: seed_column_step must be >= 0");
   if (!(params.sample_spacing > 0)) throw std::invalid_argument("CECT: sample_spacing must be > 0");
+  if (!(params.min_depth > 0) || !(params.max_depth > params.min_depth) || !std::isfinite(params.max_depth))
+    throw std::invalid_argument("CECT: the depth range must satisfy 0 < min_depth < max_depth (finite), got " +
+                                std::to_string(params.min_depth) + ".." + std::to_string(params.max_depth) + " m");
+  if (!(params.min_disparity >= 0) || !(params.max_disparity >= 0) ||
+      (params.max_disparity > 0 && params.max_disparity <= params.min_disparity))
+    throw std::invalid_argument("CECT: min_disparity / max_disparity must be >= 0 and max > min unless 0");
   CectFrame f;
   f.geometry_ = geometry;
   f.params_ = params;

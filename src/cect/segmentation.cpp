@@ -441,6 +441,7 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params) {
   cv::Mat m = seg.score > 0;
   morphology(&m, cv::MORPH_OPEN, params.open_radius);
   morphology(&m, cv::MORPH_CLOSE, params.close_radius);
+  seg.trunk = cutToTrunk(bgr, &m, params.trunk);
   // Outer contours of the cleaned regions (holes ignored, i.e. filled), each
   // drawn filled with its own label; the back is the one holding most of
   // the detection.

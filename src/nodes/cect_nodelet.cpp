@@ -18,6 +18,7 @@
 
 #include "calibration_msg.h"
 #include "massage_cell/AcupointArray.h"
+#include "massage_cell/cect/locate.h"
 #include "start_parameters.h"
 
 namespace massage_cell::nodes {
@@ -55,6 +56,8 @@ cect::CectParams cectParams(const CECTConfig& c) {
   cect::CectParams p;
   p.auto_scale = c.auto_scale;
   p.sample_spacing = c.sample_spacing;
+  p.min_depth = c.min_depth;
+  p.max_depth = c.max_depth;
   p.min_disparity = c.min_disparity;
   p.max_disparity = c.max_disparity;
   p.min_crossing_angle = c.min_crossing_angle;
@@ -224,21 +227,30 @@ void CectNodelet::configCb(Config& config, uint32_t /*level*/) {
   if (config.max_disparity != 0.0 && config.max_disparity <= config.min_disparity) {
     NODELET_ERROR_STREAM("rejected max_disparity = " << config.max_disparity
                                                      << " <= min_disparity = " << config.min_disparity
-                                                     << " (0 means half the image width): keeping "
+                                                     << " (0 means from min_depth): keeping "
                                                      << config_.min_disparity << ".." << config_.max_disparity);
     config.min_disparity = config_.min_disparity;
     config.max_disparity = config_.max_disparity;
   }
+  if (config.max_depth <= config.min_depth) {
+    NODELET_ERROR_STREAM("rejected max_depth = " << config.max_depth << " m <= min_depth = " << config.min_depth
+                                                 << " m: keeping " << config_.min_depth << ".." << config_.max_depth
+                                                 << " m");
+    config.min_depth = config_.min_depth;
+    config.max_depth = config_.max_depth;
+  }
   config_ = config;
-  std::ostringstream max_disparity;
-  if (config.max_disparity > 0)
-    max_disparity << config.max_disparity;
-  else
-    max_disparity << "width/2";
+  auto bound = [](double px, const char* otherwise) {
+    std::ostringstream s;
+    if (px > 0) s << px;
+    else s << otherwise;
+    return s.str();
+  };
   NODELET_INFO_STREAM("seed_step " << config.seed_step << ", ncc_radius " << config.ncc_radius << ", seed_search "
                                    << config.seed_search << ", query_search " << config.query_search << ", min_ncc "
-                                   << config.min_ncc << ", disparities " << config.min_disparity << ".."
-                                   << max_disparity.str() << ", filter alpha " << config.alpha << " gate "
+                                   << config.min_ncc << ", depths " << config.min_depth << ".." << config.max_depth
+                                   << " m, disparities " << bound(config.min_disparity, "from max_depth") << ".."
+                                   << bound(config.max_disparity, "from min_depth") << ", filter alpha " << config.alpha << " gate "
                                    << config.gate << " m reacquire_after " << config.reacquire_after << " max_age "
                                    << config.max_age << " s");
 }
@@ -335,59 +347,33 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
   }
 
   // 3. The model's acupoints in the left view, each to 3D, into the filter.
+  cect::LocateOptions options;
+  options.correct_parallax = config.correct_parallax;
+  options.levels_in_3d = config.levels_in_3d;
+  const cect::LocatedAcupoints located = cect::locateAcupoints(*frame, model_, options);
   std::vector<PointResult> results(model_.points.size());
-  std::string frame_problem;  // non-empty: the pair gives no acupoint at all
+  const std::string frame_problem = located.reason;  // non-empty: the pair gives no acupoint at all
   const double stamp = header.stamp.toSec();
   int measured = 0;
-  double body_angle = std::numeric_limits<double>::quiet_NaN();
-  if (!frame->valid()) {
-    frame_problem = "no usable view of the back: " + frame->reason();
-  } else {
-    cect::BackLandmarks landmarks = cect::findLandmarks(frame->left(), model_);
-    if (!landmarks.valid) {
-      frame_problem = "no landmarks of the back: " + landmarks.reason;
-    } else {
-      body_angle = landmarks.body_angle_deg;
-      if (config.correct_parallax) cect::correctMidlineParallax(&landmarks, frame->left(), cect::framePoints(*frame));
-      if (config.levels_in_3d) {
-        cect::correctWaistParallax(&landmarks, model_, frame->left(), cect::framePoints(*frame));
-        cect::measureLevelsIn3D(&landmarks, cect::framePoints(*frame));
-      }
-      const std::vector<cect::AcupointPixel> placed = cect::placeAcupoints(landmarks, model_, cect::frameScale(*frame));
-      std::map<std::string, const cect::AcupointPixel*> by_name;
-      for (const auto& p : placed) by_name[p.name] = &p;
-      for (std::size_t i = 0; i < model_.points.size(); ++i) {
-        PointResult& r = results[i];
-        const std::string& name = model_.points[i].name;
-        const auto it = by_name.find(name);
-        if (it == by_name.end()) {
-          r.reason = "not placed by the acupoint model";
-          continue;
-        }
-        const cect::AcupointPixel& p = *it->second;
-        if (!p.valid) {
-          r.reason = "not placed: " + p.reason;
-          continue;
-        }
-        r.placed = true;
-        r.rectified = p.pixel;
-        r.raw = geometry.toRaw(p.pixel);
-        const cect::LocalizedPoint point = frame->localizeRectified(p.pixel);
-        if (!point.valid) {
-          r.reason = "not localised: " + point.reason;
-          continue;
-        }
-        r.measured = true;
-        ++measured;
-        r.accepted = filter_.update(name, point.position, point.covariance, stamp);
-        if (!r.accepted) {
-          const cect::FilteredPoint* f = filter_.get(name, stamp);
-          std::ostringstream why;
-          why << "measurement rejected as an outlier";
-          if (f) why << " (" << (point.position - f->position).norm() * 100.0 << " cm from the estimate)";
-          r.reason = why.str();
-        }
-      }
+  const double body_angle =
+      located.valid ? located.landmarks.body_angle_deg : std::numeric_limits<double>::quiet_NaN();
+  for (std::size_t i = 0; i < results.size() && i < located.points.size(); ++i) {
+    const cect::LocatedAcupoint& p = located.points[i];
+    PointResult& r = results[i];
+    r.placed = p.placed;
+    r.rectified = p.rectified;
+    r.raw = p.raw;
+    r.reason = p.reason;
+    if (!p.valid) continue;
+    r.measured = true;
+    ++measured;
+    r.accepted = filter_.update(p.name, p.point.position, p.point.covariance, stamp);
+    if (!r.accepted) {
+      const cect::FilteredPoint* f = filter_.get(p.name, stamp);
+      std::ostringstream why;
+      why << "measurement rejected as an outlier";
+      if (f) why << " (" << (p.point.position - f->position).norm() * 100.0 << " cm from the estimate)";
+      r.reason = why.str();
     }
   }
   if (!frame_problem.empty()) {
@@ -414,6 +400,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
   rejected_outliers_ = filter_.rejected();
   last_cect_ms_ = frame->timings().total_ms;
   if (frame->valid()) last_scale_ = frame->scale();
+  last_disparity_range_ = frame->disparityRange();
   if (std::isfinite(body_angle)) last_body_angle_ = body_angle;
   if (stats_.processed() == 1) {
     NODELET_INFO_STREAM("first pair: " << valid << " of " << model_.points.size() << " acupoints valid, " << elapsed
@@ -712,6 +699,8 @@ void CectNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) 
   status.add("outliers rejected", rejected_outliers_);
   stats_.addTimes(status, "last CECT time (ms)", last_cect_ms_);
   status.add("view scale (auto_scale; 1 = the reference view)", last_scale_);
+  status.add("disparities searched (px, from min_depth / max_depth and camera_info)",
+             std::to_string(last_disparity_range_[0]) + ".." + std::to_string(last_disparity_range_[1]));
   status.add("body turned on the table (degrees, + head toward the image right)", last_body_angle_);
   status.add("last reason", last_problem_);
   status.add("last error", stats_.lastError());

@@ -154,6 +154,7 @@ class CectNodelet : public nodelet::Nodelet {
   int rejected_outliers_ = 0;
   double last_cect_ms_ = 0.0;
   double last_scale_ = 1.0;  ///< the last valid pair's view scale (auto_scale)
+  cv::Vec2d last_disparity_range_{0.0, 0.0};  ///< the disparities the last pair searched
   double last_body_angle_ = 0.0;  ///< the last pair's body turn against the image columns (landmarks), degrees
   std::string geometry_summary_;
 };

@@ -184,6 +184,7 @@ struct Row {
   double shoulder = 0.0;   // weight of the shoulder slope
   double breath = 0.0;     // breathing rise (metres) at the midline
   double c7 = 0.0;         // C7 spinous process bump (x part)
+  double spinous = 0.0;    // spinous process bumps T1..L5 (x part)
   double scap_x = 0.0;     // scapula plate, x part (between superior border and inferior angle)
   bool inside = false;
 };
@@ -265,6 +266,9 @@ class Shape {
     r.shoulder = std::tan(b_.shoulder_slope) * smooth5(l[kT5], l[kT1], x);
     r.breath = breath_ * smooth5(0.0, l[kT4], x) * (1.0 - smooth5(l[kT7], l[kL1], x));
     r.c7 = 0.0035 * gauss((x - 0.003) / 0.01);
+    if (b_.spinous_prominence > 0.0) {
+      for (int k = kT1; k < kLevelCount; ++k) r.spinous += gauss((x - l[static_cast<std::size_t>(k)] - 0.006) / 0.009);
+    }
     r.scap_x = smooth5(l[kT7] - 0.015, l[kT7] + 0.015, x) * (1.0 - smooth5(l[kT2] - 0.015, l[kT2] + 0.015, x));
     return r;
   }
@@ -313,6 +317,7 @@ class Shape {
     if (r.buttock > 0.0) t += r.buttock * (0.72 + 0.28 * (gauss((s - 0.45) / 0.22) + gauss((s + 0.45) / 0.22)));
     if (r.spine > 0.0 && b_.spine_depth > 0.0) t += b_.spine_depth / groove_norm_ * r.spine * groove(y);
     if (r.c7 > 0.0) t += r.c7 * gauss(y / 0.012);
+    if (r.spinous > 0.0) t += b_.spinous_prominence * r.spine * r.spinous * gauss(y / 0.008);
     const double ay = std::abs(y);
     if (r.shoulder > 0.0) {
       const double w = 0.015;
@@ -443,12 +448,15 @@ void BodyParameters::validate() const {
   check("scapula_medial_offset", scapula_medial_offset, 0.03, 0.15, " m");
   check("shoulder_slope", shoulder_slope, 0.0, 0.7, " rad");
   check("buttock_height", buttock_height, 0.0, 0.15, " m");
+  check("spinous_prominence", spinous_prominence, 0.0, 0.015, " m");
   for (int c = 0; c < 3; ++c) check("skin_albedo", skin_albedo[c], 0.0, 1.0, "");
   check("moles", moles, 0, 64, "");
   // Relations between the values.
-  if (!(waist_width <= shoulder_width)) {
+  // Obese builds may be a little wider at the waist than across the acromions.
+  if (!(waist_width <= 1.1 * shoulder_width)) {
     throw std::invalid_argument("BodyParameters: waist_width = " + num(waist_width) +
-                                " is implausible (wider than shoulder_width = " + num(shoulder_width) + ")");
+                                " is implausible (more than 1.1 * shoulder_width = " + num(1.1 * shoulder_width) +
+                                ")");
   }
   if (!(neck_width <= 0.6 * shoulder_width)) {
     throw std::invalid_argument("BodyParameters: neck_width = " + num(neck_width) +
@@ -502,6 +510,11 @@ double BackModel::halfWidth(double x) const {
 Eigen::Vector2d BackModel::extent() const {
   const Shape shape(body_, breathing_phase_, breathing_amplitude_);
   return {shape.xMin(), shape.xMax()};
+}
+
+Eigen::Vector2d BackModel::fullHeightExtent() const {
+  const Shape shape(body_, breathing_phase_, breathing_amplitude_);
+  return {shape.xMin() + kButtockCap, shape.xMax() - kNeckCap};
 }
 
 double BackModel::levelX(const std::string& level) const {

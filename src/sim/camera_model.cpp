@@ -131,7 +131,12 @@ void validateRig(const RigParameters& rig) {
     throw std::invalid_argument("makeStereoPair: shift must be finite, got " + num(rig.shift));
   }
   // Distortion and rotations only exist for raw pairs; a rectified pair
-  // ignores them, so they are not checked there.
+  // ignores them, so they are not checked there. Toe-in would make a
+  // rectified pair unrectified, so it is refused there.
+  if (rig.rectified && rig.toe_in != 0.0) {
+    throw std::invalid_argument("makeStereoPair: toe_in = " + num(rig.toe_in) +
+                                " needs a raw pair (rectified = false)");
+  }
   if (!rig.rectified) {
     if (rig.distortion.size() != 5) {
       throw std::invalid_argument("makeStereoPair: distortion of a raw pair needs 5 plumb_bob coefficients, got " +
@@ -139,6 +144,9 @@ void validateRig(const RigParameters& rig) {
     }
     for (double d : rig.distortion) {
       if (!std::isfinite(d)) throw std::invalid_argument("makeStereoPair: distortion holds a non-finite value");
+    }
+    if (!std::isfinite(rig.toe_in) || rig.toe_in < 0.0 || rig.toe_in > 0.3) {
+      throw std::invalid_argument("makeStereoPair: toe_in must be in 0 .. 0.3 rad, got " + num(rig.toe_in));
     }
     const std::pair<const char*, const Eigen::Vector3d*> rotations[] = {{"left_rotation", &rig.left_rotation},
                                                                           {"right_rotation", &rig.right_rotation}};
@@ -277,9 +285,12 @@ StereoPairModel makeStereoPair(const RigParameters& rig) {
     return pair;
   }
 
-  // Raw pair: small rotations about each camera's own axes, lens distortion.
-  pair.left.world_from_camera.linear() = base * rotationFromVector(rig.left_rotation);
-  pair.right.world_from_camera.linear() = base * rotationFromVector(rig.right_rotation);
+  // Raw pair: toe-in (left camera turned toward +optical x, the right one
+  // toward -x), small rotations about each camera's own axes, lens distortion.
+  const Eigen::Matrix3d toe_left = Eigen::AngleAxisd(rig.toe_in, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  const Eigen::Matrix3d toe_right = Eigen::AngleAxisd(-rig.toe_in, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  pair.left.world_from_camera.linear() = base * toe_left * rotationFromVector(rig.left_rotation);
+  pair.right.world_from_camera.linear() = base * toe_right * rotationFromVector(rig.right_rotation);
   pair.left.D = rig.distortion;
   pair.right.D = rig.distortion;
 
@@ -308,6 +319,37 @@ StereoPairModel makeStereoPair(const RigParameters& rig) {
   pair.right_info.R = rowMajor3(R2);
   pair.right_info.P = rowMajor34(P2);
   return pair;
+}
+
+// ---------------------------------------------------------------------------
+// Framing
+
+// For a fixed orientation the ray through a pixel meets the plane z = z_s at
+// x = c_x + (c_z - z_s) k with k = d_x / -d_z: linear in the camera's centre,
+// so the two edge conditions give the height D = c_z - z_s and c_x directly.
+RigParameters frameRig(const RigParameters& rig, double x_top, double x_bottom, double surface_z) {
+  if (!std::isfinite(x_top) || !std::isfinite(x_bottom) || !std::isfinite(surface_z)) {
+    throw std::invalid_argument("frameRig: x_top, x_bottom and surface_z must be finite");
+  }
+  if (!(x_top > x_bottom)) {
+    throw std::invalid_argument("frameRig: x_top = " + num(x_top) + " must lie above (> ) x_bottom = " +
+                                num(x_bottom));
+  }
+  RigParameters out = rig;
+  out.shift = 0.0;
+  const StereoPairModel pair = makeStereoPair(out);
+  const CameraModel& cam = pair.left;
+  const double cx = (cam.width - 1) / 2.0;
+  const Eigen::Vector3d d_top = cam.rayDirection(cx, -0.5), d_bottom = cam.rayDirection(cx, cam.height - 0.5);
+  if (!(d_top.z() < -1e-6) || !(d_bottom.z() < -1e-6)) {
+    throw std::invalid_argument("frameRig: the image's top and bottom edges do not look down at the table");
+  }
+  const double k_top = d_top.x() / -d_top.z(), k_bottom = d_bottom.x() / -d_bottom.z();
+  if (!(k_top > k_bottom)) throw std::invalid_argument("frameRig: the image's top edge does not look toward +x");
+  const double D = (x_top - x_bottom) / (k_top - k_bottom);
+  out.centre.x() = x_top - D * k_top;
+  out.centre.z() = surface_z + D;
+  return out;
 }
 
 // ---------------------------------------------------------------------------

@@ -113,7 +113,7 @@ inline float positiveScale(float feature_size) {
 Eigen::Vector3f clamp01(const Eigen::Vector3f& c) { return c.cwiseMax(0.0f).cwiseMin(1.0f); }
 
 // Pattern ids used to decorrelate the noise fields of different patterns.
-enum : std::uint32_t { kSaltSkin = 1, kSaltCloth = 2, kSaltTexture = 3 };
+enum : std::uint32_t { kSaltSkin = 1, kSaltCloth = 2, kSaltTexture = 3, kSaltTerry = 4, kSaltWaffle = 5, kSaltHair = 6 };
 
 Eigen::Vector3f skinAlbedo(const Material& m, const Eigen::Vector2f& uv) {
   const float fs = positiveScale(m.feature_size);
@@ -164,6 +164,55 @@ Eigen::Vector3f textureAlbedo(const Material& m, const Eigen::Vector2f& uv) {
   return clamp01(m.albedo.cwiseProduct(Eigen::Vector3f::Ones() + m.contrast * n));
 }
 
+/// Terry towelling: one loop per lattice cell of pitch fs, jittered, each a
+/// soft bright blob of its own brightness; the gaps between loops are darker.
+Eigen::Vector3f terryAlbedo(const Material& m, const Eigen::Vector2f& uv) {
+  const float fs = positiveScale(m.feature_size);
+  const Cell c = cellOf(uv, fs);
+  const Eigen::Vector2f local(static_cast<float>(uv.x() / fs - std::floor(uv.x() / fs)),
+                              static_cast<float>(uv.y() / fs - std::floor(uv.y() / fs)));
+  float loop = 0.0f;
+  for (int dy = -1; dy <= 1; ++dy) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      const std::uint32_t h = hash3(c.x0 + static_cast<std::uint32_t>(dx), c.y0 + static_cast<std::uint32_t>(dy),
+                                    salt(m.seed, kSaltTerry, 0, 0));
+      const Eigen::Vector2f centre(dx + 0.2f + 0.6f * unitFloat(h), dy + 0.2f + 0.6f * unitFloat(mix32(h)));
+      const float d2 = (local - centre).squaredNorm() / (0.38f * 0.38f);
+      loop = std::max(loop, (0.6f + 0.4f * unitFloat(mix32(h ^ 0x51ed27u))) * std::exp(-d2));
+    }
+  }
+  const float fluff = 2.0f * valueNoise(uv, 6.0f * fs, salt(m.seed, kSaltTerry, 1, 0)) - 1.0f;
+  const float n = 0.7f * (2.0f * loop - 1.0f) + 0.3f * fluff;
+  return clamp01(m.albedo * (1.0f + m.contrast * n));
+}
+
+/// Waffle weave: square pockets of pitch fs between raised, lighter ridges,
+/// with a fine thread texture on top.
+Eigen::Vector3f waffleAlbedo(const Material& m, const Eigen::Vector2f& uv) {
+  const float fs = positiveScale(m.feature_size);
+  auto border = [](double t) {
+    const float f = static_cast<float>(t - std::floor(t));
+    return 1.0f - smoothstep(0.08f, 0.22f, std::min(f, 1.0f - f));
+  };
+  const float ridge = std::max(border(uv.x() / fs), border(uv.y() / fs));
+  const float thread = std::sin(kTwoPi * 6.0f * uv.x() / fs) * std::sin(kTwoPi * 6.0f * uv.y() / fs);
+  const float slub = 2.0f * valueNoise(uv, 3.0f * fs, salt(m.seed, kSaltWaffle, 0, 0)) - 1.0f;
+  const float n = 0.65f * (2.0f * ridge - 1.0f) + 0.15f * thread + 0.2f * slub;
+  return clamp01(m.albedo * (1.0f + m.contrast * n));
+}
+
+/// Hair: noise stretched along u (the strands' direction) at the strand width
+/// fs and half of it, plus coarser clumps; the contrast sets how much strands differ.
+Eigen::Vector3f hairAlbedo(const Material& m, const Eigen::Vector2f& uv) {
+  const float fs = positiveScale(m.feature_size);
+  const Eigen::Vector2f along40(uv.x() / 40.0f, uv.y()), along12(uv.x() / 12.0f, uv.y());
+  const float strand = 2.0f * valueNoise(along40, fs, salt(m.seed, kSaltHair, 0, 0)) - 1.0f;
+  const float fine = 2.0f * valueNoise(along40, 0.5f * fs, salt(m.seed, kSaltHair, 1, 0)) - 1.0f;
+  const float clump = 2.0f * valueNoise(along12, 8.0f * fs, salt(m.seed, kSaltHair, 2, 0)) - 1.0f;
+  const float n = 0.45f * strand + 0.3f * fine + 0.25f * clump;
+  return clamp01(m.albedo * (1.0f + m.contrast * n));
+}
+
 void checkFinite(const Eigen::Vector3f& v, const std::string& what) {
   if (!v.allFinite()) throw std::invalid_argument(what + " must be finite");
 }
@@ -180,6 +229,12 @@ Eigen::Vector3f albedoAt(const Material& material, const Eigen::Vector2f& uv) {
       return clothAlbedo(material, uv);
     case Material::Pattern::kTexture:
       return textureAlbedo(material, uv);
+    case Material::Pattern::kTerry:
+      return terryAlbedo(material, uv);
+    case Material::Pattern::kWaffle:
+      return waffleAlbedo(material, uv);
+    case Material::Pattern::kHair:
+      return hairAlbedo(material, uv);
   }
   return material.albedo;
 }
@@ -261,6 +316,23 @@ Mesh makeQuad(const std::string& name, const Eigen::Vector3f& c0, const Eigen::V
   mesh.triangles.emplace_back(0, 1, 2);
   mesh.triangles.emplace_back(0, 2, 3);
   return mesh;
+}
+
+const char* labelName(std::uint8_t label) {
+  switch (label) {
+    case kLabelBackground: return "background";
+    case kLabelBack: return "back";
+    case kLabelTable: return "table";
+    case kLabelFloor: return "floor";
+    case kLabelArm: return "arm";
+    case kLabelNeck: return "neck";
+    case kLabelHead: return "head";
+    case kLabelHair: return "hair";
+    case kLabelTowel: return "towel";
+    case kLabelPlane: return "plane";
+    case kLabelCradle: return "face cradle";
+    default: return label >= kLabelBoxFace ? "box face" : "unknown";
+  }
 }
 
 void transform(Mesh& mesh, const Eigen::Matrix3f& rotation, const Eigen::Vector3f& translation) {

@@ -11,13 +11,7 @@ namespace massage_cell::sim {
 
 namespace {
 
-// The massage table: its top at z = 0, longer than the body (head end at +x
-// leaves room for a face cradle, which is not modelled).
-constexpr float kTableHeadX = 0.45f;
-constexpr float kTableFootX = -1.45f;
-constexpr float kTableHalfWidth = 0.36f;
-constexpr float kTableThickness = 0.10f;
-constexpr float kFloorZ = -0.75f;
+// The massage table (scene_builder.h): its top at z = 0, longer than the body.
 
 Material sheetMaterial(std::uint32_t seed) {
   Material m;

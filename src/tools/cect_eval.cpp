@@ -22,14 +22,18 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "cect_params.h"
 #include "cli.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
+#include "massage_cell/cect/locate.h"
 #include "massage_cell/sim/body_model.h"
 #include "massage_cell/stereo/pipeline.h"
 #include "massage_cell/sim/renderer.h"
 #include "massage_cell/sim/scene_builder.h"
 #include "massage_cell/sim/stereo_frame.h"
+#include "massage_cell/sim/ground_truth.h"
+#include "cect_scenes.h"
 
 namespace {
 
@@ -52,6 +56,16 @@ Experiments (the thesis's Sec. 3.3):
   ideal      subjects 1..N (default 28), light top-centre, no camera shift
   lighting   subjects 1..K (default 8) under lights top-left / top-centre / top-right
   shift      subjects 1..K with the camera shifted 0 / 4 / 7 / 14 cm along the table
+  real       the cell as it is (not in the default set): subjects 1..K of a wide
+             population (BodyParameters::varied: both sexes, BMI 18-38, six skin
+             types) with arms, head in a face cradle, hair, buttocks, sheets of
+             several colours, the neck and hips framed in or out of view, under
+             the conditions arms_touching, arms_apart (8-20 degrees), arms_raised,
+             neck_cut (the image's top edge 1-5 cm above C7), hips_cut (the view
+             ending between L2 and mid-buttocks), towel (over the buttocks, many
+             colours and weaves), dark_skin (Fitzpatrick V-VI), toe_in (raw
+             toe-in rigs, 1-4 degrees, baselines 6-12 cm) and mixed (all drawn
+             at random; src/tools/cect_scenes.cpp)
 Point sets: `acupoints` (every point of the acupoint model, placed by the model
 from the left view) and `random` (N random back pixels seen by both cameras,
 at least 8 px inside the back's border; default 100 per pair).
@@ -111,53 +125,32 @@ struct Options {
   std::vector<std::pair<std::string, double>> params;  ///< --param
 };
 
-/// The CectParams fields --param can set.
-const std::map<std::string, std::function<void(cect::CectParams&, double)>>& paramSetters() {
-  using P = cect::CectParams;
-  static const std::map<std::string, std::function<void(P&, double)>> m{
-      {"auto_scale", [](P& p, double v) { p.auto_scale = v != 0.0; }},
-      {"min_crossing_angle", [](P& p, double v) { p.min_crossing_angle = v; }},
-      {"sample_spacing", [](P& p, double v) { p.sample_spacing = v; }},
-      {"seed_step", [](P& p, double v) { p.seed_step = static_cast<int>(v); }},
-      {"seed_column_step", [](P& p, double v) { p.seed_column_step = static_cast<int>(v); }},
-      {"ncc_radius", [](P& p, double v) { p.ncc_radius = static_cast<int>(v); }},
-      {"ncc_half_height", [](P& p, double v) { p.ncc_half_height = static_cast<int>(v); }},
-      {"bandpass_low", [](P& p, double v) { p.bandpass_low = v; }},
-      {"bandpass_high", [](P& p, double v) { p.bandpass_high = v; }},
-      {"seed_margin", [](P& p, double v) { p.seed_margin = v; }},
-      {"direct_min_sharpness", [](P& p, double v) { p.direct_min_sharpness = v; }},
-      {"seed_search", [](P& p, double v) { p.seed_search = v; }},
-      {"max_relief", [](P& p, double v) { p.max_relief = v; }},
-      {"smooth_radius", [](P& p, double v) { p.smooth_radius = v; }},
-      {"quartic_across", [](P& p, double v) { p.quartic_across = v != 0.0; }},
-      {"rim_profile", [](P& p, double v) { p.rim_profile = v != 0.0; }},
-      {"slanted_windows", [](P& p, double v) { p.slanted_windows = v != 0.0; }},
-      {"min_slant", [](P& p, double v) { p.min_slant = v; }},
-      {"edge_window", [](P& p, double v) { p.edge_window = v; }},
-      {"max_triangle_edge", [](P& p, double v) { p.max_triangle_edge = v; }},
-      {"edge_min_bend", [](P& p, double v) { p.edge_min_bend = v; }},
-      {"sheen_sigma", [](P& p, double v) { p.sheen_sigma = v; }},
-      {"sheen_twicing", [](P& p, double v) { p.sheen_twicing = v != 0.0; }},
-      {"max_extrapolation", [](P& p, double v) { p.max_extrapolation = v; }},
-      {"query_search", [](P& p, double v) { p.query_search = v; }},
-      {"min_ncc", [](P& p, double v) { p.min_ncc = v; }},
-      {"max_candidate_spread", [](P& p, double v) { p.max_candidate_spread = v; }},
-      {"continuity_margin", [](P& p, double v) { p.continuity_margin = v; }},
-      {"lr_tolerance", [](P& p, double v) { p.lr_tolerance = v; }},
-      {"pixel_sigma", [](P& p, double v) { p.pixel_sigma = v; }},
-      {"border_sigma", [](P& p, double v) { p.border_sigma = v; }},
-      {"border_sigma_reach", [](P& p, double v) { p.border_sigma_reach = v; }},
-      {"slope_sigma", [](P& p, double v) { p.slope_sigma = v; }},
-  };
-  return m;
-}
-
 struct Condition {
   std::string name;
   sim::LightPreset light = sim::LightPreset::kTopCentre;
   double shift = 0.0;
   std::vector<int> subjects;
+  bool real = false;  ///< a realistic condition (cect_scenes.h: realScenario(name, ...))
 };
+
+/// The set-up of one pair of condition `c`.
+tools::Scenario scenarioFor(const Options& o, const Condition& c, int subject) {
+  sim::RigParameters rig;
+  rig.width = o.width;
+  rig.height = o.height;
+  rig.fx = o.fx;
+  rig.baseline = o.baseline;
+  rig.centre.z() = o.camera_height;
+  rig.rectified = !o.raw;
+  if (c.real) return tools::realScenario(c.name, subject, rig);
+  tools::Scenario s;
+  s.body = sim::BodyParameters::subject(subject);
+  rig.shift = c.shift;
+  s.rig = rig;
+  s.light = c.light;
+  s.yaw_deg = o.yaw_deg;
+  return s;
+}
 
 /// Errors of one method on one point set of one pair.
 struct Stats {
@@ -243,14 +236,16 @@ struct PairResult {
   std::map<std::string, Stats> border;     ///< --by-border: "cect/<band>", "sgbm/<band>"
   double cect_ms = 0.0, sgbm_ms = 0.0;
   std::string failure;                 ///< CECT's reason when the frame was not usable
+  int in_view = 0;             ///< acupoints in view (the simulator's truth)
+  int placed_in_view = 0;      ///< ... of them placed and localised
+  int placed_out_of_view = 0;  ///< acupoints placed and localised though not in view
 };
 
 /// --pictures: one pair's picture (see the usage).
 void writePicture(const Options& o, const Condition& c, int subject, const cect::CectFrame& f,
-                  const cect::BackLandmarks& lm, const std::vector<cect::AcupointPixel>& placed,
-                  const std::vector<cect::LocalizedPoint>& located,
-                  const std::map<std::string, Eigen::Vector3d>& anatomical, const cect::StereoGeometry& geometry,
+                  const cect::LocatedAcupoints& result, const std::map<std::string, Eigen::Vector3d>& anatomical, const cect::StereoGeometry& geometry,
                   const std::function<bool(const cv::Point2f&, Eigen::Vector3d*)>& truth) {
+  const cect::BackLandmarks& lm = result.landmarks;
   cv::Mat img;
   if (!f.leftRectified().empty()) {
     img = f.leftRectified().clone();
@@ -274,18 +269,20 @@ void writePicture(const Options& o, const Condition& c, int subject, const cect:
     const Eigen::Vector3d q = geometry.project(p);
     cv::drawMarker(img, cv::Point(cvRound(q.x()), cvRound(q.y())), cv::Scalar(255, 255, 255), cv::MARKER_CROSS, 5, 1);
   }
-  for (std::size_t i = 0; i < placed.size() && i < located.size(); ++i) {
-    if (!placed[i].valid) continue;
+  for (const cect::LocatedAcupoint& a : result.points) {
+    if (!a.placed) continue;
     Eigen::Vector3d gt;
     double err = std::numeric_limits<double>::infinity();
-    if (located[i].valid && truth(placed[i].pixel, &gt)) err = 1000.0 * (located[i].position - gt).norm();
+    if (a.valid && truth(a.rectified, &gt)) err = 1000.0 * (a.point.position - gt).norm();
     const cv::Scalar colour = err < 5.0 ? cv::Scalar(0, 220, 0) : err < 10.0 ? cv::Scalar(0, 165, 255) : cv::Scalar(0, 0, 255);
-    cv::circle(img, cv::Point(cvRound(placed[i].pixel.x), cvRound(placed[i].pixel.y)), 2, colour, -1, cv::LINE_AA);
+    cv::circle(img, cv::Point(cvRound(a.rectified.x), cvRound(a.rectified.y)), 2, colour, -1, cv::LINE_AA);
   }
   std::ostringstream text;
   text << c.name << ", subject " << subject;
   if (lm.valid && lm.body_angle_deg != 0.0) text << ", turned " << std::fixed << std::setprecision(1) << lm.body_angle_deg << " deg";
-  if (!lm.valid) text << ": " << (f.valid() ? lm.reason : f.reason());
+  if (!result.valid) text << ": " << result.reason;
+  cv::putText(img, f.left().trunk.summary(), cv::Point(8, 36), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(255, 255, 255),
+              1, cv::LINE_AA);
   cv::putText(img, text.str(), cv::Point(8, 18), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
   std::ostringstream name;
   name << o.pictures << "/" << c.name << "_s" << std::setw(2) << std::setfill('0') << subject << ".png";
@@ -295,13 +292,13 @@ void writePicture(const Options& o, const Condition& c, int subject, const cect:
 PairResult evaluatePair(const Options& o, const Condition& c, int subject, const cect::AcupointModel& model,
                         const cect::CectParams& params) {
   PairResult res;
-  const sim::BodyParameters body = sim::BodyParameters::subject(subject);
-  const sim::BackModel back(body);
-  sim::Scene scene = sim::makeBackScene(back, 1);
+  const tools::Scenario sc = scenarioFor(o, c, subject);
+  const sim::BackModel back(sc.body);
+  sim::Scene scene = sim::makeCellScene(back, 1, sc.dressing);
   // The subject turned on the table: the back's mesh and its anatomical
   // acupoints about the vertical through the mesh's centre.
   Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();
-  if (o.yaw_deg != 0.0) {
+  if (sc.yaw_deg != 0.0) {
     for (sim::Mesh& m : scene.meshes) {
       if (m.label != sim::kLabelBack) continue;
       Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max()), hi = -lo;
@@ -310,24 +307,16 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
         hi = hi.cwiseMax(v);
       }
       const Eigen::Vector3d c(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0.0);
-      turn = Eigen::Translation3d(c) * Eigen::AngleAxisd(-o.yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()) *
+      turn = Eigen::Translation3d(c) * Eigen::AngleAxisd(-sc.yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()) *
              Eigen::Translation3d(-c);
       sim::transform(m, turn.linear().cast<float>(), turn.translation().cast<float>());
     }
   }
   const sim::Renderer renderer(scene);
-  sim::RigParameters rig;
-  rig.width = o.width;
-  rig.height = o.height;
-  rig.fx = o.fx;
-  rig.baseline = o.baseline;
-  rig.centre.z() = o.camera_height;
-  rig.shift = c.shift;
-  rig.rectified = !o.raw;
-  const sim::StereoPairModel pair = sim::makeStereoPair(rig);
+  const sim::StereoPairModel pair = sim::makeStereoPair(sc.rig);
   sim::RenderOptions ro;
   ro.noise_seed = static_cast<std::uint32_t>(subject);
-  const sim::StereoFrame frame = sim::renderStereoFrame(renderer, pair, sim::Lighting::preset(c.light), ro);
+  const sim::StereoFrame frame = sim::renderStereoFrame(renderer, pair, sim::Lighting::preset(sc.light), ro);
   const cect::StereoGeometry geometry(pair.left_info, pair.right_info);
   const Eigen::Isometry3d left_from_world = pair.left.world_from_camera.inverse();
 
@@ -343,26 +332,11 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   // CECT: segmentation to 3D acupoints, timed.
   const auto t0 = Clock::now();
   const cect::CectFrame f = cect::CectFrame::analyse(frame.left.image, frame.right.image, geometry, params);
-  std::vector<cect::AcupointPixel> placed;
-  std::vector<cect::LocalizedPoint> located;
-  cect::BackLandmarks lm;
-  if (f.valid()) {
-    lm = cect::findLandmarks(f.left(), model);
-    if (lm.valid) {
-      if (o.parallax) cect::correctMidlineParallax(&lm, f.left(), cect::framePoints(f));
-      if (o.levels_3d) {
-        cect::correctWaistParallax(&lm, model, f.left(), cect::framePoints(f));
-        cect::measureLevelsIn3D(&lm, cect::framePoints(f));
-      }
-      placed = cect::placeAcupoints(lm, model, cect::frameScale(f));
-      for (const auto& a : placed)
-        located.push_back(a.valid ? f.localizeRectified(a.pixel) : cect::LocalizedPoint{});
-    } else {
-      res.failure = "landmarks: " + lm.reason;
-    }
-  } else {
-    res.failure = f.reason();
-  }
+  cect::LocateOptions lo;
+  lo.correct_parallax = o.parallax;
+  lo.levels_in_3d = o.levels_3d;
+  const cect::LocatedAcupoints result = cect::locateAcupoints(f, model, lo);
+  if (!result.valid) res.failure = result.reason;
   res.cect_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 
   // SGBM on the same rectified pair.
@@ -390,13 +364,13 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
     std::string name;                            ///< acupoints
   };
   std::vector<Query> acu, rnd;
-  for (std::size_t i = 0; i < placed.size(); ++i)
-    if (placed[i].valid) {
-      acu.push_back(Query{placed[i].pixel, &located[i], placed[i].name});
-    } else {
-      Stats& pp = res.per_point[placed[i].name];
+  for (const cect::LocatedAcupoint& a : result.points)
+    if (a.placed) {
+      acu.push_back(Query{a.rectified, &a.point, a.name});
+    } else if (result.valid) {
+      Stats& pp = res.per_point[a.name];
       pp.queried = 1;
-      pp.misses["placement: " + placed[i].reason] = 1;
+      pp.misses["placement: " + a.reason] = 1;
     }
   const std::size_t expected = model.points.size();
   {
@@ -410,6 +384,23 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
       const cv::Point2f raw(static_cast<float>(pts[static_cast<std::size_t>(i)].x),
                             static_cast<float>(pts[static_cast<std::size_t>(i)].y));
       rnd.push_back(Query{geometry.toRectified(raw), nullptr, {}});
+    }
+  }
+  // Back pixels next to the arms (within 20 px at 640 columns).
+  std::vector<Query> nearArms;
+  {
+    const cv::Mat arms = frame.left.labels == sim::kLabelArm;
+    if (cv::countNonZero(arms) > 0) {
+      const int r = std::max(2, cvRound(20.0 * o.width / 640.0));
+      cv::Mat near;
+      cv::dilate(arms, near, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * r + 1, 2 * r + 1)));
+      near &= (frame.left.labels == sim::kLabelBack) & (frame.left_visible > 0);
+      std::vector<cv::Point> pts;
+      cv::findNonZero(near, pts);
+      std::mt19937 rng(static_cast<std::uint32_t>(2000 + subject));
+      std::shuffle(pts.begin(), pts.end(), rng);
+      for (int i = 0; i < o.random_points && i < static_cast<int>(pts.size()); ++i)
+        nearArms.push_back(Query{geometry.toRectified(cv::Point2f(pts[static_cast<std::size_t>(i)])), nullptr, {}});
     }
   }
   // CECT's and SGBM's figures on a point set.
@@ -467,15 +458,30 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   auto turned = back.acupoints();
   for (auto& [name, point] : turned) point = turn * point;
   const auto anatomical = sim::toCameraFrame(turned, pair.left);
-  res.model.queried = static_cast<int>(expected);
-  for (const auto& a : placed) {
-    if (!a.valid) continue;
+  // The acupoints in view (the simulator's truth): how many the chain gave,
+  // the layout's error there, and CECT / SGBM at their true pixels.
+  const auto seen = sim::acupointTruth(turned, pair, frame);
+  std::vector<Query> given;
+  for (const cect::LocatedAcupoint& a : result.points) {
+    const auto t = seen.find(a.name);
+    if (t == seen.end()) continue;
+    if (!t->second.in_view) {
+      res.placed_out_of_view += a.valid ? 1 : 0;
+      continue;
+    }
+    ++res.in_view;
+    res.placed_in_view += a.valid ? 1 : 0;
+    const cv::Point2f raw(static_cast<float>(t->second.left_pixel.x()), static_cast<float>(t->second.left_pixel.y()));
+    given.push_back(Query{geometry.toRectified(raw), nullptr, {}});
     const auto it = anatomical.find(a.name);
     Eigen::Vector3d gt;
-    if (it == anatomical.end() || !truth(a.pixel, &gt)) continue;
+    if (!a.placed || it == anatomical.end() || !truth(a.rectified, &gt)) continue;
     res.model.errors_mm.push_back(1000.0 * (gt - it->second).norm());
   }
-  if (!o.pictures.empty()) writePicture(o, c, subject, f, lm, placed, located, anatomical, geometry, truth);
+  res.model.queried = res.in_view;
+  std::tie(res.stats["cect/given"], res.stats["sgbm/given"]) = score(given, static_cast<int>(given.size()));
+  std::tie(res.stats["cect/near_arms"], res.stats["sgbm/near_arms"]) = score(nearArms, static_cast<int>(nearArms.size()));
+  if (!o.pictures.empty()) writePicture(o, c, subject, f, result, anatomical, geometry, truth);
   return res;
 }
 
@@ -492,6 +498,36 @@ double medianOf(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
+/// One condition's line of the closing table.
+struct SummaryRow {
+  std::string condition;
+  int in_view = 0, placed_in_view = 0, placed_out_of_view = 0;
+  Stats layout, given, sgbm_given, near_arms;
+  double cect_ms = 0.0;
+  double placedShare() const { return in_view ? 100.0 * placed_in_view / in_view : std::nan(""); }
+};
+
+/// The closing table: per condition, the acupoints in view and placed, the
+/// layout's error, and the 3D error at the true acupoint pixels.
+void printSummary(const std::vector<SummaryRow>& rows) {
+  std::cout << "Summary (acupoints in view = the simulator's truth; layout = the placed pixel's surface point vs the\n"
+               "anatomical acupoint; given = CECT at the true acupoint pixels; near arms = back pixels within 20 px of an arm)\n"
+            << std::left << std::setw(18) << "condition" << std::right << std::setw(8) << "in view" << std::setw(9)
+            << "placed%" << std::setw(8) << "extra" << std::setw(12) << "layout mm" << std::setw(10) << "lay p95"
+            << std::setw(11) << "given mm" << std::setw(10) << "giv p95" << std::setw(9) << "giv<1cm" << std::setw(10)
+            << "sgbm<1cm" << std::setw(10) << "arms mm" << std::setw(10) << "arms<1cm" << std::setw(8) << "ms"
+            << "\n";
+  for (const SummaryRow& r : rows) {
+    std::cout << std::left << std::setw(18) << r.condition << std::right << std::setw(8) << r.in_view << std::setw(9)
+              << fmt(r.placedShare(), 1) << std::setw(8) << r.placed_out_of_view << std::setw(12)
+              << fmt(r.layout.mean(), 1) << std::setw(10) << fmt(r.layout.quantile(0.95), 1) << std::setw(11)
+              << fmt(r.given.mean()) << std::setw(10) << fmt(r.given.quantile(0.95)) << std::setw(8)
+              << fmt(100.0 * r.given.accRate(), 1) << "%" << std::setw(9) << fmt(100.0 * r.sgbm_given.accRate(), 1)
+              << "%" << std::setw(10) << fmt(r.near_arms.mean()) << std::setw(9)
+              << fmt(100.0 * r.near_arms.accRate(), 1) << "%" << std::setw(8) << fmt(r.cect_ms, 1) << "\n";
+  }
+}
+
 void run(const Options& o) {
   stereo::retainFreedMemory();  // page faults would otherwise dominate the per-pair timings
   const cect::AcupointModel model =
@@ -500,7 +536,7 @@ void run(const Options& o) {
   cect::CectParams params;
   if (o.seed_step >= 0) params.seed_step = o.seed_step;
   if (o.query_search >= 0) params.query_search = o.query_search;
-  for (const auto& [name, value] : o.params) paramSetters().at(name)(params, value);
+  for (const auto& [name, value] : o.params) tools::paramSetters().at(name)(params, value);
 
   std::vector<Condition> conditions;
   auto range = [](int n) {
@@ -515,6 +551,9 @@ void run(const Options& o) {
       conditions.push_back({"light_top_left", sim::LightPreset::kTopLeft, 0.0, range(o.condition_subjects)});
       conditions.push_back({"light_top_centre", sim::LightPreset::kTopCentre, 0.0, range(o.condition_subjects)});
       conditions.push_back({"light_top_right", sim::LightPreset::kTopRight, 0.0, range(o.condition_subjects)});
+    } else if (e == "real") {
+      for (const std::string& name : tools::realConditions())
+        conditions.push_back({name, sim::LightPreset::kTopCentre, 0.0, range(o.condition_subjects), true});
     } else if (e == "shift") {
       for (int cm : {0, 4, 7, 14})
         conditions.push_back({"shift_" + std::to_string(cm) + "cm", sim::LightPreset::kTopCentre, cm / 100.0,
@@ -531,9 +570,11 @@ void run(const Options& o) {
               << std::left << std::setw(18) << "condition" << std::setw(8) << "method" << std::setw(11) << "points"
               << std::right << std::setw(8) << "queried" << std::setw(8) << "valid%" << std::setw(9) << "mean mm"
               << std::setw(9) << "max mm" << std::setw(9) << "p95 mm" << std::setw(9) << "acc<1cm" << "\n";
+  std::vector<SummaryRow> summary;
   for (const Condition& c : conditions) {
     std::map<std::string, Stats> total, per_point, border;
     Stats model_total;
+    int in_view = 0, placed_in_view = 0, placed_out_of_view = 0;
     std::vector<double> cect_ms, sgbm_ms;
     std::vector<std::string> failures;
     for (int s : c.subjects) {
@@ -547,6 +588,9 @@ void run(const Options& o) {
         }
       }
       model_total.add(r.model);
+      in_view += r.in_view;
+      placed_in_view += r.placed_in_view;
+      placed_out_of_view += r.placed_out_of_view;
       for (const auto& [name, st] : r.per_point) per_point[name].add(st);
       for (const auto& [key, st] : r.border) border[key].add(st);
       cect_ms.push_back(r.cect_ms);
@@ -566,6 +610,20 @@ void run(const Options& o) {
               << fmt(model_total.mean(), 1) << " mm, max " << fmt(model_total.max(), 1) << " mm; CECT "
               << fmt(medianOf(cect_ms), 1) << " ms median (max " << fmt(*std::max_element(cect_ms.begin(), cect_ms.end()), 1)
               << "), SGBM " << fmt(medianOf(sgbm_ms), 1) << " ms; " << c.subjects.size() << " subjects\n";
+    {
+      const Stats& g = total["cect/given"];
+      const Stats& sg = total["sgbm/given"];
+      SummaryRow row{c.name, in_view, placed_in_view, placed_out_of_view, model_total, g, sg,
+                     total["cect/near_arms"], medianOf(cect_ms)};
+      std::cout << std::left << std::setw(18) << c.name << "acupoints in view " << in_view << ": "
+                << fmt(row.placedShare(), 1) << " % placed (" << placed_out_of_view
+                << " placed though out of view); layout vs anatomical mean " << fmt(model_total.mean(), 1)
+                << " mm, p95 " << fmt(model_total.quantile(0.95), 1) << " mm\n"
+                << std::setw(18) << "" << "at the true acupoint pixels: CECT mean " << fmt(g.mean()) << " mm, p95 "
+                << fmt(g.quantile(0.95)) << ", " << fmt(100.0 * g.accRate(), 1) << " % within 1 cm; SGBM mean "
+                << fmt(sg.mean()) << " mm, " << fmt(100.0 * sg.accRate(), 1) << " % within 1 cm\n";
+      summary.push_back(row);
+    }
     for (const auto& f : failures) std::cout << "  CECT failed on " << f << "\n";
     {
       const Stats& a = total["cect/acupoints"];
@@ -610,6 +668,7 @@ void run(const Options& o) {
     }
     std::cout << "\n";
   }
+  if (!o.csv) printSummary(summary);
 }
 
 }  // namespace
@@ -624,8 +683,8 @@ int main(int argc, char** argv) {
           o.experiments = tools::splitList(v);
           tools::require(!o.experiments.empty(), opt + ": empty list");
           for (const auto& e : o.experiments)
-            tools::require(e == "ideal" || e == "lighting" || e == "shift",
-                           opt + ": unknown experiment '" + e + "' (ideal, lighting, shift)");
+            tools::require(e == "ideal" || e == "lighting" || e == "shift" || e == "real",
+                           opt + ": unknown experiment '" + e + "' (ideal, lighting, shift, real)");
         };
         t.values["--subjects"] = [&](const std::string& opt, const std::string& v) {
           o.subjects = tools::parseInt(opt, v);
@@ -666,7 +725,7 @@ int main(int argc, char** argv) {
             const auto eq = kv.find('=');
             tools::require(eq != std::string::npos, opt + ": expected NAME=VALUE, got '" + kv + "'");
             const std::string name = kv.substr(0, eq);
-            tools::require(paramSetters().count(name) > 0, opt + ": unknown CECT parameter '" + name + "'");
+            tools::require(tools::paramSetters().count(name) > 0, opt + ": unknown CECT parameter '" + name + "'");
             o.params.emplace_back(name, tools::parseDouble(opt + " " + name, kv.substr(eq + 1)));
           }
         };

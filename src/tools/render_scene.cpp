@@ -14,6 +14,8 @@
 #include "cli.h"
 #include "massage_cell/camera/calibration_io.h"
 #include "massage_cell/sim/body_model.h"
+#include "massage_cell/sim/cell_scene.h"
+#include "massage_cell/sim/ground_truth.h"
 #include "massage_cell/sim/renderer.h"
 #include "massage_cell/sim/scene_builder.h"
 #include "massage_cell/sim/stereo_frame.h"
@@ -47,7 +49,35 @@ Presets:
 Options:
   --out DIR                output folder (required)
   --subject N              0 = the mean subject, 1..28 = the thesis's 28 subjects (default 0)
-  --body-seed S            seed the 28 subjects are drawn from (default 2024)
+  --body-seed S            seed the 28 subjects (and the varied population) are drawn from (default 2024)
+  --varied N               instead of --subject: subject N >= 1 of a wide population (male/female,
+                           BMI 18..38, every Fitzpatrick skin type; BodyParameters::varied)
+  --build SEX              instead of --subject: a male | female build, with --bmi B (default 24)
+                           and --stature M (metres, default 1.75)
+  --skin-type T            Fitzpatrick skin type 1..6: overrides the subject's skin colour
+
+Dressing of the back preset (default: none of it, the bare back):
+  --arms POSE              none | along (along the trunk) | raised (beside the head) (default none)
+  --arm-angle DEG          along: abduction of both arms about the shoulders, 0 (touching the
+                           flank) .. 20 degrees (default 0)
+  --arm-angle-right DEG    the right arm's abduction if it differs (default: --arm-angle)
+  --head                   the neck and the head face-down in a face cradle (the table then
+                           ends at the shoulders)
+  --hair LENGTH            with --head: none | short | nape | long (default short)
+  --hair-colour C          black | brown | blond | grey | red (default brown)
+  --cradle-cover COLOUR    a cloth cover on the cradle's pad (default: dark vinyl)
+  --lower-body             the buttocks down to the gluteal fold and the upper thighs
+  --towel COLOUR           a towel over the buttocks / lower back (implies --lower-body)
+  --towel-weave W          fine | terry | waffle (default terry)
+  --towel-edge POS         the towel's cranial edge (default L4-0.03)
+  --towel-tilt DEG         turn of the towel's edge about the vertical (default 0)
+  --sheet COLOUR           the table's sheet colour (default: the standard blue-grey sheet)
+  --sheet-weave W          fine | terry | waffle (default fine)
+  Colours: white, light_blue, green, grey, beige, peach, pink, dark_blue, black, default_sheet.
+  POS: a world x in metres (x toward the head, 0 at C7), or a vertebral level with an
+  optional offset in metres toward the head (+) or feet (-), e.g. C7+0.05, L4-0.18.
+
+Camera:
   --light L                top_left | top_centre | top_right (default top_centre)
   --shift M                camera shift along the table, metres (thesis: 0, 0.04, 0.07, 0.14; default 0)
   --camera-height Z        height of the cameras above the table top, metres (default 0.95)
@@ -55,6 +85,12 @@ Options:
   --fx F                   focal length, pixels (default 500)
   --baseline B             stereo baseline, metres (default 0.10)
   --raw                    unrectified pair with lens distortion (default: rectified, ideal)
+  --toe-in DEG             raw pairs: each camera turned toward the other by DEG (default 0)
+  --frame-top POS          place the cameras so that the left image's top edge meets the back's
+  --frame-bottom POS       height at POS and its bottom edge at the other POS (both needed;
+                           replaces --shift / --camera-height), e.g. C7+0.06 and L4-0.2
+
+Rendering:
   --supersample N          rays per pixel N x N (default 2)
   --noise SIGMA            sensor noise, grey levels (default 1.0)
   --exposure E             exposure factor (default 1.0)
@@ -70,14 +106,18 @@ Options:
 Output (stereo presets, one frame): left.png right.png, left_depth.pfm right_depth.pfm
 (metres, z in each optical frame), left_points.pfm right_points.pfm (XYZ in each optical
 frame), left_disparity.pfm right_disparity.pfm (pixels; rectified pairs only),
-left_labels.png right_labels.png (0 background, 1 back, 2 table, 3 floor, 9 plane,
-10+ box faces), left_visible.png (255: seen by the right camera too),
+left_labels.png right_labels.png (labels below), left_visible.png (255: seen by the right camera too),
 left_camera_info.yaml right_camera_info.yaml (ROS calibration), acupoints.yaml and
 landmarks.yaml (back: name -> [x, y, z] in the left optical frame, metres; landmarks.yaml
-also holds the spine midline), preview.png (left | right | GT disparity | acupoints
-overlaid), manifest.yaml.
+also holds the spine midline), acupoints_truth.yaml (back: per acupoint and landmark its
+left optical position, raw left and right pixels, the label at its left pixel, in_view and
+the reason when not in view), preview.png (left | right | GT disparity | acupoints in view
+green, not in view red, landmarks blue), manifest.yaml.
+Labels: 0 background, 1 back (and buttocks), 2 table, 3 floor, 4 arm, 5 neck, 6 head,
+7 hair, 8 towel, 9 plane, 10+ box faces, 250 face cradle.
 A session (--frames > 1) writes left_NNNN.png / right_NNNN.png, the calibrations,
-ground_truth.yaml (per frame: time, breathing phase, acupoints) and manifest.yaml.
+ground_truth.yaml (per frame: time, breathing phase, acupoints, the acupoints in view) and
+manifest.yaml.
 Exit status: 0 success, 1 rendering or writing failed (or the back is not in view),
 2 bad command line.
 )";
@@ -104,9 +144,68 @@ struct Options {
   double rate = 10.0;
   int views = 3;
   int boxes = 3;
+  // Subject variety.
+  int varied = 0;
+  std::string build;
+  double bmi = 24.0, stature = 1.75;
+  int skin_type = 0;
+  // Dressing.
+  std::string arms = "none";
+  double arm_angle = 0.0, arm_angle_right = -1.0;
+  bool head = false, lower_body = false;
+  std::string hair = "short", hair_colour = "brown", cradle_cover;
+  std::string towel, towel_weave = "terry", towel_edge = "L4-0.03";
+  double towel_tilt = 0.0;
+  std::string sheet, sheet_weave = "fine";
+  // Rig.
+  double toe_in = 0.0;
+  std::string frame_top, frame_bottom;
+  std::vector<std::string> given;  ///< options given on the command line
 };
 
 constexpr double kBreathPeriod = 4.0;  // seconds per breath (15 breaths a minute)
+
+bool given(const Options& o, const std::string& option) {
+  return std::find(o.given.begin(), o.given.end(), option) != o.given.end();
+}
+
+/// The subject, dressing and rig options: names known, ranges, combinations.
+void checkCellOptions(const Options& o) {
+  auto known = [](auto parse, const std::string& value) {
+    try {
+      parse(value);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+  };
+  require(o.varied >= 0, "--varied must be >= 1");
+  require(o.build.empty() || o.build == "male" || o.build == "female", "--build must be male or female, got '" + o.build + "'");
+  require(!(given(o, "--subject") + given(o, "--varied") + !o.build.empty() > 1),
+          "--subject, --varied and --build are exclusive");
+  require((!given(o, "--bmi") && !given(o, "--stature")) || !o.build.empty(), "--bmi and --stature need --build");
+  require(o.skin_type == 0 || (o.skin_type >= 1 && o.skin_type <= 6), "--skin-type must be in 1..6");
+  known(sim::armPoseFromName, o.arms);
+  require(o.arm_angle >= 0.0 && o.arm_angle <= 20.0, "--arm-angle must be in 0..20 degrees");
+  require(o.arm_angle_right < 0.0 || o.arm_angle_right <= 20.0, "--arm-angle-right must be in 0..20 degrees");
+  known(sim::hairLengthFromName, o.hair);
+  known(sim::hairColourFromName, o.hair_colour);
+  for (const std::string* c : {&o.cradle_cover, &o.towel, &o.sheet}) {
+    if (!c->empty()) known(sim::clothColour, *c);
+  }
+  known(sim::weaveFromName, o.towel_weave);
+  known(sim::weaveFromName, o.sheet_weave);
+  require(std::abs(o.towel_tilt) <= 15.0, "--towel-tilt must be in -15..15 degrees");
+  require(o.toe_in >= 0.0 && o.toe_in <= 15.0, "--toe-in must be in 0..15 degrees");
+  require(o.toe_in == 0.0 || o.raw, "--toe-in needs --raw (a toe-in pair is not rectified)");
+  require(o.frame_top.empty() == o.frame_bottom.empty(), "--frame-top and --frame-bottom go together");
+  const bool cell = o.arms != "none" || o.head || o.lower_body || !o.towel.empty() || !o.sheet.empty() ||
+                    o.varied > 0 || !o.build.empty() || o.skin_type > 0 || !o.frame_top.empty();
+  require(!cell || o.preset == "back", "subject, dressing and framing options are for the back preset");
+}
+
+/// Builds the subject, its dressing and the rig once so that bad values end
+/// as usage errors (defined with the rendering below).
+void checkBackSetup(const Options& o);
 
 bool parseOptions(int argc, char** argv, Options& o) {
   OptionTable t;
@@ -138,8 +237,36 @@ bool parseOptions(int argc, char** argv, Options& o) {
               {"--frames", integer(o.frames)},
               {"--rate", number(o.rate)},
               {"--views", integer(o.views)},
-              {"--boxes", integer(o.boxes)}};
-  t.flags = {{"--raw", [&o] { o.raw = true; }}};
+              {"--boxes", integer(o.boxes)},
+              {"--varied", integer(o.varied)},
+              {"--build", text(o.build)},
+              {"--bmi", number(o.bmi)},
+              {"--stature", number(o.stature)},
+              {"--skin-type", integer(o.skin_type)},
+              {"--arms", text(o.arms)},
+              {"--arm-angle", number(o.arm_angle)},
+              {"--arm-angle-right", number(o.arm_angle_right)},
+              {"--hair", text(o.hair)},
+              {"--hair-colour", text(o.hair_colour)},
+              {"--cradle-cover", text(o.cradle_cover)},
+              {"--towel", text(o.towel)},
+              {"--towel-weave", text(o.towel_weave)},
+              {"--towel-edge", text(o.towel_edge)},
+              {"--towel-tilt", number(o.towel_tilt)},
+              {"--sheet", text(o.sheet)},
+              {"--sheet-weave", text(o.sheet_weave)},
+              {"--toe-in", number(o.toe_in)},
+              {"--frame-top", text(o.frame_top)},
+              {"--frame-bottom", text(o.frame_bottom)}};
+  t.flags = {{"--raw", [&o] { o.raw = true; }},
+             {"--head", [&o] { o.head = true; }},
+             {"--lower-body", [&o] { o.lower_body = true; }}};
+  for (auto& [name, setter] : t.values) {
+    setter = [&o, name = name, inner = setter](const std::string& opt, const std::string& v) {
+      o.given.push_back(name);
+      inner(opt, v);
+    };
+  }
   if (!massage_cell::tools::parseArguments(argc, argv, t, kUsage)) return false;
 
   static const std::vector<std::string> presets{"back", "boxes", "efficiency_layers", "efficiency_gradient",
@@ -166,6 +293,8 @@ bool parseOptions(int argc, char** argv, Options& o) {
   require(o.rate > 0.0 && o.rate <= 1000.0, "--rate must be in (0, 1000] Hz");
   require(o.views >= 1 && o.views <= 64, "--views must be in 1..64");
   require(o.boxes >= 1 && o.boxes <= 40, "--boxes must be in 1..40");
+  checkCellOptions(o);
+  if (o.preset == "back") checkBackSetup(o);
   return true;
 }
 
@@ -220,10 +349,16 @@ void writeLandmarks(const fs::path& path, const std::map<std::string, Eigen::Vec
   if (!file) throw std::runtime_error("cannot write '" + path.string() + "'");
 }
 
+void writeYaml(const fs::path& path, const YAML::Emitter& out) {
+  std::ofstream file(path);
+  file << out.c_str() << "\n";
+  if (!file) throw std::runtime_error("cannot write '" + path.string() + "'");
+}
+
 /// A picture of a rendered pair: left | right | GT disparity (colour) | left
-/// with the acupoints (green), landmarks (red) and midline (yellow).
+/// with the acupoints (green: in view, red: not in view), landmarks (blue) and midline (yellow).
 cv::Mat previewImage(const sim::StereoFrame& f, const sim::CameraModel& left,
-                     const std::map<std::string, Eigen::Vector3d>& acupoints,
+                     const std::map<std::string, sim::PointTruth>& acupoints,
                      const std::map<std::string, Eigen::Vector3d>& landmarks, const std::vector<Eigen::Vector3d>& midline) {
   std::vector<cv::Mat> tiles{f.left.image, f.right.image};
   if (!f.left_disparity.empty()) {
@@ -243,18 +378,51 @@ cv::Mat previewImage(const sim::StereoFrame& f, const sim::CameraModel& left,
     if (left.project(p, &px)) cv::circle(overlay, cv::Point2d(px.x(), px.y()), radius, colour, cv::FILLED, cv::LINE_AA);
   };
   for (const auto& p : midline) dot(p, cv::Scalar(0, 220, 255), std::max(1, r / 2));
-  for (const auto& [name, p] : acupoints) dot(p, cv::Scalar(40, 200, 40), r);
-  for (const auto& [name, p] : landmarks) dot(p, cv::Scalar(40, 40, 230), r);
+  for (const auto& [name, t] : acupoints) dot(t.world, t.in_view ? cv::Scalar(40, 200, 40) : cv::Scalar(40, 40, 230), r);
+  for (const auto& [name, p] : landmarks) dot(p, cv::Scalar(230, 120, 40), r);
   tiles.push_back(overlay);
   cv::Mat out;
   cv::hconcat(tiles, out);
   return out;
 }
 
-void writeYaml(const fs::path& path, const YAML::Emitter& out) {
-  std::ofstream file(path);
-  file << out.c_str() << "\n";
-  if (!file) throw std::runtime_error("cannot write '" + path.string() + "'");
+void emitTruth(YAML::Emitter& out, const std::map<std::string, sim::PointTruth>& truth) {
+  out << YAML::BeginMap;
+  for (const auto& [name, t] : truth) {
+    out << YAML::Key << name << YAML::Value << YAML::BeginMap;
+    out << YAML::Key << "left_optical" << YAML::Value << YAML::Flow
+        << std::vector<double>{t.left_optical.x(), t.left_optical.y(), t.left_optical.z()};
+    out << YAML::Key << "left_pixel" << YAML::Value << YAML::Flow << std::vector<double>{t.left_pixel.x(), t.left_pixel.y()};
+    out << YAML::Key << "right_pixel" << YAML::Value << YAML::Flow
+        << std::vector<double>{t.right_pixel.x(), t.right_pixel.y()};
+    out << YAML::Key << "label" << YAML::Value << sim::labelName(t.left_label);
+    out << YAML::Key << "in_view" << YAML::Value << t.in_view;
+    out << YAML::Key << "reason" << YAML::Value << t.reason << YAML::EndMap;
+  }
+  out << YAML::EndMap;
+}
+
+/// acupoints_truth.yaml: the acupoints' and landmarks' truth in the left optical frame and raw pixels.
+void writeTruth(const fs::path& path, const std::map<std::string, sim::PointTruth>& acupoints,
+                const std::map<std::string, sim::PointTruth>& landmarks) {
+  YAML::Emitter out;
+  out.SetDoublePrecision(9);
+  out << YAML::BeginMap << YAML::Key << "frame_id" << YAML::Value << "left optical frame";
+  out << YAML::Key << "pixels" << YAML::Value << "raw images as rendered, (0, 0) = centre of the top-left pixel";
+  out << YAML::Key << "acupoints" << YAML::Value;
+  emitTruth(out, acupoints);
+  out << YAML::Key << "landmarks" << YAML::Value;
+  emitTruth(out, landmarks);
+  out << YAML::EndMap;
+  writeYaml(path, out);
+}
+
+std::vector<std::string> namesInView(const std::map<std::string, sim::PointTruth>& truth, bool in_view) {
+  std::vector<std::string> names;
+  for (const auto& [name, t] : truth) {
+    if (t.in_view == in_view) names.push_back(name);
+  }
+  return names;
 }
 
 /// World points -> optical-frame point map (NaN kept).
@@ -280,7 +448,22 @@ sim::LightPreset lightPreset(const std::string& name) {
   return sim::LightPreset::kTopCentre;
 }
 
-sim::StereoPairModel makePair(const Options& o) {
+constexpr double kDegree = 3.14159265358979323846 / 180.0;
+
+/// A world x from "0.05" (metres) or a vertebral level with an optional offset ("L4-0.18").
+double anatomicalX(const std::string& option, const std::string& text, const sim::BackModel& back) {
+  std::size_t split = 0;
+  while (split < text.size() && (std::isalnum(static_cast<unsigned char>(text[split])) != 0)) ++split;
+  if (split == 0 || std::isdigit(static_cast<unsigned char>(text[0])) != 0) return parseDouble(option, text);
+  const std::string level = text.substr(0, split);
+  const auto& levels = sim::vertebralLevels();
+  require(std::find(levels.begin(), levels.end(), level) != levels.end(),
+          option + ": unknown vertebral level '" + level + "' in '" + text + "' (C7, T1..T12, L1..L5)");
+  return back.levelX(level) + (split < text.size() ? parseDouble(option, text.substr(split)) : 0.0);
+}
+
+/// The stereo rig; framed on the back when --frame-top / --frame-bottom are given (`back` needed then).
+sim::StereoPairModel makePair(const Options& o, const sim::BackModel* back = nullptr) {
   sim::RigParameters rig;
   rig.width = o.width;
   rig.height = o.height;
@@ -289,11 +472,77 @@ sim::StereoPairModel makePair(const Options& o) {
   rig.centre.z() = o.camera_height;
   rig.shift = o.shift;
   rig.rectified = !o.raw;
+  rig.toe_in = o.toe_in * kDegree;
   try {
+    if (back && !o.frame_top.empty()) {
+      rig = sim::frameRig(rig, anatomicalX("--frame-top", o.frame_top, *back),
+                          anatomicalX("--frame-bottom", o.frame_bottom, *back), back->body().back_height);
+    }
     return sim::makeStereoPair(rig);
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
+}
+
+sim::BodyParameters bodyParameters(const Options& o) {
+  sim::BodyParameters body;
+  try {
+    if (o.varied > 0) {
+      body = sim::BodyParameters::varied(o.varied, o.body_seed);
+    } else if (!o.build.empty()) {
+      sim::Build b;
+      b.female = o.build == "female";
+      b.bmi = o.bmi;
+      b.stature = o.stature;
+      b.skin_type = o.skin_type > 0 ? o.skin_type : 2;
+      body = sim::bodyFromBuild(b);
+    } else {
+      body = sim::BodyParameters::subject(o.subject, o.body_seed);
+    }
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  if (o.skin_type > 0) body.skin_albedo = sim::fitzpatrickAlbedo(o.skin_type);
+  return body;
+}
+
+sim::Cloth cloth(const std::string& colour, const std::string& weave) {
+  return {sim::clothColour(colour), sim::weaveFromName(weave)};
+}
+
+sim::Dressing dressing(const Options& o, const sim::BackModel& back) {
+  sim::Dressing d;
+  d.arms = sim::armPoseFromName(o.arms);
+  d.arm_abduction_left = o.arm_angle * kDegree;
+  d.arm_abduction_right = (o.arm_angle_right >= 0.0 ? o.arm_angle_right : o.arm_angle) * kDegree;
+  d.head = o.head;
+  d.hair = sim::hairLengthFromName(o.hair);
+  d.hair_colour = sim::hairColourFromName(o.hair_colour);
+  if (!o.cradle_cover.empty()) d.cradle_cover = cloth(o.cradle_cover, "fine");
+  d.lower_body = o.lower_body || !o.towel.empty();
+  if (!o.towel.empty()) {
+    d.towel = cloth(o.towel, o.towel_weave);
+    d.towel_edge_x = anatomicalX("--towel-edge", o.towel_edge, back);
+    d.towel_edge_tilt = o.towel_tilt * kDegree;
+  }
+  if (!o.sheet.empty()) d.sheet = cloth(o.sheet, o.sheet_weave);
+  try {
+    d.validate(back);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  return d;
+}
+
+void checkBackSetup(const Options& o) {
+  const sim::BackModel back(bodyParameters(o));
+  (void)dressing(o, back);
+  (void)makePair(o, &back);
+}
+
+/// true when the options dress the back or frame the cameras on it.
+bool dressed(const Options& o) {
+  return o.arms != "none" || o.head || o.lower_body || !o.towel.empty() || !o.sheet.empty() || !o.frame_top.empty();
 }
 
 sim::RenderOptions renderOptions(const Options& o, std::uint32_t frame) {
@@ -335,11 +584,21 @@ void writeCalibrations(const fs::path& dir, const sim::StereoPairModel& pair, st
   files.push_back("right_camera_info.yaml");
 }
 
-/// Fails (exit 1) when the back is not seen by both cameras.
+/// Fails (exit 1) when the back is not seen by both cameras: C7 and L4 for
+/// the bare back, at least one acupoint when dressed or framed (where C7 or
+/// L4 may well be covered or out of the image).
 void requireBackInView(const sim::Renderer& renderer, const sim::StereoPairModel& pair, const sim::BackModel& back,
-                       const std::map<std::string, Eigen::Vector3d>& acupoints, std::vector<std::string>& hidden) {
+                       const std::map<std::string, Eigen::Vector3d>& acupoints, bool dressed_scene,
+                       std::vector<std::string>& hidden) {
   for (const auto& [name, p] : acupoints) {
     if (!sim::isVisible(renderer, pair.left, p) || !sim::isVisible(renderer, pair.right, p)) hidden.push_back(name);
+  }
+  if (dressed_scene) {
+    if (hidden.size() == acupoints.size()) {
+      throw std::runtime_error("the back is not in view: no acupoint is seen by both cameras (check the framing, "
+                               "--shift, --camera-height, --fx)");
+    }
+    return;
   }
   const auto landmarks = back.landmarks();
   for (const char* key : {"C7", "L4"}) {
@@ -365,6 +624,12 @@ void beginManifest(YAML::Emitter& m, const Options& o) {
 void emitBody(YAML::Emitter& m, const Options& o, const sim::BodyParameters& b) {
   m << YAML::Key << "subject" << YAML::Value << YAML::BeginMap;
   m << YAML::Key << "index" << YAML::Value << o.subject << YAML::Key << "body_seed" << YAML::Value << o.body_seed;
+  if (o.varied > 0) m << YAML::Key << "varied" << YAML::Value << o.varied;
+  if (!o.build.empty()) {
+    m << YAML::Key << "build" << YAML::Value << o.build << YAML::Key << "bmi" << YAML::Value << o.bmi;
+    m << YAML::Key << "stature" << YAML::Value << o.stature;
+  }
+  if (o.skin_type > 0) m << YAML::Key << "skin_type" << YAML::Value << o.skin_type;
   m << YAML::Key << "shoulder_width" << YAML::Value << b.shoulder_width;
   m << YAML::Key << "waist_width" << YAML::Value << b.waist_width;
   m << YAML::Key << "hip_width" << YAML::Value << b.hip_width;
@@ -373,6 +638,9 @@ void emitBody(YAML::Emitter& m, const Options& o, const sim::BodyParameters& b) 
   m << YAML::Key << "spine_depth" << YAML::Value << b.spine_depth;
   m << YAML::Key << "scapula_medial_offset" << YAML::Value << b.scapula_medial_offset;
   m << YAML::Key << "shoulder_slope" << YAML::Value << b.shoulder_slope;
+  m << YAML::Key << "lateral_rounding" << YAML::Value << b.lateral_rounding;
+  m << YAML::Key << "scapula_prominence" << YAML::Value << b.scapula_prominence;
+  m << YAML::Key << "spinous_prominence" << YAML::Value << b.spinous_prominence;
   m << YAML::Key << "skin_albedo" << YAML::Value << YAML::Flow
     << std::vector<float>{b.skin_albedo.x(), b.skin_albedo.y(), b.skin_albedo.z()};
   m << YAML::EndMap;
@@ -381,92 +649,145 @@ void emitBody(YAML::Emitter& m, const Options& o, const sim::BodyParameters& b) 
   m << YAML::Key << "breathing_amplitude" << YAML::Value << o.breathing_amplitude;
 }
 
+void emitDressing(YAML::Emitter& m, const Options& o, const sim::Dressing& d) {
+  m << YAML::Key << "dressing" << YAML::Value << YAML::BeginMap;
+  m << YAML::Key << "arms" << YAML::Value << o.arms;
+  m << YAML::Key << "arm_abduction" << YAML::Value << YAML::Flow
+    << std::vector<double>{d.arm_abduction_left, d.arm_abduction_right};
+  m << YAML::Key << "head" << YAML::Value << d.head;
+  if (d.head) m << YAML::Key << "hair" << YAML::Value << o.hair << YAML::Key << "hair_colour" << YAML::Value << o.hair_colour;
+  m << YAML::Key << "lower_body" << YAML::Value << d.lower_body;
+  m << YAML::Key << "towel" << YAML::Value << (o.towel.empty() ? "none" : o.towel);
+  if (d.towel) {
+    m << YAML::Key << "towel_weave" << YAML::Value << o.towel_weave;
+    m << YAML::Key << "towel_edge_x" << YAML::Value << d.towel_edge_x;
+  }
+  m << YAML::Key << "sheet" << YAML::Value << (o.sheet.empty() ? "default_sheet" : o.sheet);
+  m << YAML::Key << "toe_in_degrees" << YAML::Value << o.toe_in;
+  if (!o.frame_top.empty()) {
+    m << YAML::Key << "frame_top" << YAML::Value << o.frame_top << YAML::Key << "frame_bottom" << YAML::Value << o.frame_bottom;
+  }
+  m << YAML::EndMap;
+}
+
+/// The subject, its dressing and the rig of a back preset run.
+struct BackSetup {
+  sim::BodyParameters body;
+  sim::Dressing dressing;
+  sim::StereoPairModel pair;
+  sim::Lighting lighting;
+};
+
+/// One pair with the full ground truth. Returns the render time.
+double renderBackFrame(const Options& o, const BackSetup& c, const fs::path& dir, YAML::Emitter& m,
+                       std::vector<std::string>& files) {
+  const sim::BackModel back(c.body, o.breathing_phase, o.breathing_amplitude);
+  const sim::Renderer renderer(sim::makeCellScene(back, o.seed, c.dressing));
+  std::vector<std::string> hidden;
+  const auto acupoints = back.acupoints();
+  requireBackInView(renderer, c.pair, back, acupoints, dressed(o), hidden);
+  const auto start = Clock::now();
+  const sim::StereoFrame frame = sim::renderStereoFrame(renderer, c.pair, c.lighting, renderOptions(o, 0));
+  const double seconds = secondsSince(start);
+  writeStereoFrame(dir, c.pair, frame, files);
+  writePoints(dir / "acupoints.yaml", sim::toCameraFrame(acupoints, c.pair.left));
+  const Eigen::Isometry3d left_from_world = c.pair.left.world_from_camera.inverse();
+  std::vector<Eigen::Vector3d> midline;
+  for (const auto& p : back.midline()) midline.push_back(left_from_world * p);
+  writeLandmarks(dir / "landmarks.yaml", sim::toCameraFrame(back.landmarks(), c.pair.left), midline);
+  const auto truth = sim::acupointTruth(acupoints, c.pair, frame);
+  writeTruth(dir / "acupoints_truth.yaml", truth, sim::acupointTruth(back.landmarks(), c.pair, frame));
+  sim::writeImage((dir / "preview.png").string(), previewImage(frame, c.pair.left, truth, back.landmarks(), back.midline()));
+  files.insert(files.end(), {"acupoints.yaml", "landmarks.yaml", "acupoints_truth.yaml", "preview.png"});
+  m << YAML::Key << "breathing_phase" << YAML::Value << o.breathing_phase;
+  m << YAML::Key << "acupoints_not_visible_in_both" << YAML::Value << YAML::Flow << hidden;
+  m << YAML::Key << "acupoints_in_view" << YAML::Value << namesInView(truth, true).size();
+  m << YAML::Key << "acupoints_not_in_view" << YAML::Value << YAML::Flow << namesInView(truth, false);
+  return seconds;
+}
+
+/// A session of breathing frames: numbered pairs and per-frame ground truth. Returns the render time.
+double renderBackSession(const Options& o, const BackSetup& c, const fs::path& dir, std::vector<std::string>& files) {
+  double total = 0.0;
+  YAML::Emitter gt;
+  gt.SetDoublePrecision(9);
+  gt << YAML::BeginMap << YAML::Key << "frame_id" << YAML::Value << "left optical frame";
+  gt << YAML::Key << "rate" << YAML::Value << o.rate << YAML::Key << "frames" << YAML::Value << YAML::BeginSeq;
+  for (int i = 0; i < o.frames; ++i) {
+    const double t = i / o.rate;
+    const double phase = std::fmod(o.breathing_phase + t / kBreathPeriod, 1.0);
+    const sim::BackModel back(c.body, phase, o.breathing_amplitude);
+    const sim::Renderer renderer(sim::makeCellScene(back, o.seed, c.dressing));
+    const auto acupoints = back.acupoints();
+    if (i == 0) {
+      std::vector<std::string> hidden;
+      requireBackInView(renderer, c.pair, back, acupoints, dressed(o), hidden);
+    }
+    const auto start = Clock::now();
+    const sim::StereoFrame frame = sim::renderStereoFrame(renderer, c.pair, c.lighting, renderOptions(o, i));
+    total += secondsSince(start);
+    char name[32];
+    std::snprintf(name, sizeof name, "left_%04d.png", i);
+    sim::writeImage((dir / name).string(), frame.left.image);
+    files.push_back(name);
+    std::snprintf(name, sizeof name, "right_%04d.png", i);
+    sim::writeImage((dir / name).string(), frame.right.image);
+    files.push_back(name);
+    gt << YAML::BeginMap << YAML::Key << "index" << YAML::Value << i << YAML::Key << "time" << YAML::Value << t;
+    gt << YAML::Key << "breathing_phase" << YAML::Value << phase;
+    gt << YAML::Key << "acupoints" << YAML::Value << YAML::BeginMap;
+    for (const auto& [n, p] : sim::toCameraFrame(acupoints, c.pair.left)) {
+      gt << YAML::Key << n << YAML::Value << YAML::Flow << std::vector<double>{p.x(), p.y(), p.z()};
+    }
+    gt << YAML::EndMap << YAML::Key << "in_view" << YAML::Value << YAML::Flow
+       << namesInView(sim::acupointTruth(acupoints, c.pair, frame), true) << YAML::EndMap;
+  }
+  gt << YAML::EndSeq << YAML::EndMap;
+  writeYaml(dir / "ground_truth.yaml", gt);
+  files.push_back("ground_truth.yaml");
+  return total;
+}
+
 void renderBack(const Options& o, const fs::path& dir) {
-  const sim::BodyParameters body = sim::BodyParameters::subject(o.subject, o.body_seed);
-  const sim::StereoPairModel pair = makePair(o);
-  const sim::Lighting lighting = sim::Lighting::preset(lightPreset(o.light));
+  BackSetup c;
+  c.body = bodyParameters(o);
+  const sim::BackModel at_rest(c.body);
+  c.dressing = dressing(o, at_rest);
+  c.pair = makePair(o, &at_rest);
+  c.lighting = sim::Lighting::preset(lightPreset(o.light));
   std::vector<std::string> files;
-  writeCalibrations(dir, pair, files);
+  writeCalibrations(dir, c.pair, files);
 
   YAML::Emitter m;
   m.SetDoublePrecision(9);
   beginManifest(m, o);
-  emitBody(m, o, body);
-  m << YAML::Key << "rectified" << YAML::Value << pair.rectified;
-  m << YAML::Key << "baseline" << YAML::Value << pair.baseline();
+  emitBody(m, o, c.body);
+  emitDressing(m, o, c.dressing);
+  m << YAML::Key << "rectified" << YAML::Value << c.pair.rectified;
+  m << YAML::Key << "baseline" << YAML::Value << c.pair.baseline();
   m << YAML::Key << "cameras" << YAML::Value << YAML::BeginMap;
-  emitCamera(m, "left", pair.left);
-  emitCamera(m, "right", pair.right);
+  emitCamera(m, "left", c.pair.left);
+  emitCamera(m, "right", c.pair.right);
   m << YAML::EndMap;
 
   double total_render = 0.0;
   if (o.frames == 1) {
-    const sim::BackModel back(body, o.breathing_phase, o.breathing_amplitude);
-    const sim::Renderer renderer(sim::makeBackScene(back, o.seed));
-    std::vector<std::string> hidden;
-    const auto acupoints = back.acupoints();
-    requireBackInView(renderer, pair, back, acupoints, hidden);
-    const auto start = Clock::now();
-    const sim::StereoFrame frame = sim::renderStereoFrame(renderer, pair, lighting, renderOptions(o, 0));
-    total_render = secondsSince(start);
-    writeStereoFrame(dir, pair, frame, files);
-    writePoints(dir / "acupoints.yaml", sim::toCameraFrame(acupoints, pair.left));
-    const Eigen::Isometry3d left_from_world = pair.left.world_from_camera.inverse();
-    std::vector<Eigen::Vector3d> midline;
-    for (const auto& p : back.midline()) midline.push_back(left_from_world * p);
-    writeLandmarks(dir / "landmarks.yaml", sim::toCameraFrame(back.landmarks(), pair.left), midline);
-    sim::writeImage((dir / "preview.png").string(),
-                    previewImage(frame, pair.left, acupoints, back.landmarks(), back.midline()));
-    files.push_back("acupoints.yaml");
-    files.push_back("landmarks.yaml");
-    files.push_back("preview.png");
-    m << YAML::Key << "breathing_phase" << YAML::Value << o.breathing_phase;
-    m << YAML::Key << "acupoints_not_visible_in_both" << YAML::Value << YAML::Flow << hidden;
+    total_render = renderBackFrame(o, c, dir, m, files);
   } else {
-    YAML::Emitter gt;
-    gt.SetDoublePrecision(9);
-    gt << YAML::BeginMap << YAML::Key << "frame_id" << YAML::Value << "left optical frame";
-    gt << YAML::Key << "rate" << YAML::Value << o.rate << YAML::Key << "frames" << YAML::Value << YAML::BeginSeq;
-    for (int i = 0; i < o.frames; ++i) {
-      const double t = i / o.rate;
-      const double phase = std::fmod(o.breathing_phase + t / kBreathPeriod, 1.0);
-      const sim::BackModel back(body, phase, o.breathing_amplitude);
-      const sim::Renderer renderer(sim::makeBackScene(back, o.seed));
-      const auto acupoints = back.acupoints();
-      if (i == 0) {
-        std::vector<std::string> hidden;
-        requireBackInView(renderer, pair, back, acupoints, hidden);
-      }
-      const auto start = Clock::now();
-      const sim::StereoFrame frame = sim::renderStereoFrame(renderer, pair, lighting, renderOptions(o, i));
-      total_render += secondsSince(start);
-      char name[32];
-      std::snprintf(name, sizeof name, "left_%04d.png", i);
-      sim::writeImage((dir / name).string(), frame.left.image);
-      files.push_back(name);
-      std::snprintf(name, sizeof name, "right_%04d.png", i);
-      sim::writeImage((dir / name).string(), frame.right.image);
-      files.push_back(name);
-      gt << YAML::BeginMap << YAML::Key << "index" << YAML::Value << i << YAML::Key << "time" << YAML::Value << t;
-      gt << YAML::Key << "breathing_phase" << YAML::Value << phase;
-      gt << YAML::Key << "acupoints" << YAML::Value << YAML::BeginMap;
-      for (const auto& [n, p] : sim::toCameraFrame(acupoints, pair.left)) {
-        gt << YAML::Key << n << YAML::Value << YAML::Flow << std::vector<double>{p.x(), p.y(), p.z()};
-      }
-      gt << YAML::EndMap << YAML::EndMap;
-    }
-    gt << YAML::EndSeq << YAML::EndMap;
-    writeYaml(dir / "ground_truth.yaml", gt);
-    files.push_back("ground_truth.yaml");
+    total_render = renderBackSession(o, c, dir, files);
     m << YAML::Key << "frames" << YAML::Value << o.frames << YAML::Key << "rate" << YAML::Value << o.rate;
     m << YAML::Key << "breath_period" << YAML::Value << kBreathPeriod;
   }
   m << YAML::Key << "render_seconds_per_pair" << YAML::Value << total_render / o.frames;
   m << YAML::Key << "files" << YAML::Value << files << YAML::EndMap;
   writeYaml(dir / "manifest.yaml", m);
-  std::printf("render_scene: back, subject %d, light %s, shift %.3f m, %s %dx%d: %d pair%s in %.3f s (%.3f s per pair) -> %s\n",
-              o.subject, o.light.c_str(), o.shift, pair.rectified ? "rectified" : "raw", o.width, o.height, o.frames,
-              o.frames == 1 ? "" : "s", total_render, total_render / o.frames, dir.string().c_str());
+  const std::string who = o.varied > 0     ? "varied subject " + std::to_string(o.varied)
+                          : !o.build.empty() ? o.build + " build, BMI " + std::to_string(o.bmi).substr(0, 4)
+                                             : "subject " + std::to_string(o.subject);
+  std::printf("render_scene: back, %s%s, light %s, shift %.3f m, %s %dx%d: %d pair%s in %.3f s (%.3f s per pair) -> %s\n",
+              who.c_str(), dressed(o) ? " (dressed)" : "", o.light.c_str(), o.shift,
+              c.pair.rectified ? "rectified" : "raw", o.width, o.height, o.frames, o.frames == 1 ? "" : "s",
+              total_render, total_render / o.frames, dir.string().c_str());
 }
 
 void renderBoxes(const Options& o, const fs::path& dir) {

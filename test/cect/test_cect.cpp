@@ -177,11 +177,13 @@ TEST(Cect, FoundationalCorrespondencesPickTheRightCrossing) {
   // U-shaped region: rows through the arms cross the right contour four
   // times; every foundational correspondence must take the crossing of its
   // own border (a wrong one is off by tens of pixels).
+  // (The shape, not a back: the segmentation keeps it whole, arms included.)
   const AffineScene s = makeAffineScene(480, 360, true);
   auto [l, r] = rectifiedInfo(480, 360, 400, 0.1);
   cect::CectParams p;
   p.seed_step = 0;
   p.query_search = 0;
+  p.segmentation.trunk.separate_arms = false;
   const cect::CectFrame f = cect::CectFrame::analyse(s.left, s.right, cect::StereoGeometry(l, r), p);
   ASSERT_TRUE(f.valid()) << f.reason();
   ASSERT_GT(f.foundationalCount(), 80u);

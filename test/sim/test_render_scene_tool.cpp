@@ -103,6 +103,38 @@ TEST(RenderSceneTool, OtherPresets) {
   }
 }
 
+TEST(RenderSceneTool, DressedBackWritesWhichAcupointsAreInView) {
+  TempDir dir;
+  const YAML::Node m = renderOk(
+      "--preset back --varied 3 --arms along --arm-angle 10 --head --hair nape --hair-colour blond"
+      " --towel light_blue --towel-weave waffle --towel-edge L4-0.02 --sheet peach --raw --toe-in 2"
+      " --baseline 0.08 --frame-top C7+0.03 --frame-bottom L4-0.15 --width 320 --height 240 --fx 250 --supersample 1",
+      dir);
+  EXPECT_EQ(m["dressing"]["arms"].as<std::string>(), "along");
+  EXPECT_EQ(m["subject"]["varied"].as<int>(), 3);
+  EXPECT_FALSE(m["rectified"].as<bool>());
+  const YAML::Node truth = YAML::LoadFile((dir.path() / "acupoints_truth.yaml").string());
+  ASSERT_TRUE(truth["acupoints"]["BL26_L"]);
+  EXPECT_FALSE(truth["acupoints"]["BL26_L"]["in_view"].as<bool>());  // L5: under the towel
+  EXPECT_EQ(truth["acupoints"]["BL26_L"]["reason"].as<std::string>(), "under the towel");
+  EXPECT_TRUE(truth["acupoints"]["BL15_L"]["in_view"].as<bool>());
+  EXPECT_EQ(truth["acupoints"]["BL15_L"]["label"].as<std::string>(), "back");
+  EXPECT_EQ(truth["acupoints"]["BL15_L"]["right_pixel"].size(), 2u);
+  EXPECT_TRUE(truth["landmarks"]["C7"]);
+  EXPECT_GT(m["acupoints_in_view"].as<int>(), 50);
+  const cv::Mat labels = cv::imread((dir.path() / "left_labels.png").string(), cv::IMREAD_UNCHANGED);
+  for (int label : {1, 2, 4, 5, 8}) EXPECT_GT(cv::countNonZero(labels == label), 0) << label;
+}
+
+TEST(RenderSceneTool, BodyBuildsAndSkinTypes) {
+  TempDir dir;
+  const YAML::Node m = renderOk("--preset back --build female --bmi 34 --stature 1.62 --skin-type 5" + kSmall, dir);
+  EXPECT_EQ(m["subject"]["build"].as<std::string>(), "female");
+  EXPECT_EQ(m["subject"]["skin_type"].as<int>(), 5);
+  EXPECT_NEAR(m["subject"]["skin_albedo"][0].as<double>(), 0.30, 1e-6);
+  EXPECT_TRUE(fs::exists(dir.path() / "acupoints_truth.yaml"));
+}
+
 TEST(RenderSceneTool, BadInputFailsWithAMessage) {
   TempDir dir;
   const std::string out = " --out " + dir.str();
@@ -114,6 +146,15 @@ TEST(RenderSceneTool, BadInputFailsWithAMessage) {
   expectFailure("--preset back" + kSmall + " --shift 2.0" + out, 1, "the back is not in view");
   expectFailure("--preset back" + kSmall + " --out /proc/massage_cell/forbidden", 1, "cannot create output folder");
   expectFailure("--preset back", 2, "--out: an output folder is required");
+  expectFailure("--preset back --arms sideways" + out, 2, "unknown arm pose 'sideways'");
+  expectFailure("--preset back --toe-in 3" + out, 2, "--toe-in needs --raw");
+  expectFailure("--preset back --towel white --towel-edge C7+0.3" + out, 2, "towel_edge_x");
+  expectFailure("--preset back --towel white --towel-edge X9" + out, 2, "unknown vertebral level 'X9'");
+  expectFailure("--preset back --frame-top C7" + out, 2, "--frame-top and --frame-bottom go together");
+  expectFailure("--preset back --subject 3 --varied 2" + out, 2, "exclusive");
+  expectFailure("--preset back --skin-type 7" + out, 2, "--skin-type must be in 1..6");
+  expectFailure("--preset back --arm-angle 30" + out, 2, "--arm-angle must be in 0..20");
+  expectFailure("--preset boxes --head" + out, 2, "for the back preset");
 }
 
 }  // namespace

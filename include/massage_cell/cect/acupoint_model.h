@@ -48,6 +48,13 @@ struct AcupointModel {
   /// the body). correctWaistParallax measures the subject's own offset in 3D
   /// and moves the waist by the difference. Optional in the YAML (0).
   double waist_rim_offset = 0.0;
+  /// Proportions for landmarks out of view (optional in the YAML): the
+  /// shoulder line (the upper back's widest row) lies this fraction of
+  /// C7 -> L4 below C7 (C7 from it when the neck is out of view), and C7 -> L4
+  /// is this many shoulder widths (L4 from C7 when the waist or the hips are
+  /// out of view), both in the image's rows.
+  double shoulder_below_c7 = 0.15;
+  double length_per_shoulder_width = 1.22;
   bool head_up = true;  ///< head toward the image top
   std::vector<AcupointSpec> points;
 
@@ -90,6 +97,13 @@ struct BackLandmarks {
   std::vector<double> along;
   /// The body's frame -> the rectified left image (a rotation and a shift).
   cv::Matx23d to_image = cv::Matx23d(1, 0, 0, 0, 1, 0);
+  /// What fixed the levels: C7 measured (at the neck's base or the back's
+  /// top) or inferred from the shoulder line; the waist measured or L4
+  /// inferred from C7 and the shoulder width. `measured` / `inferred` say it
+  /// in words.
+  bool c7_measured = true;
+  bool waist_measured = true;
+  std::vector<std::string> measured, inferred;
   /// How far the body is turned against the image's columns, degrees
   /// (+: the head toward the image right of a head-up view, clockwise on screen); 0 within
   /// 1 degree.

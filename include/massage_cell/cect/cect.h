@@ -47,8 +47,16 @@ struct CectParams {
   /// back, the parameters below still mean the same on the skin. false:
   /// they are used as given (in the view's own pixels).
   bool auto_scale = true;
-  double min_disparity = 1.0;   ///< rectified pixels; crossings outside [min, max] are not correspondences
-  double max_disparity = 0.0;   ///< 0: half the image width
+  /// The depths the back may lie at, metres from the left camera along its
+  /// axis: the disparity search follows from them and the calibration
+  /// (disparityRange), so a new rig needs no change. The default suits a
+  /// camera above a massage table.
+  double min_depth = 0.25;
+  double max_depth = 2.5;
+  /// Explicit disparity bounds, rectified pixels (0: from max_depth /
+  /// min_depth). Crossings outside [min, max] are not correspondences.
+  double min_disparity = 0.0;
+  double max_disparity = 0.0;
   double sample_spacing = 4.0;  ///< rows between foundational samples, pixels
   /// A border crossing whose border runs within this angle of the epipolar
   /// line (degrees) is ill-conditioned (its position along the row is
@@ -194,6 +202,12 @@ struct CectParams {
 /// the body (d 51-59 px at B 0.1 m). 1 for a non-positive disparity or baseline.
 double viewScale(double median_disparity, double baseline);
 
+/// The disparities searched, [min, max] rectified pixels: min_disparity /
+/// max_disparity where given (> 0), else those of max_depth / min_depth for
+/// this calibration (at least 0.5 px, at most the image width - 1). An empty
+/// range ([0, 0]) for non-finite values.
+cv::Vec2d disparityRange(const CectParams& p, const StereoGeometry& geometry);
+
 /// `p` with its pixel parameters scaled by `scale`: sizes on the image
 /// (window, seed grid, band-pass and sheen sigmas, contour sampling, edge
 /// window, seed margin, the segmentation's blur, morphology and contour
@@ -283,6 +297,8 @@ class CectFrame {
   /// The view's scale against the reference (viewScale; 1 without
   /// auto_scale, and before the contour is matched).
   double scale() const { return scale_; }
+  /// The disparities searched (disparityRange).
+  cv::Vec2d disparityRange() const { return disparity_range_; }
 
   /// A raw left-image pixel -> its 3D point (valid = false with a reason
   /// outside the back, outside the triangulation, or when the constraints
@@ -300,6 +316,7 @@ class CectFrame {
   StereoGeometry geometry_;
   CectParams params_;
   double scale_ = 1.0;
+  cv::Vec2d disparity_range_{0.0, 0.0};
   Segmentation left_seg_, right_seg_;
   cv::Mat left_rect_, right_rect_;          ///< BGR
   cv::Mat left_grey_, right_grey_;          ///< CV_32F

@@ -22,6 +22,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "massage_cell/cect/trunk.h"
+
 namespace massage_cell::cect {
 
 struct SegmentationParams {
@@ -34,6 +36,8 @@ struct SegmentationParams {
   /// Pixels closer than this to the image border are "at the border": a back
   /// whose contour runs along the border is partly out of view.
   int border_margin = 2;
+  /// The trunk out of the skin-coloured region (arms, skin-coloured cloth): trunk.h.
+  TrunkParams trunk;
 };
 
 struct Segmentation {
@@ -67,6 +71,8 @@ struct Segmentation {
   /// border (0: the back is entirely in view). Such samples lie on the
   /// image's edge, not on the back's border: callers decide what to accept.
   double border_fraction = 0.0;
+  /// What was cut away from the skin-coloured region to leave the trunk.
+  TrunkReport trunk;
 };
 
 /// Segments the back in a BGR (CV_8UC3) image. Never throws for image

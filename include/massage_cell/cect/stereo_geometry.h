@@ -36,6 +36,8 @@ class StereoGeometry {
   double cx() const { return cx_; }
   double cy() const { return cy_; }
   double baseline() const { return baseline_; }  ///< metres
+  /// Rectified disparity of a point at depth z (metres, > 0) in the left optical frame.
+  double disparityAtDepth(double z) const { return fx_ * baseline_ / z + (cx_ - cx_right_); }
 
   /// Rectified images (copies, or remapped with cached maps).
   void rectify(const cv::Mat& left_raw, const cv::Mat& right_raw, cv::Mat* left_rect, cv::Mat* right_rect) const;

@@ -33,6 +33,7 @@ struct BodyParameters {
   double scapula_medial_offset = 0.075; ///< midline to the medial scapular border (= 3 cun)
   double shoulder_slope = 0.25;      ///< radians: drop of the shoulders toward the arms
   double buttock_height = 0.05;      ///< rise of the upper buttocks above the lower back
+  double spinous_prominence = 0.0;   ///< height of the spinous processes' bumps in the spine groove (lean builds)
   Eigen::Vector3f skin_albedo{0.78f, 0.57f, 0.47f};  ///< linear RGB
   int moles = 4;                     ///< number of small dark spots on the skin
   std::uint32_t skin_seed = 1;
@@ -42,9 +43,38 @@ struct BodyParameters {
   /// Subject `index` in 1..28 (distinct bodies and skin tones drawn around the
   /// mean from `seed`); 0 is the mean subject. Throws std::invalid_argument otherwise.
   static BodyParameters subject(int index, std::uint32_t seed = 2024);
+  /// Subject `index` >= 1 of a wide population drawn from `seed`: male (odd
+  /// index) and female (even) builds, BMI spread over 18..38, statures over
+  /// the adult range, and the six Fitzpatrick skin types in turn (every 12
+  /// consecutive indices hold each type for both sexes); 0 is the mean
+  /// subject. Throws std::invalid_argument for a negative index.
+  static BodyParameters varied(int index, std::uint32_t seed = 2024);
   /// Throws std::invalid_argument naming the first implausible value.
   void validate() const;
 };
+
+/// A subject described the way a clinic would: sex, body-mass index,
+/// stature and Fitzpatrick skin type.
+struct Build {
+  bool female = false;
+  double bmi = 24.0;       ///< kg/m^2, 16..42
+  double stature = 1.75;   ///< metres, 1.40..2.05
+  int skin_type = 2;       ///< Fitzpatrick I..VI as 1..6
+  int moles = 4;
+  std::uint32_t skin_seed = 1;
+  /// Throws std::invalid_argument naming the first value out of range.
+  void validate() const;
+};
+
+/// Body parameters of a build: widths, depth, roundness and the visibility
+/// of scapulae, spine groove and spinous processes follow BMI and sex
+/// (lean: bony landmarks stand out; obese: round flanks, hardly any waist,
+/// faint landmarks), lengths follow the stature. Throws std::invalid_argument.
+BodyParameters bodyFromBuild(const Build& build);
+
+/// Typical linear-RGB albedo of Fitzpatrick skin type 1..6 (I very light ..
+/// VI very dark); luminance strictly decreasing. Throws std::invalid_argument.
+Eigen::Vector3f fitzpatrickAlbedo(int skin_type);
 
 /// Vertebral level names in order: "C7", "T1".."T12", "L1".."L5".
 const std::vector<std::string>& vertebralLevels();
@@ -62,6 +92,9 @@ class BackModel {
   double halfWidth(double x) const;
   /// x extent of the modelled back surface [x_min, x_max] (upper buttocks .. neck base).
   Eigen::Vector2d extent() const;
+  /// The part of extent() at full height: without the end caps that lower the
+  /// surface to the table at the buttocks and at the neck base.
+  Eigen::Vector2d fullHeightExtent() const;
   /// Triangle mesh of the back surface down to the table, `spacing` metres
   /// between vertices, label kLabelBack, skin material with the body's albedo.
   Mesh mesh(double spacing = 0.004) const;

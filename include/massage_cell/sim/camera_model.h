@@ -64,10 +64,23 @@ struct RigParameters {
   std::vector<double> distortion{-0.12, 0.05, 0.0005, -0.0003, 0.0};
   Eigen::Vector3d left_rotation{0.004, -0.006, 0.003};
   Eigen::Vector3d right_rotation{-0.003, 0.008, -0.004};
+  /// Raw pairs only: toe-in, radians (0 .. 0.3): each camera yawed about its
+  /// image y axis toward the other, so that the optical axes converge at
+  /// about baseline / (2 tan(toe_in)) in front of the rig (applied before
+  /// the small rotations above). 0 = parallel axes.
+  double toe_in = 0.0;
 };
 
 /// Throws std::invalid_argument for invalid parameters (size, fx, baseline <= 0, ...).
 StereoPairModel makeStereoPair(const RigParameters& rig);
+
+/// `rig` moved along world x and z (its y, orientation, size and lenses
+/// kept, shift set to 0) so that the left image's top and bottom edges, at the
+/// middle column, meet the horizontal plane z = surface_z at world x = x_top
+/// and x = x_bottom (x_top > x_bottom: the head at the top). Lens distortion
+/// and toe-in are accounted for. Throws std::invalid_argument for bad
+/// parameters or a framing the rig cannot reach (camera below the plane).
+RigParameters frameRig(const RigParameters& rig, double x_top, double x_bottom, double surface_z);
 
 /// `count` cameras on an arc above `target` at `distance`, looking at it,
 /// spread over `spread` radians around the world z axis (multi-view sets).

@@ -20,9 +20,18 @@ enum Label : std::uint8_t {
   kLabelBack = 1,        ///< the subject's skin
   kLabelTable = 2,       ///< massage table and its sheet
   kLabelFloor = 3,       ///< floor under the table
-  kLabelBoxFace = 10,    ///< box faces: kLabelBoxFace + face index (up to 245 faces)
-  kLabelPlane = 9        ///< calibration / efficiency planes
+  kLabelArm = 4,         ///< the subject's arms and hands (cell_scene.h)
+  kLabelNeck = 5,        ///< the skin of the neck
+  kLabelHead = 6,        ///< the skin of the head and face
+  kLabelHair = 7,        ///< hair on the head (and the nape)
+  kLabelTowel = 8,       ///< towels and drapes over the body
+  kLabelPlane = 9,       ///< calibration / efficiency planes
+  kLabelBoxFace = 10,    ///< box faces: kLabelBoxFace + face index (10..249 for the 40 boxes a scene may hold)
+  kLabelCradle = 250     ///< the face cradle: its padded ring and support
 };
+
+/// Short lower-case name of a label ("back", "towel", "box face", ...).
+const char* labelName(std::uint8_t label);
 
 /// A small round spot on the skin (a mole or a freckle), in surface (u, v) metres.
 struct Spot {
@@ -37,7 +46,10 @@ struct Material {
     kFlat,     ///< uniform albedo
     kSkin,     ///< smooth albedo with faint low-contrast mottling and optional spots
     kCloth,    ///< fine weave-like texture (sheets)
-    kTexture   ///< strong multi-scale colour texture (boxes, efficiency scenes)
+    kTexture,  ///< strong multi-scale colour texture (boxes, efficiency scenes)
+    kTerry,    ///< terry towelling: a dense field of small loops (feature_size = loop pitch)
+    kWaffle,   ///< waffle weave: raised ridges around square cells (feature_size = cell pitch)
+    kHair      ///< hair: fine strands along u (feature_size = strand width), clumps and sheen in the albedo
   };
   Pattern pattern = Pattern::kFlat;
   Eigen::Vector3f albedo{0.5f, 0.5f, 0.5f};

@@ -12,8 +12,16 @@
 
 namespace massage_cell::sim {
 
+/// The massage table of the back scenes: top at z = 0 over x in
+/// [kTableFootX, kTableHeadX], |y| <= kTableHalfWidth; the floor below.
+constexpr float kTableHeadX = 0.45f;
+constexpr float kTableFootX = -1.45f;
+constexpr float kTableHalfWidth = 0.36f;
+constexpr float kTableThickness = 0.10f;
+constexpr float kFloorZ = -0.75f;
+
 /// The massage table (top at z = 0) under a cloth sheet, on a floor, with
-/// the subject's back mesh on it.
+/// the subject's back mesh on it. meshes: table, floor, back.
 Scene makeBackScene(const BackModel& back, std::uint32_t seed);
 
 /// `count` textured boxes stacked on the table (no subject): each face has

@@ -1,0 +1,51 @@
+// The acupoint chain on one analysed pair, in one place for the node and the
+// tools: landmarks of the back in the left view, the model's corrections with
+// the back's 3D, each acupoint placed in the left image and localised in 3D
+// by CECT. ROS-free.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "massage_cell/cect/acupoint_model.h"
+#include "massage_cell/cect/cect.h"
+
+namespace massage_cell::cect {
+
+struct LocateOptions {
+  /// Move the midline off the silhouette's parallax (correctMidlineParallax).
+  bool correct_parallax = true;
+  /// The waist at the spine's height and the levels spaced along the body
+  /// in 3D (correctWaistParallax, measureLevelsIn3D).
+  bool levels_in_3d = true;
+};
+
+/// One acupoint of the model in one pair.
+struct LocatedAcupoint {
+  std::string name;
+  std::string region;
+  bool placed = false;      ///< the model put it on a left-image pixel
+  cv::Point2f rectified;    ///< that pixel, rectified left image
+  cv::Point2f raw;          ///< ... and raw left image
+  LocalizedPoint point;     ///< CECT's 3D point there (point.valid)
+  bool valid = false;       ///< placed and localised
+  std::string reason;       ///< why not valid
+};
+
+struct LocatedAcupoints {
+  /// The pair gave acupoints (a back was seen and its landmarks found);
+  /// otherwise `reason` says why and every point carries it.
+  bool valid = false;
+  std::string reason;
+  BackLandmarks landmarks;
+  std::vector<LocatedAcupoint> points;  ///< in the model's order
+  int validCount() const;
+};
+
+/// Runs the chain on `frame` (valid or not: an invalid frame gives every
+/// point its reason). Never throws for image content.
+LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& model, const LocateOptions& options = {});
+
+}  // namespace massage_cell::cect

@@ -1,0 +1,63 @@
+#include "massage_cell/cect/locate.h"
+
+#include <algorithm>
+
+namespace massage_cell::cect {
+
+int LocatedAcupoints::validCount() const {
+  return static_cast<int>(std::count_if(points.begin(), points.end(), [](const LocatedAcupoint& p) { return p.valid; }));
+}
+
+namespace {
+
+/// Every point of the model, not placed, with `why`.
+LocatedAcupoints unplaced(const AcupointModel& model, const std::string& why) {
+  LocatedAcupoints out;
+  out.reason = why;
+  for (const AcupointSpec& spec : model.points) {
+    LocatedAcupoint p;
+    p.name = spec.name;
+    p.region = spec.region;
+    p.reason = why;
+    out.points.push_back(std::move(p));
+  }
+  return out;
+}
+
+}  // namespace
+
+LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& model, const LocateOptions& options) {
+  if (!frame.valid()) return unplaced(model, "no usable view of the back: " + frame.reason());
+  BackLandmarks landmarks = findLandmarks(frame.left(), model);
+  if (!landmarks.valid) return unplaced(model, "no landmarks of the back: " + landmarks.reason);
+
+  const PointLookup points = framePoints(frame);
+  if (options.correct_parallax) correctMidlineParallax(&landmarks, frame.left(), points);
+  if (options.levels_in_3d) {
+    correctWaistParallax(&landmarks, model, frame.left(), points);
+    measureLevelsIn3D(&landmarks, points);
+  }
+  const std::vector<AcupointPixel> placed = placeAcupoints(landmarks, model, frameScale(frame));
+
+  LocatedAcupoints out = unplaced(model, "not placed by the acupoint model");
+  out.valid = true;
+  out.reason.clear();
+  for (LocatedAcupoint& p : out.points) {
+    const auto it = std::find_if(placed.begin(), placed.end(), [&](const AcupointPixel& a) { return a.name == p.name; });
+    if (it == placed.end()) continue;
+    if (!it->valid) {
+      p.reason = "not placed: " + it->reason;
+      continue;
+    }
+    p.placed = true;
+    p.rectified = it->pixel;
+    p.raw = frame.geometry().toRaw(it->pixel);
+    p.point = frame.localizeRectified(it->pixel);
+    p.valid = p.point.valid;
+    p.reason = p.valid ? std::string() : "not localised: " + p.point.reason;
+  }
+  out.landmarks = std::move(landmarks);
+  return out;
+}
+
+}  // namespace massage_cell::cect
