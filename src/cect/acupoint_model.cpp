@@ -88,6 +88,7 @@ constexpr double kHipWider = 0.015;       // hips wider than the waist by this f
 constexpr double kMaxOutOfView = 0.25;    // L4 at most this fraction of C7 -> L4 below a back cut by the image
 constexpr double kNeckFlare = 0.1;        // the neck's base: within 10 % of the way from the neck's width to the shoulders'
 constexpr double kNeckRows = 0.04;        // a neck in view spans at least this fraction of the back's rows
+constexpr double kTopMismatch = 0.06;     // C7 from the top and from the shoulder line differ by more: the top is not the neck's base
 constexpr int kMinRows = 24;              // fewer rows: too small to find anything
 constexpr double kScaleWindow = 0.03;     // metres-per-pixel median over +-3 % of C7->L4 along the midline
 
@@ -438,12 +439,17 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
     if (W(k) < W(iw)) iw = k;
   }
   // No waist in view: a back cut by the image's bottom above its hips has
-  // its levels from C7 and the shoulder width instead.
+  // its levels from C7 and the shoulder width instead; so has a trunk whose
+  // flanks are the creases of arms lying along it (the silhouette's waist is
+  // then where the arms touch, not the trunk's).
   std::string no_waist;
+  const bool creased = seg.trunk.arm_left || seg.trunk.arm_right;
   if (up == ish) no_waist = "no waist (no narrowing between the shoulders and the bottom)";
   else if (W(iw) > kWaistNarrower * W(ish)) no_waist = "no narrowing at the waist";
   else if (W(ih) < (1.0 + kHipWider) * W(iw) + 0.5) no_waist = "no widening below the waist (hips out of view?)";
-  if (!no_waist.empty() && (!edge.cut_at_bottom || no_neck)) return invalid("not a back: " + no_waist);
+  if (!no_waist.empty() && (!edge.cut_at_bottom || no_neck) && !creased) return invalid("not a back: " + no_waist);
+  if (creased && !no_neck && no_waist.empty()) no_waist = "the flanks are the arms' creases";
+  if (!no_waist.empty() && no_neck) return invalid("not a back: neither the neck nor the waist in view (" + no_waist + ")");
   const int iend = n - 1 - std::max(1, static_cast<int>(kBottomMargin * n));  // end of the midline fit
   if (iend < ish + 3) return invalid("not a back: too short below the shoulders");
   double waist_row = kNaN;
@@ -473,7 +479,19 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   else if (!no_neck) length = model.length_per_shoulder_width * W(ish);
   else length = (waist_row - shoulder_row) / (q - model.shoulder_below_c7);
   if (!(length > 0.0)) return invalid("the waist is not below the top of the back");
-  const double c7_row = no_neck ? shoulder_row - model.shoulder_below_c7 * length : anchor + c * length;
+  // Without a neck in view the back's top may not be the neck's base (hair
+  // over the nape, hands or a cradle above it): when the shoulder line puts
+  // C7 elsewhere, it is taken from the shoulder line.
+  bool c7_from_shoulders = no_neck;
+  if (!no_neck && ineck < 0) {
+    const double prop = model.length_per_shoulder_width * W(ish);
+    if (std::abs(anchor + c * length - (shoulder_row - model.shoulder_below_c7 * prop)) > kTopMismatch * prop) {
+      c7_from_shoulders = true;
+      length = no_waist.empty() ? (waist_row - shoulder_row) / (q - model.shoulder_below_c7) : prop;
+      if (!(length > 0.0)) return invalid("the waist is not below the shoulder line");
+    }
+  }
+  const double c7_row = c7_from_shoulders ? shoulder_row - model.shoulder_below_c7 * length : anchor + c * length;
   const double l4_row = c7_row + length;
   if (!no_waist.empty()) waist_row = c7_row + q * length;  // where the model puts it
   // A back that leaves the image at its bottom (the camera shifted toward the
@@ -503,11 +521,13 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   l.waist_row = waist_row;
   l.iliac_row = l4_row;
   l.top_row = anchor;
-  l.c7_measured = !no_neck;
+  l.c7_measured = !c7_from_shoulders;
   l.waist_measured = no_waist.empty();
-  l.measured.push_back(ineck >= 0 ? "C7 at the neck's base" : no_neck ? "the shoulder line" : "C7 at the back's top");
+  l.measured.push_back(ineck >= 0 ? "C7 at the neck's base" : c7_from_shoulders ? "the shoulder line" : "C7 at the back's top");
   if (l.waist_measured) l.measured.push_back("the waist");
-  if (!l.c7_measured) l.inferred.push_back("C7 from the shoulder line (the neck is out of view)");
+  if (!l.c7_measured)
+    l.inferred.push_back(no_neck ? "C7 from the shoulder line (the neck is out of view)"
+                                 : "C7 from the shoulder line (the back's top is not the neck's base: hair or something over it)");
   if (!l.waist_measured) l.inferred.push_back("L4 from C7 and the shoulder width (" + no_waist + ")");
   return l;
 }
@@ -522,6 +542,7 @@ Segmentation turnedBy(const Segmentation& seg, const cv::Matx23d& to, cv::Size c
   Segmentation t;
   t.valid = seg.valid;
   t.reason = seg.reason;
+  t.trunk = seg.trunk;
   t.contour.reserve(seg.contour.size());
   for (const auto& p : seg.contour) t.contour.push_back(apply(to, p));
   cv::warpAffine(seg.mask, t.mask, to, canvas, cv::INTER_NEAREST, cv::BORDER_CONSTANT, 0);
@@ -1095,6 +1116,10 @@ BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model
   constexpr int kMaxTurns = 6;
   if (!usableContour(up.contour)) return l;
   if (l.valid && std::abs(midlineTilt(l)) < kMinTurn) return l;
+  // A turn that loses the landmarks, or runs past 45 degrees, is not the
+  // body's: the silhouette's own axis misleads (arms, head, a one-sided cut);
+  // the head-up frame's landmarks stand then.
+  const BackLandmarks upright = l;
   // First turn: the mask's long axis (the row-by-row midline of a turned
   // back can lean more than the back), else the midline.
   const double moments = momentsTilt(up.mask);
@@ -1105,6 +1130,7 @@ BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model
   for (int turn = 0; turn < kMaxTurns && std::abs(tilt) >= kTolerance; ++turn) {
     total += tilt;
     if (std::abs(total) > kMaxTurn) {
+      if (upright.valid) return upright;
       return invalid("the body lies turned by more than 45 degrees against the image's columns (" +
                      num(std::round(-total * 180.0 / CV_PI)) + " degrees): not this model's view of a back");
     }
@@ -1115,6 +1141,7 @@ BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model
     edge.to_head_up = inverse(body_from_up);
     BackLandmarks turned = findLandmarksHeadUp(body, model, edge);
     if (!turned.valid) {
+      if (upright.valid) return upright;
       turned.reason = "body turned by " + num(std::round(-total * 180.0 / CV_PI)) + " degrees: " + turned.reason;
       return turned;
     }

@@ -81,6 +81,7 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
   --param      set CECT parameters by their CectParams names, e.g.
                --param ncc_radius=9,smooth_radius=2 (see cect.h)
   --csv        print CSV: condition,subject,method,points,mean_mm,max_mm,acc_rate
+               (method "model", points "layout": the placed acupoints' layout error)
   --pictures DIR  write every pair's picture to DIR/<condition>_s<subject>.png:
                the rectified left view, the back's contour (magenta), the model's
                midline (yellow), each placed acupoint coloured by CECT's 3D error
@@ -588,6 +589,9 @@ void run(const Options& o) {
         }
       }
       model_total.add(r.model);
+      if (o.csv)
+        std::cout << c.name << "," << s << ",model,layout," << fmt(r.model.mean(), 3) << "," << fmt(r.model.max(), 3)
+                  << "," << fmt(r.model.accRate(), 4) << "\n";
       in_view += r.in_view;
       placed_in_view += r.placed_in_view;
       placed_out_of_view += r.placed_out_of_view;
