@@ -19,6 +19,11 @@ cp "$work/s5/preview.png" "$root/docs/back_subject5_raw_shift14.png"
 "$root/_build/devel/lib/massage_cell/cect_eval" --experiments ideal --subjects 1 --random-points 0 --yaw 12 \
   --pictures "$work/cect" > /dev/null
 cp "$work/cect/ideal_s01.png" "$root/docs/cect_subject1_turned12.png"
+# The realistic cell: arms touching the trunk cut at their creases, C7 at the
+# neck's base (cect_eval --experiments real, condition arms_touching, subject 2).
+"$root/_build/devel/lib/massage_cell/cect_eval" --experiments real --condition-subjects 2 --random-points 0 \
+  --pictures "$work/real" > /dev/null
+cp "$work/real/arms_touching_s02.png" "$root/docs/cect_real_arms_touching.png"
 "$tool" --preset boxes $small --out "$work/boxes"
 cp "$work/boxes/left.png" "$root/docs/boxes_left.png"
 # Dense stereo on Middlebury Teddy (third-party data, read from ../shared; the

@@ -1153,6 +1153,16 @@ BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model
   return l;
 }
 
+std::string describeLandmarks(const BackLandmarks& landmarks) {
+  if (!landmarks.valid) return "none: " + landmarks.reason;
+  auto join = [](const std::vector<std::string>& v) {
+    std::string s;
+    for (const std::string& x : v) s += (s.empty() ? "" : ", ") + x;
+    return s.empty() ? std::string("-") : s;
+  };
+  return "measured: " + join(landmarks.measured) + "; inferred: " + join(landmarks.inferred);
+}
+
 cv::Point2f toImage(const BackLandmarks& landmarks, const cv::Point2f& body_pixel) {
   return apply(landmarks.to_image, body_pixel);
 }

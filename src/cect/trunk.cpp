@@ -169,62 +169,73 @@ float valleyDepth(const cv::Mat& smooth, int y, int x, const Run& r, int reach, 
   return std::min(before, after) - s[x];
 }
 
+/// Pixels next to a run's end left out of the valley test (the border's blend).
+int creaseMargin(const TrunkParams& p) { return static_cast<int>(std::ceil(3.0 * p.crease_sigma)) + 2; }
+
+/// One row of the crease's Viterbi path: the band searched (absolute
+/// columns [lo, hi]), the cheapest total cost of each state (0: no crease,
+/// 1 + x - lo: the crease at x) and the previous row's state it came from.
+struct RowStates {
+  int lo = 0, hi = -1;
+  std::vector<float> total;
+  std::vector<int> from;
+};
+
+/// The band of run r where the crease is looked for on one side.
+void creaseBand(const Run& r, bool left, const TrunkParams& p, RowStates* s) {
+  if (r.empty()) return;
+  const int w = r.width();
+  const int d0 = static_cast<int>(std::ceil(p.crease_min * w)), d1 = static_cast<int>(std::floor(p.crease_max * w));
+  s->lo = left ? r.a + d0 : r.b - d1;
+  s->hi = left ? r.a + d1 : r.b - d0;
+}
+
+/// Fills row y's states from the previous row's (nullptr for the first row).
+void relaxRow(const cv::Mat& smooth, int y, const Run& r, bool left, const TrunkParams& p, const RowStates* prev,
+              RowStates* s) {
+  constexpr float kSwitch = 4.0f, kMove = 0.1f;  // costs of a crease starting or ending, and of its moving a pixel
+  const int reach = std::max(2, static_cast<int>(std::lround(p.crease_reach)));
+  const int jump = std::max(1, static_cast<int>(std::lround(p.crease_jump)));
+  const float strength = static_cast<float>(p.crease_strength);
+  const int n = std::max(0, s->hi - s->lo + 1);
+  s->total.assign(static_cast<std::size_t>(1 + n), 0.0f);
+  s->from.assign(static_cast<std::size_t>(1 + n), 0);
+  for (int k = 0; k <= n; ++k) {
+    const int x = s->lo + k - 1;
+    // A valley as deep as `strength` costs nothing; deeper ones pay off.
+    const float cost = k == 0 ? 0.0f
+                              : std::clamp((strength - valleyDepth(smooth, y, x, r, reach, creaseMargin(p), left)) / strength,
+                                           -2.0f, 1.0f);
+    float best = 0.0f;
+    int arg = 0;
+    if (prev) {
+      best = prev->total[0] + (k > 0 ? kSwitch : 0.0f);  // from none
+      // From a crease in the previous row: any, to none; within the jump, to a crease.
+      const int pn = static_cast<int>(prev->total.size()) - 1;
+      const int j0 = k == 0 ? 1 : std::max(1, x - jump - prev->lo + 1);
+      const int j1 = k == 0 ? pn : std::min(pn, x + jump - prev->lo + 1);
+      for (int j = j0; j <= j1; ++j) {
+        const float t = prev->total[static_cast<std::size_t>(j)] +
+                        (k == 0 ? kSwitch : kMove * static_cast<float>(std::abs(x - (prev->lo + j - 1))));
+        if (t < best) best = t, arg = j;
+      }
+    }
+    s->total[static_cast<std::size_t>(k)] = best + cost;
+    s->from[static_cast<std::size_t>(k)] = arg;
+  }
+}
+
 /// The crease on one side (`left`: the image's left end of each run), by a
 /// Viterbi path over the rows: per row a column in the band or none.
 /// Returns per row the crease column, -1 for none.
 std::vector<int> creasePath(const cv::Mat& smooth, const std::vector<Run>& central, bool left, const TrunkParams& p) {
   const int rows = static_cast<int>(central.size());
-  const int reach = std::max(2, static_cast<int>(std::lround(p.crease_reach)));
-  const int jump = std::max(1, static_cast<int>(std::lround(p.crease_jump)));
-  const int margin = static_cast<int>(std::ceil(3.0 * p.crease_sigma)) + 2;
-  const float strength = static_cast<float>(p.crease_strength);
-  constexpr float kSwitch = 4.0f, kMove = 0.1f;
-  // Per row: band [lo, hi] (absolute columns) and costs; state 0 = none.
-  struct RowStates {
-    int lo = 0, hi = -1;
-    std::vector<float> total;  // [0] none, [1 + x - lo] crease at x
-    std::vector<int> from;     // previous row's state index
-  };
   std::vector<RowStates> st(static_cast<std::size_t>(rows));
-  const RowStates* prev = nullptr;
   for (int y = 0; y < rows; ++y) {
     RowStates& s = st[static_cast<std::size_t>(y)];
-    const Run& r = central[static_cast<std::size_t>(y)];
-    if (!r.empty()) {
-      const int w = r.width();
-      const int d0 = static_cast<int>(std::ceil(p.crease_min * w)), d1 = static_cast<int>(std::floor(p.crease_max * w));
-      s.lo = left ? r.a + d0 : r.b - d1;
-      s.hi = left ? r.a + d1 : r.b - d0;
-    }
-    const int n = std::max(0, s.hi - s.lo + 1);
-    s.total.assign(static_cast<std::size_t>(1 + n), 0.0f);
-    s.from.assign(static_cast<std::size_t>(1 + n), 0);
-    for (int k = 0; k <= n; ++k) {
-      float cost = 0.0f;
-      if (k > 0) {
-        const float v = valleyDepth(smooth, y, s.lo + k - 1, r, reach, margin, left);
-        cost = std::clamp((strength - v) / strength, -2.0f, 1.0f);
-      }
-      float best = prev ? kInf : 0.0f;
-      int arg = 0;
-      if (prev) {
-        // From none.
-        best = prev->total[0] + (k > 0 ? kSwitch : 0.0f);
-        // From a crease in the previous row (any, to none; within the jump, to a crease).
-        const int pn = static_cast<int>(prev->total.size()) - 1;
-        const int x = s.lo + k - 1;
-        const int j0 = k == 0 ? 1 : std::max(1, x - jump - prev->lo + 1);
-        const int j1 = k == 0 ? pn : std::min(pn, x + jump - prev->lo + 1);
-        for (int j = j0; j <= j1; ++j) {
-          const float t = prev->total[static_cast<std::size_t>(j)] +
-                          (k == 0 ? kSwitch : kMove * static_cast<float>(std::abs(x - (prev->lo + j - 1))));
-          if (t < best) best = t, arg = j;
-        }
-      }
-      s.total[static_cast<std::size_t>(k)] = best + cost;
-      s.from[static_cast<std::size_t>(k)] = arg;
-    }
-    prev = &s;
+    creaseBand(central[static_cast<std::size_t>(y)], left, p, &s);
+    relaxRow(smooth, y, central[static_cast<std::size_t>(y)], left, p, y > 0 ? &st[static_cast<std::size_t>(y - 1)] : nullptr,
+             &s);
   }
   // Backtrack from the cheapest final state.
   std::vector<int> path(static_cast<std::size_t>(rows), -1);
@@ -270,7 +281,7 @@ void cutArms(const cv::Mat& log_grey, cv::Mat* mask, const std::vector<Run>& cen
     (left ? report->crease_rows_left : report->crease_rows_right) = n;
     if (n < p.min_arm_fraction * body_rows) continue;
     // A crease all along an arm, not a patch of shading: its mean depth.
-    const int margin = static_cast<int>(std::ceil(3.0 * p.crease_sigma)) + 2;
+    const int margin = creaseMargin(p);
     const int reach = std::max(2, static_cast<int>(std::lround(p.crease_reach)));
     double depth = 0.0;
     for (int y = 0; y < mask->rows; ++y)

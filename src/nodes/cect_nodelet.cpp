@@ -402,6 +402,8 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
   if (frame->valid()) last_scale_ = frame->scale();
   last_disparity_range_ = frame->disparityRange();
   if (std::isfinite(body_angle)) last_body_angle_ = body_angle;
+  if (located.valid) last_landmarks_ = cect::describeLandmarks(located.landmarks);
+  if (frame->left().valid) last_trunk_ = frame->left().trunk.summary();
   if (stats_.processed() == 1) {
     NODELET_INFO_STREAM("first pair: " << valid << " of " << model_.points.size() << " acupoints valid, " << elapsed
                                        << " ms");
@@ -702,6 +704,8 @@ void CectNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) 
   status.add("disparities searched (px, from min_depth / max_depth and camera_info)",
              std::to_string(last_disparity_range_[0]) + ".." + std::to_string(last_disparity_range_[1]));
   status.add("body turned on the table (degrees, + head toward the image right)", last_body_angle_);
+  status.add("landmarks (measured; inferred)", last_landmarks_);
+  status.add("trunk (what the segmentation cut away)", last_trunk_);
   status.add("last reason", last_problem_);
   status.add("last error", stats_.lastError());
 }

@@ -156,6 +156,8 @@ class CectNodelet : public nodelet::Nodelet {
   double last_scale_ = 1.0;  ///< the last valid pair's view scale (auto_scale)
   cv::Vec2d last_disparity_range_{0.0, 0.0};  ///< the disparities the last pair searched
   double last_body_angle_ = 0.0;  ///< the last pair's body turn against the image columns (landmarks), degrees
+  std::string last_landmarks_;    ///< which landmarks the last pair measured and which it inferred
+  std::string last_trunk_;        ///< what the last pair's segmentation cut away (arms, cloth)
   std::string geometry_summary_;
 };
 

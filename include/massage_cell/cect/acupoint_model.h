@@ -110,6 +110,10 @@ struct BackLandmarks {
   double body_angle_deg = 0.0;
 };
 
+/// One line: the landmarks measured, then those inferred, e.g. "measured: C7
+/// at the neck's base; inferred: L4 from C7 and the shoulder width (...)".
+std::string describeLandmarks(const BackLandmarks& landmarks);
+
 /// A point of the body's frame (BackLandmarks) in the rectified left image.
 cv::Point2f toImage(const BackLandmarks& landmarks, const cv::Point2f& body_pixel);
 

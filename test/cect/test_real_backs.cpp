@@ -1,0 +1,108 @@
+// The acupoint chain on backs as real cells show them (the simulator's
+// dressed scenes): arms lying along the trunk, the neck and head above it,
+// the buttocks below. The trunk is cut out of the skin-coloured region at
+// the arms' creases, C7 is found at the neck's base and L4 follows from C7
+// and the shoulder width.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+#include <string>
+
+#include "massage_cell/cect/locate.h"
+#include "massage_cell/sim/cell_scene.h"
+#include "massage_cell/sim/renderer.h"
+#include "massage_cell/sim/stereo_frame.h"
+
+using namespace massage_cell;
+
+namespace {
+
+const cect::AcupointModel& model() {
+  static const cect::AcupointModel m =
+      cect::loadAcupointModel(std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/acupoints.yaml");
+  return m;
+}
+
+struct Rendered {
+  sim::BackModel back;
+  sim::StereoPairModel pair;
+  sim::StereoFrame frame;
+};
+
+/// Subject `index` of the varied population with both arms along the trunk
+/// (abduction in radians), head in the cradle, buttocks; the view from above
+/// the neck to below L4.
+Rendered render(int index, double abduction, sim::ArmPose arms = sim::ArmPose::kAlongTrunk) {
+  const sim::BodyParameters body = sim::BodyParameters::varied(index);
+  sim::BackModel back(body);
+  sim::Dressing d;
+  d.arms = arms;
+  d.arm_abduction_left = d.arm_abduction_right = abduction;
+  d.head = true;
+  d.hair = sim::HairLength::kShort;
+  d.lower_body = true;
+  const sim::Scene scene = sim::makeCellScene(back, 1, d);
+  const sim::Renderer renderer(scene);
+  const sim::RigParameters rig = sim::frameRig(sim::RigParameters{}, 0.12, back.levelX("L4") - 0.12, 0.17);
+  sim::StereoPairModel pair = sim::makeStereoPair(rig);
+  sim::RenderOptions ro;
+  ro.noise_seed = static_cast<std::uint32_t>(index);
+  sim::StereoFrame frame = sim::renderStereoFrame(renderer, pair, sim::Lighting::preset(sim::LightPreset::kTopCentre), ro);
+  return {back, pair, frame};
+}
+
+/// Rectified left row of a landmark of the back.
+double gtRow(const Rendered& r, const cect::StereoGeometry& g, const std::string& name) {
+  return g.project(sim::toCameraFrame(r.back.landmarks(), r.pair.left).at(name)).y();
+}
+
+}  // namespace
+
+TEST(RealBacks, ArmsTouchingTheTrunkAreCutAtTheirCreasesAndC7AndL4Found) {
+  for (int index : {1, 2, 6}) {
+    SCOPED_TRACE("varied subject " + std::to_string(index));
+    const Rendered r = render(index, 0.0);
+    const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+    const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
+    ASSERT_TRUE(f.valid()) << f.reason();
+    const cect::TrunkReport& trunk = f.left().trunk;
+    EXPECT_TRUE(trunk.arm_left && trunk.arm_right) << trunk.summary();
+    // Without the cut the arms would be half the mask: the mask now holds
+    // little arm (skin of label kLabelArm, rectified pair = raw here).
+    const cv::Mat arm = (r.frame.left.labels == sim::kLabelArm) & f.left().mask;
+    const cv::Mat back = (r.frame.left.labels == sim::kLabelBack) & f.left().mask;
+    EXPECT_LT(cv::countNonZero(arm), 0.08 * cv::countNonZero(back));
+
+    const cect::LocatedAcupoints a = cect::locateAcupoints(f, model());
+    ASSERT_TRUE(a.valid) << a.reason;
+    const cect::BackLandmarks& l = a.landmarks;
+    const double c7 = cect::toImage(l, l.c7).y, l4 = cect::toImage(l, l.l4).y;
+    const double c7_gt = gtRow(r, g, "C7"), l4_gt = gtRow(r, g, "L4");
+    std::cout << "subject " << index << ": C7 row " << c7 << " (truth " << c7_gt << "), L4 row " << l4 << " (truth "
+              << l4_gt << "); " << cect::describeLandmarks(l) << "; " << trunk.summary() << "\n";
+    EXPECT_FALSE(l.waist_measured) << "the creased flanks' waist is not the trunk's";
+    EXPECT_NEAR(c7, c7_gt, 0.03 * (l4_gt - c7_gt));
+    EXPECT_NEAR(l4, l4_gt, 0.06 * (l4_gt - c7_gt));
+    EXPECT_GE(a.validCount(), 80);
+  }
+}
+
+TEST(RealBacks, ArmsHeldAwayLeaveTheTrunksWaist) {
+  const Rendered r = render(7, 0.3);
+  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
+  ASSERT_TRUE(f.valid()) << f.reason();
+  EXPECT_GT(f.left().trunk.side_run_pixels, 0) << f.left().trunk.summary();
+  const cect::LocatedAcupoints a = cect::locateAcupoints(f, model());
+  ASSERT_TRUE(a.valid) << a.reason;
+  const cect::BackLandmarks& l = a.landmarks;
+  EXPECT_TRUE(l.waist_measured) << cect::describeLandmarks(l);
+  const double c7_gt = gtRow(r, g, "C7"), l4_gt = gtRow(r, g, "L4");
+  EXPECT_NEAR(cect::toImage(l, l.l4).y, l4_gt, 0.06 * (l4_gt - c7_gt)) << cect::describeLandmarks(l);
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
