@@ -17,6 +17,7 @@
 
 #include "massage_cell/sim/cell_scene.h"
 #include "massage_cell/sim/scene_builder.h"
+#include "shape_math.h"
 
 namespace massage_cell::sim {
 
@@ -26,13 +27,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kStep = 0.005;        // metres between rings
 constexpr double kPressed = 0.008;     // arm and flank pressed into each other when touching
 constexpr double kTableMargin = 0.015; // the hand stays this far inside the table's edge
-
-double smooth5(double e0, double e1, double x) {
-  double t = (x - e0) / (e1 - e0);
-  if (t <= 0.0) return 0.0;
-  if (t >= 1.0) return 1.0;
-  return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
-}
 
 struct ArmDims {
   double upper, fore, hand;  // segment lengths

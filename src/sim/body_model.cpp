@@ -32,6 +32,7 @@
 #include <vector>
 
 #include <Eigen/Geometry>
+#include "shape_math.h"
 
 namespace massage_cell::sim {
 
@@ -69,16 +70,6 @@ std::string num(double v) {
   s << v;
   return s.str();
 }
-
-/// Quintic smoothstep (C2): 0 at x = e0, 1 at x = e1 (e0 > e1 allowed).
-double smooth5(double e0, double e1, double x) {
-  double t = (x - e0) / (e1 - e0);
-  if (t <= 0.0) return 0.0;
-  if (t >= 1.0) return 1.0;
-  return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
-}
-
-double gauss(double t) { return std::exp(-t * t); }
 
 double softplus(double t) { return t > 30.0 ? t : std::log1p(std::exp(t)); }
 

@@ -21,6 +21,7 @@
 
 #include "cell_scene_parts.h"
 #include "massage_cell/sim/scene_builder.h"
+#include "shape_math.h"
 
 namespace massage_cell::sim {
 
@@ -44,13 +45,6 @@ double thickness(Weave w) {
     case Weave::kFine: return 0.0015;
   }
   return 0.002;
-}
-
-double smooth5(double e0, double e1, double x) {
-  double t = (x - e0) / (e1 - e0);
-  if (t <= 0.0) return 0.0;
-  if (t >= 1.0) return 1.0;
-  return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
 }
 
 /// The towel's cells (i along u, j along y) and a raster of the body under

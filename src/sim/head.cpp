@@ -16,6 +16,7 @@
 
 #include "massage_cell/sim/cell_scene.h"
 #include "cell_scene_parts.h"
+#include "shape_math.h"
 
 namespace massage_cell::sim {
 
@@ -23,13 +24,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kRingStep = 0.004;
-
-double smooth5(double e0, double e1, double x) {
-  double t = (x - e0) / (e1 - e0);
-  if (t <= 0.0) return 0.0;
-  if (t >= 1.0) return 1.0;
-  return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
-}
 
 /// Head frame for makeEllipsoid: first axis +x (crown), second -z (the seam
 /// of the texture under the face), third +y.

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "massage_cell/sim/body_parts.h"
+#include "shape_math.h"
 
 namespace massage_cell::sim {
 
@@ -25,15 +26,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kOverlap = 0.005;  // the mesh starts this far inside the back, just below its skin
 constexpr double kEndCap = 0.03;
 constexpr int kJoinSamples = 201;
-
-double smooth5(double e0, double e1, double x) {
-  double t = (x - e0) / (e1 - e0);
-  if (t <= 0.0) return 0.0;
-  if (t >= 1.0) return 1.0;
-  return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
-}
-
-double gauss(double t) { return std::exp(-t * t); }
 
 /// Two round thighs side by side (one per half, |s| in [0, 1]), touching at
 /// the midline up to about half their height.
