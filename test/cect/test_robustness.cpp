@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <random>
@@ -54,16 +55,25 @@ cv::Mat shifted(const cv::Mat& left, double d) {
 }
 
 /// A pair with `shape` drawn in skin colour on a sheet, faint noise on both.
-std::pair<cv::Mat, cv::Mat> shapePair(cv::Size size, double d, std::mt19937& rng,
-                                      const std::function<void(cv::Mat&)>& shape) {
+std::pair<cv::Mat, cv::Mat> shapePair(cv::Size size, double d, const std::function<void(cv::Mat&)>& shape) {
   cv::Mat left(size, CV_8UC3, kSheet);
   shape(left);
   cv::Mat noise(size, CV_8UC3);
   cv::randn(noise, cv::Scalar::all(0), cv::Scalar::all(3));
   left += noise;
-  (void)rng;
   return {left, shifted(left, d)};
 }
+
+/// What the randomised cases share: a 320x240 rectified rig (f 250 px) and
+/// uniform draws in [0, 1) from a fixed seed.
+struct RandomCases {
+  explicit RandomCases(std::uint32_t seed) : rng(seed) {}
+  double u() { return unit(rng); }
+  const cv::Size size{320, 240};
+  const cect::StereoGeometry geometry = rectifiedGeometry(320, 240, 250.0);
+  std::mt19937 rng;
+  std::uniform_real_distribution<double> unit{0.0, 1.0};
+};
 
 /// What every degenerate case must give: no crash, an invalid frame with a
 /// reason, and acupoints all invalid with that reason.
@@ -124,14 +134,13 @@ TEST(CectRobustness, NoBackOneColourOrNoiseIsAClearInvalidResult) {
 }
 
 TEST(CectRobustness, ASliverOfBackIsAClearInvalidResult) {
-  std::mt19937 rng(12);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  const cv::Size size(320, 240);
-  const cect::StereoGeometry g = rectifiedGeometry(size.width, size.height, 250.0);
+  RandomCases r(12);
+  const cv::Size size = r.size;
+  const cect::StereoGeometry& g = r.geometry;
   for (int i = 0; i < 6; ++i) {
-    const double angle = 180.0 * u(rng);
-    const int thickness = 1 + static_cast<int>(4 * u(rng));
-    const auto pair = shapePair(size, 20 + 20 * u(rng), rng, [&](cv::Mat& img) {
+    const double angle = 180.0 * r.u();
+    const int thickness = 1 + static_cast<int>(4 * r.u());
+    const auto pair = shapePair(size, 20 + 20 * r.u(), [&](cv::Mat& img) {
       cv::ellipse(img, cv::Point(160, 120), cv::Size(150, thickness), angle, 0, 360, kSkin, -1);
     });
     expectInvalid(pair.first, pair.second, g, "sliver at " + std::to_string(angle) + " deg");
@@ -143,14 +152,13 @@ TEST(CectRobustness, ASliverOfBackIsAClearInvalidResult) {
 // than the correspondence search's continuity window (the out-of-bounds read
 // behind a SIGSEGV on real scenes). Not a back: no acupoints.
 TEST(CectRobustness, VeryFewContourSamplesDoNotCrash) {
-  std::mt19937 rng(13);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  const cv::Size size(320, 240);
-  const cect::StereoGeometry g = rectifiedGeometry(size.width, size.height, 250.0);
+  RandomCases r(13);
+  const cv::Size size = r.size;
+  const cect::StereoGeometry& g = r.geometry;
   for (int i = 0; i < 8; ++i) {
-    const int height = 8 + static_cast<int>(14 * u(rng));
-    const int top = 20 + static_cast<int>(180 * u(rng));
-    const auto pair = shapePair(size, 10 + 30 * u(rng), rng, [&](cv::Mat& img) {
+    const int height = 8 + static_cast<int>(14 * r.u());
+    const int top = 20 + static_cast<int>(180 * r.u());
+    const auto pair = shapePair(size, 10 + 30 * r.u(), [&](cv::Mat& img) {
       cv::rectangle(img, cv::Rect(10, top, 300, height), kSkin, -1);
     });
     expectConsistent(pair.first, pair.second, g, "band " + std::to_string(height) + " px high");
@@ -172,18 +180,17 @@ TEST(CectRobustness, TinyAndHugeImages) {
 }
 
 TEST(CectRobustness, RandomSkinShapesGiveConsistentAnswers) {
-  std::mt19937 rng(14);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  const cv::Size size(320, 240);
-  const cect::StereoGeometry g = rectifiedGeometry(size.width, size.height, 250.0);
+  RandomCases r(14);
+  const cv::Size size = r.size;
+  const cect::StereoGeometry& g = r.geometry;
   for (int i = 0; i < 12; ++i) {
     // Ellipses and rectangles anywhere (partly out of view), at any
     // disparity, also outside the depth range searched or negative.
-    const double d = -20.0 + 200.0 * u(rng);
-    const auto pair = shapePair(size, d, rng, [&](cv::Mat& img) {
-      const cv::Point c(static_cast<int>(-40 + 400 * u(rng)), static_cast<int>(-40 + 320 * u(rng)));
-      const cv::Size axes(static_cast<int>(5 + 200 * u(rng)), static_cast<int>(5 + 150 * u(rng)));
-      if (u(rng) < 0.5) cv::ellipse(img, c, axes, 360 * u(rng), 0, 360, kSkin, -1);
+    const double d = -20.0 + 200.0 * r.u();
+    const auto pair = shapePair(size, d, [&](cv::Mat& img) {
+      const cv::Point c(static_cast<int>(-40 + 400 * r.u()), static_cast<int>(-40 + 320 * r.u()));
+      const cv::Size axes(static_cast<int>(5 + 200 * r.u()), static_cast<int>(5 + 150 * r.u()));
+      if (r.u() < 0.5) cv::ellipse(img, c, axes, 360 * r.u(), 0, 360, kSkin, -1);
       else cv::rectangle(img, cv::Rect(c, axes), kSkin, -1);
     });
     expectConsistent(pair.first, pair.second, g, "shape " + std::to_string(i) + " at d " + std::to_string(d));
