@@ -508,11 +508,13 @@ class CectFrameBuilder {
     }
 
     auto t = Clock::now();
+    f_.background_ = farBackground(f_.left_rect_, f_.right_rect_, f_.geometry_, f_.disparity_range_, given.background);
     // The two views are independent until matching: one core each.
     cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& views) {
       for (int v = views.start; v < views.end; ++v)
         (v == 0 ? f_.left_seg_ : f_.right_seg_) =
-            segmentBack(v == 0 ? f_.left_rect_ : f_.right_rect_, f_.params_.segmentation);
+            segmentBack(v == 0 ? f_.left_rect_ : f_.right_rect_, f_.params_.segmentation,
+                        v == 0 ? f_.background_.left_far : f_.background_.right_far);
     });
     f_.timings_.segment_ms = msSince(t);
     if (!f_.left_seg_.valid) return fail("left view: " + f_.left_seg_.reason, t0);

@@ -271,9 +271,11 @@ void morphology(cv::Mat* mask, cv::MorphTypes op, int radius) {
 
 }  // namespace
 
-Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params) {
+Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, const cv::Mat& background) {
   if (bgr.empty()) throw std::invalid_argument("segmentBack: empty image");
   if (bgr.type() != CV_8UC3) throw std::invalid_argument("segmentBack: expected a CV_8UC3 (BGR) image");
+  if (!background.empty() && (background.type() != CV_8UC1 || background.size() != bgr.size()))
+    throw std::invalid_argument("segmentBack: the background mask must be CV_8U of the image's size");
   const cv::Size size = bgr.size();
   std::array<float, 256> log_table;
   for (int i = 0; i < 256; ++i) log_table[static_cast<std::size_t>(i)] = static_cast<float>(std::log(i + kLogOffset));
@@ -300,14 +302,21 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params) {
   const double sigma_small = params.blur_sigma / factor;
   if (sigma_small > 0.0) cv::GaussianBlur(uv, uv, cv::Size(), sigma_small, sigma_small, cv::BORDER_REPLICATE);
 
-  // Detection likelihood and its histogram.
+  // Detection likelihood and its histogram (known background left out).
+  cv::Mat background_small;
+  if (!background.empty()) cv::resize(background, background_small, small, 0, 0, cv::INTER_NEAREST);
   cv::Mat like(small, CV_32F);
   std::vector<double> hist(kHistBins, 0.0);
   const double bin_scale = kHistBins / (kHistHigh - kHistLow);
   for (int y = 0; y < small.height; ++y) {
     const cv::Vec2f* c = uv.ptr<cv::Vec2f>(y);
     float* l = like.ptr<float>(y);
+    const unsigned char* bg = background_small.empty() ? nullptr : background_small.ptr<unsigned char>(y);
     for (int x = 0; x < small.width; ++x) {
+      if (bg && bg[x]) {
+        l[x] = static_cast<float>(kHistLow) - 1.0f;  // below every threshold, not in the histogram
+        continue;
+      }
       const float u = c[x][0], v = c[x][1];
       l[x] = u + v + static_cast<float>(kHuePenalty) * (std::min(u, 0.f) + std::min(v, 0.f));
       const int b = std::clamp(static_cast<int>((l[x] - kHistLow) * bin_scale), 0, kHistBins - 1);
@@ -439,6 +448,7 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params) {
 
   // --- mask: threshold, clean, the region of the detection, holes filled --
   cv::Mat m = seg.score > 0;
+  if (!background.empty()) m.setTo(0, background);
   morphology(&m, cv::MORPH_OPEN, params.open_radius);
   morphology(&m, cv::MORPH_CLOSE, params.close_radius);
   seg.trunk = cutToTrunk(bgr, &m, params.trunk);

@@ -58,6 +58,7 @@ cect::CectParams cectParams(const CECTConfig& c) {
   p.sample_spacing = c.sample_spacing;
   p.min_depth = c.min_depth;
   p.max_depth = c.max_depth;
+  p.background.gap = c.background_gap;
   p.min_disparity = c.min_disparity;
   p.max_disparity = c.max_disparity;
   p.min_crossing_angle = c.min_crossing_angle;
@@ -404,6 +405,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
   if (std::isfinite(body_angle)) last_body_angle_ = body_angle;
   if (located.valid) last_landmarks_ = cect::describeLandmarks(located.landmarks);
   if (frame->left().valid) last_trunk_ = frame->left().trunk.summary();
+  last_background_ = frame->background().summary();
   if (stats_.processed() == 1) {
     NODELET_INFO_STREAM("first pair: " << valid << " of " << model_.points.size() << " acupoints valid, " << elapsed
                                        << " ms");
@@ -706,6 +708,7 @@ void CectNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) 
   status.add("body turned on the table (degrees, + head toward the image right)", last_body_angle_);
   status.add("landmarks (measured; inferred)", last_landmarks_);
   status.add("trunk (what the segmentation cut away)", last_trunk_);
+  status.add("background (far behind the table, by depth)", last_background_);
   status.add("last reason", last_problem_);
   status.add("last error", stats_.lastError());
 }

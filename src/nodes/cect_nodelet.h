@@ -158,6 +158,7 @@ class CectNodelet : public nodelet::Nodelet {
   double last_body_angle_ = 0.0;  ///< the last pair's body turn against the image columns (landmarks), degrees
   std::string last_landmarks_;    ///< which landmarks the last pair measured and which it inferred
   std::string last_trunk_;        ///< what the last pair's segmentation cut away (arms, cloth)
+  std::string last_background_;   ///< what the last pair's depth gate called far background
   std::string geometry_summary_;
 };
 

@@ -147,6 +147,7 @@ struct LandmarkSummary {
   double body_angle_deg = kNaN, shoulder_width_px = kNaN;
   std::vector<std::string> measured, inferred;  ///< which landmarks this view measured / inferred
   std::string trunk;                            ///< what the segmentation cut away (arms, cloth)
+  std::string background;                       ///< what the depth gate called far background
   /// C7, L4 and the midline at the shoulder, waist and iliac lines, raw left pixels.
   std::vector<std::pair<std::string, cv::Point2f>> points;
 };
@@ -300,6 +301,7 @@ Report stereoReport(const Options& o, const cect::CectFrame& frame, const cect::
   const ToRaw to_raw = [&geometry](const cv::Point2f& p) { return geometry.toRaw(p); };
   r.landmarks = summarise(located.landmarks, to_raw);
   r.landmarks.trunk = frame.left().valid ? frame.left().trunk.summary() : std::string();
+  r.landmarks.background = frame.background().summary();
   if (!located.valid && located.landmarks.reason.empty()) r.landmarks.reason = located.reason;
   for (const cect::LocatedAcupoint& a : located.points) r.points.push_back(stereoRow(a));
   addOutlines(&r, frame.left(), located.landmarks, to_raw);
@@ -394,6 +396,7 @@ void emitHeader(YAML::Emitter& y, const Report& r) {
   y << YAML::Key << "measured" << YAML::Value << YAML::Flow << l.measured;
   y << YAML::Key << "inferred" << YAML::Value << YAML::Flow << l.inferred;
   y << YAML::Key << "trunk" << YAML::Value << l.trunk;
+  if (!l.background.empty()) y << YAML::Key << "background" << YAML::Value << l.background;
   for (const auto& [name, p] : l.points) emitPixel(y, name, p);
   y << YAML::EndMap;
   y << YAML::Key << "valid" << YAML::Value << r.valid;

@@ -23,7 +23,9 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "massage_cell/cect/depth_gate.h"
 #include "massage_cell/cect/segmentation.h"
+#include "massage_cell/camera/calibration.h"
 #include "massage_cell/sim/body_model.h"
 #include "massage_cell/sim/renderer.h"
 #include "massage_cell/sim/scene_builder.h"
@@ -491,6 +493,97 @@ TEST(RowCrossings, RejectsOtherTypesAndAcceptsEmpty) {
 }
 
 }  // namespace
+
+// ---------------------------------------------------------------------------
+// The depth gate (depth_gate.h) and the background mask
+
+namespace {
+
+/// A rectified 640 x 480 pair (fx 500 px, B 0.1 m) of a random texture:
+/// columns < 400 on a surface at 1.0 m (disparity 50 px), the rest at 2.0 m
+/// (25 px), as a table beside a floor.
+struct TwoDepthPair {
+  cv::Mat left, right;
+  cect::StereoGeometry geometry;
+};
+
+TwoDepthPair twoDepths() {
+  cv::Mat texture(480, 800, CV_8UC3);
+  cv::RNG rng(7);
+  rng.fill(texture, cv::RNG::UNIFORM, 0, 255);
+  cv::GaussianBlur(texture, texture, cv::Size(0, 0), 1.5);
+  TwoDepthPair p;
+  p.left.create(480, 640, CV_8UC3);
+  p.right.create(480, 640, CV_8UC3);
+  // left x sees texture column x + 100; the right view sees it d px further right.
+  for (int x = 0; x < 640; ++x) texture.col(x + 100).copyTo(p.left.col(x));
+  for (int x = 0; x < 640; ++x) {
+    const int near_src = x + 100 + 50, far_src = x + 100 + 25;  // the texture the right pixel sees on each surface
+    // A right pixel shows the near surface where that surface's left pixel (x + d) lies left of column 400.
+    const bool near = x + 50 < 400;
+    texture.col(std::min(near ? near_src : far_src, 799)).copyTo(p.right.col(x));
+  }
+  massage_cell::camera::CameraCalibration l, r;
+  l.width = r.width = 640;
+  l.height = r.height = 480;
+  l.D = r.D = std::vector<double>(5, 0.0);
+  l.K = r.K = {500, 0, 320, 0, 500, 240, 0, 0, 1};
+  l.R = r.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  l.P = {500, 0, 320, 0, 0, 500, 240, 0, 0, 0, 1, 0};
+  r.P = {500, 0, 320, -50, 0, 500, 240, 0, 0, 0, 1, 0};
+  p.geometry = cect::StereoGeometry(l, r);
+  return p;
+}
+
+}  // namespace
+
+TEST(DepthGate, MarksTheFarSurfaceNotTheNearOne) {
+  const TwoDepthPair p = twoDepths();
+  const cect::DepthGate g = cect::farBackground(p.left, p.right, p.geometry, cv::Vec2d(10.0, 100.0));
+  ASSERT_FALSE(g.left_far.empty()) << g.summary();
+  EXPECT_NEAR(g.nearest_depth, 1.0, 0.05) << g.summary();
+  EXPECT_NEAR(g.far_depth, 1.45, 0.05);
+  // Away from the step and the columns no disparity can reach.
+  const cv::Rect near(160, 40, 200, 400), far(460, 40, 160, 400);
+  EXPECT_LT(cv::countNonZero(g.left_far(near)), 0.02 * near.area()) << g.summary();
+  EXPECT_GT(cv::countNonZero(g.left_far(far)), 0.9 * far.area()) << g.summary();
+  // The right view: the far surface lies right of column 400 - 25 there; its
+  // last columns (the search range, mirrored) have no disparity.
+  const cv::Rect near_r(120, 40, 180, 400), far_r(400, 40, 100, 400);
+  EXPECT_LT(cv::countNonZero(g.right_far(near_r)), 0.02 * near_r.area());
+  EXPECT_GT(cv::countNonZero(g.right_far(far_r)), 0.9 * far_r.area());
+}
+
+TEST(DepthGate, OffOrUnmatchableGivesNothingAndBadInputThrows) {
+  const TwoDepthPair p = twoDepths();
+  cect::DepthGateParams off;
+  off.gap = 0.0;
+  EXPECT_TRUE(cect::farBackground(p.left, p.right, p.geometry, cv::Vec2d(10.0, 100.0), off).left_far.empty());
+  const cv::Mat flat(480, 640, CV_8UC3, cv::Scalar(120, 130, 140));
+  const cect::DepthGate g = cect::farBackground(flat, flat, p.geometry, cv::Vec2d(10.0, 100.0));
+  EXPECT_TRUE(g.left_far.empty() || cv::countNonZero(g.left_far) == 0) << g.summary();
+  EXPECT_THROW(cect::farBackground(p.left, p.right.colRange(0, 600).clone(), p.geometry, cv::Vec2d(10.0, 100.0)),
+               std::invalid_argument);
+}
+
+TEST(SegmentBack, KnownBackgroundNeverJoinsTheBack) {
+  // A skin-coloured square on a neutral sheet, with a skin-coloured band
+  // touching it (a wooden floor): as one colour it joins; marked as
+  // background it stays out, and the square keeps its border.
+  cv::Mat img(240, 320, CV_8UC3, cv::Scalar(200, 200, 200));
+  img(cv::Rect(100, 60, 120, 150)).setTo(cv::Scalar(120, 150, 200));
+  img(cv::Rect(0, 0, 320, 60)).setTo(cv::Scalar(118, 148, 198));
+  const cect::Segmentation joined = cect::segmentBack(img);
+  ASSERT_TRUE(joined.valid) << joined.reason;
+  EXPECT_GT(cv::countNonZero(joined.mask(cv::Rect(0, 0, 320, 55))), 5000);
+  cv::Mat background = cv::Mat::zeros(img.size(), CV_8U);
+  background(cv::Rect(0, 0, 320, 60)).setTo(255);
+  const cect::Segmentation s = cect::segmentBack(img, {}, background);
+  ASSERT_TRUE(s.valid) << s.reason;
+  EXPECT_EQ(cv::countNonZero(s.mask & background), 0);
+  EXPECT_GT(cv::countNonZero(s.mask(cv::Rect(104, 64, 112, 142))), 0.99 * 112 * 142);
+  EXPECT_THROW(cect::segmentBack(img, {}, cv::Mat::zeros(10, 10, CV_8U)), std::invalid_argument);
+}
 
 int main(int argc, char** argv) {
   ::testing::InitGoogleTest(&argc, argv);

@@ -27,6 +27,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include "massage_cell/cect/depth_gate.h"
 #include "massage_cell/cect/segmentation.h"
 #include "massage_cell/cect/stereo_geometry.h"
 
@@ -42,6 +43,9 @@ constexpr double kReferencePixelsPerMetre = 550.0;  ///< fx / Z of the reference
 
 struct CectParams {
   SegmentationParams segmentation;
+  /// The floor and room far behind the table are not the back, whatever
+  /// their colour (depth_gate.h); gap 0: colour alone decides.
+  DepthGateParams background;
   /// Scale the pixel parameters to the view (see scaledParams): with a
   /// camera of another resolution or focal length, or farther from the
   /// back, the parameters below still mean the same on the skin. false:
@@ -299,6 +303,8 @@ class CectFrame {
   double scale() const { return scale_; }
   /// The disparities searched (disparityRange).
   cv::Vec2d disparityRange() const { return disparity_range_; }
+  /// What the segmentation was told is far background (depth_gate.h).
+  const DepthGate& background() const { return background_; }
 
   /// A raw left-image pixel -> its 3D point (valid = false with a reason
   /// outside the back, outside the triangulation, or when the constraints
@@ -317,6 +323,7 @@ class CectFrame {
   CectParams params_;
   double scale_ = 1.0;
   cv::Vec2d disparity_range_{0.0, 0.0};
+  DepthGate background_;
   Segmentation left_seg_, right_seg_;
   cv::Mat left_rect_, right_rect_;          ///< BGR
   cv::Mat left_grey_, right_grey_;          ///< CV_32F

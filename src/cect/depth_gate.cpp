@@ -1,0 +1,107 @@
+#include "massage_cell/cect/depth_gate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <vector>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace massage_cell::cect {
+
+namespace {
+
+constexpr int kCoarseRows = 120;  // rows of the coarse copy matched
+constexpr int kBlock = 5;         // SGBM block size, coarse pixels
+
+cv::Mat coarseGrey(const cv::Mat& img, int factor) {
+  cv::Mat grey = img;
+  if (img.channels() == 3) cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
+  if (factor == 1) return grey.clone();
+  cv::Mat small;
+  cv::resize(grey, small, cv::Size(img.cols / factor, img.rows / factor), 0, 0, cv::INTER_AREA);
+  return small;
+}
+
+}  // namespace
+
+std::string DepthGate::summary() const {
+  std::ostringstream s;
+  s.precision(2);
+  if (left_far.empty()) return "no depth gate";
+  s << "background beyond " << std::fixed << far_depth << " m (nearest surfaces at " << nearest_depth << " m): "
+    << cv::countNonZero(left_far) << " px left, " << cv::countNonZero(right_far) << " px right";
+  return s.str();
+}
+
+DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, const StereoGeometry& geometry,
+                        const cv::Vec2d& range, const DepthGateParams& params) {
+  if (left_rect.size() != right_rect.size() || left_rect.type() != right_rect.type())
+    throw std::invalid_argument("farBackground: the two views differ in size or type");
+  if (left_rect.type() != CV_8UC3 && left_rect.type() != CV_8UC1)
+    throw std::invalid_argument("farBackground: expected 8-bit grey or BGR images");
+  DepthGate gate;
+  const double min_disparity = range[0], max_disparity = range[1];
+  const double focal_baseline = geometry.fx() * geometry.baseline();
+  // Rectified disparity = f B / z + offset (the principal points' difference).
+  const double offset = geometry.disparityAtDepth(1.0) - focal_baseline;
+  if (!(params.gap > 0.0) || !(focal_baseline > 0.0) || !(max_disparity > min_disparity) || left_rect.empty())
+    return gate;
+  const int factor = std::max(1, static_cast<int>(std::lround(static_cast<double>(left_rect.rows) / kCoarseRows)));
+  const int min_d = std::max(0, static_cast<int>(std::floor(min_disparity / factor)));
+  const int span = static_cast<int>(std::ceil(max_disparity / factor)) - min_d + 1;
+  const int num_d = 16 * ((span + 15) / 16);
+  const int cols = left_rect.cols / factor;
+  if (cols < min_d + num_d + 2 * kBlock || left_rect.rows / factor < 2 * kBlock) return gate;  // nothing to match
+
+  cv::Mat disparity[2];
+  cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& range) {
+    for (int v = range.start; v < range.end; ++v) {
+      // The right view's disparity: the mirrored right image matched against the mirrored left.
+      cv::Mat l = coarseGrey(v == 0 ? left_rect : right_rect, factor);
+      cv::Mat r = coarseGrey(v == 0 ? right_rect : left_rect, factor);
+      if (v == 1) {
+        cv::flip(l, l, 1);
+        cv::flip(r, r, 1);
+      }
+      const cv::Ptr<cv::StereoSGBM> sgbm =
+          cv::StereoSGBM::create(min_d, num_d, kBlock, 8 * kBlock * kBlock, 32 * kBlock * kBlock, 1, 0, 10);
+      cv::Mat d;
+      sgbm->compute(l, r, d);
+      if (v == 1) cv::flip(d, d, 1);
+      disparity[v] = d;
+    }
+  });
+
+  // The nearest surfaces' depth (a quantile of the left view's disparities).
+  std::vector<short> valid;
+  const short invalid = static_cast<short>((min_d - 1) * 16);
+  for (int y = 0; y < disparity[0].rows; ++y) {
+    const short* d = disparity[0].ptr<short>(y);
+    for (int x = 0; x < disparity[0].cols; ++x)
+      if (d[x] > invalid && d[x] > 0) valid.push_back(d[x]);
+  }
+  if (valid.size() < 100) return gate;
+  const auto q = valid.begin() + static_cast<std::ptrdiff_t>((1.0 - params.nearest_quantile) * (valid.size() - 1));
+  std::nth_element(valid.begin(), q, valid.end());
+  const double nearest_d = *q / 16.0 * factor - offset;
+  if (!(nearest_d > 0.0)) return gate;
+  gate.nearest_depth = focal_baseline / nearest_d;
+  gate.far_depth = gate.nearest_depth + params.gap;
+  const double far_d = 16.0 * (focal_baseline / gate.far_depth + offset) / factor;  // SGBM's fixed-point units
+
+  for (int v = 0; v < 2; ++v) {
+    cv::Mat far = (disparity[v] > invalid) & (disparity[v] < far_d);
+    cv::Mat full;
+    cv::resize(far, full, cv::Size(cols * factor, (left_rect.rows / factor) * factor), 0, 0, cv::INTER_NEAREST);
+    cv::Mat out = cv::Mat::zeros(left_rect.size(), CV_8U);
+    full.copyTo(out(cv::Rect(0, 0, full.cols, full.rows)));
+    (v == 0 ? gate.left_far : gate.right_far) = out;
+  }
+  return gate;
+}
+
+}  // namespace massage_cell::cect
