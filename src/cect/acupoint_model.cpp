@@ -1011,6 +1011,9 @@ void AcupointModel::validate() const {
     fail("shoulder_below_c7 = " + num(shoulder_below_c7) + " is not in [0, 0.5)");
   if (!(length_per_shoulder_width > 0.3 && length_per_shoulder_width < 3.0))
     fail("length_per_shoulder_width = " + num(length_per_shoulder_width) + " is not in (0.3, 3)");
+  for (const double v : {layout_sigma.c7_measured, layout_sigma.c7_inferred, layout_sigma.l4_measured,
+                         layout_sigma.l4_inferred, layout_sigma.across})
+    if (!(v >= 0.0 && v < 1.0)) fail("layout_sigma: " + num(v) + " is not in [0, 1)");
   if (!(waist_fraction > 0.0 && waist_fraction < 1.5)) {
     fail("waist_fraction = " + num(waist_fraction) + " is not in (0, 1.5)");
   }
@@ -1052,6 +1055,24 @@ AcupointModel loadAcupointModel(const std::string& path) {
   if (root["shoulder_below_c7"]) m.shoulder_below_c7 = get<double>(root, "shoulder_below_c7", where);
   if (root["length_per_shoulder_width"])
     m.length_per_shoulder_width = get<double>(root, "length_per_shoulder_width", where);
+  if (const YAML::Node ls = root["layout_sigma"]) {
+    if (!ls.IsMap()) throw std::runtime_error(where + ": 'layout_sigma' must be a mapping");
+    const std::string at = where + ", layout_sigma";
+    AcupointModel::LayoutSigma& l = m.layout_sigma;
+    for (const auto& kv : ls) {
+      const std::string key = kv.first.as<std::string>();
+      double* field = key == "c7_measured"   ? &l.c7_measured
+                      : key == "c7_inferred" ? &l.c7_inferred
+                      : key == "l4_measured" ? &l.l4_measured
+                      : key == "l4_inferred" ? &l.l4_inferred
+                      : key == "across"      ? &l.across
+                                             : nullptr;
+      if (!field)
+        throw std::runtime_error(at + ": unknown key '" + key +
+                                 "' (c7_measured, c7_inferred, l4_measured, l4_inferred, across)");
+      *field = get<double>(ls, key, at);
+    }
+  }
   const YAML::Node levels = root["level_fraction"];
   if (!levels || !levels.IsMap()) throw std::runtime_error(where + ": missing mapping 'level_fraction'");
   for (const auto& kv : levels) {
@@ -1175,6 +1196,26 @@ cv::Point2f levelPixel(const BackLandmarks& landmarks, const AcupointModel& mode
     return {nan, nan};
   }
   return toImage(landmarks, midlineAt(landmarks, levelRow(landmarks, it->second)));
+}
+
+Eigen::Matrix3d layoutCovariance(const BackLandmarks& landmarks, const AcupointModel& model, const std::string& level,
+                                 double metres_per_pixel) {
+  const auto it = model.level_fraction.find(level);
+  if (it == model.level_fraction.end() || !landmarks.valid || !(metres_per_pixel > 0.0))
+    return Eigen::Matrix3d::Zero();
+  const cv::Point2f c7 = toImage(landmarks, landmarks.c7), l4 = toImage(landmarks, landmarks.l4);
+  const double length_px = std::hypot(l4.x - c7.x, l4.y - c7.y);
+  if (!(length_px > 0.0)) return Eigen::Matrix3d::Zero();
+  const AcupointModel::LayoutSigma& ls = model.layout_sigma;
+  const double at_c7 = landmarks.c7_measured ? ls.c7_measured : ls.c7_inferred;
+  const double at_l4 = landmarks.waist_measured ? ls.l4_measured : ls.l4_inferred;
+  // Linear in the level between C7 and L4 (beyond them, the nearer one's).
+  const double t = std::clamp(it->second, 0.0, 1.0);
+  const double length = length_px * metres_per_pixel;
+  const double along = ((1.0 - t) * at_c7 + t * at_l4) * length, across = ls.across * length;
+  const Eigen::Vector3d a((l4.x - c7.x) / length_px, (l4.y - c7.y) / length_px, 0.0);
+  const Eigen::Vector3d c(-a.y(), a.x(), 0.0);
+  return along * along * a * a.transpose() + across * across * c * c.transpose();
 }
 
 double cunMetres(const BackLandmarks& landmarks, const AcupointModel& model, const PixelScale& image_scale) {

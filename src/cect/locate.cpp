@@ -37,7 +37,8 @@ LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& mo
     correctWaistParallax(&landmarks, model, frame.left(), points);
     measureLevelsIn3D(&landmarks, points);
   }
-  const std::vector<AcupointPixel> placed = placeAcupoints(landmarks, model, frameScale(frame));
+  const PixelScale scale = frameScale(frame);
+  const std::vector<AcupointPixel> placed = placeAcupoints(landmarks, model, scale);
 
   LocatedAcupoints out = unplaced(model, "not placed by the acupoint model");
   out.valid = true;
@@ -54,6 +55,11 @@ LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& mo
     p.raw = frame.geometry().toRaw(it->pixel);
     p.point = frame.localizeRectified(it->pixel);
     p.valid = p.point.valid;
+    if (p.valid) {
+      const AcupointSpec* spec = model.find(p.name);
+      p.layout_covariance = layoutCovariance(landmarks, model, spec->level, p.point.position.z() / frame.geometry().fx());
+      p.covariance = p.point.covariance + p.layout_covariance;
+    }
     p.reason = p.valid ? std::string() : "not localised: " + p.point.reason;
   }
   out.landmarks = std::move(landmarks);

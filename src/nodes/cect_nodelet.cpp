@@ -369,6 +369,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
     r.measured = true;
     ++measured;
     r.accepted = filter_.update(p.name, p.point.position, p.point.covariance, stamp);
+    if (r.accepted) layout_covariance_[p.name] = p.layout_covariance;
     if (!r.accepted) {
       const cect::FilteredPoint* f = filter_.get(p.name, stamp);
       std::ostringstream why;
@@ -438,12 +439,14 @@ void CectNodelet::publish(const std_msgs::Header& header, const cect::CectFrame&
     e.header = header;
     a.valid = e.valid = f != nullptr;
     if (f) {
+      // The filtered matching noise plus the layout's (which no averaging removes).
+      const auto layout = layout_covariance_.find(spec.name);
       e.position = f->position;
-      e.covariance = f->covariance;
+      e.covariance = f->covariance + (layout != layout_covariance_.end() ? layout->second : Eigen::Matrix3d::Zero());
       a.position.x = f->position.x();
       a.position.y = f->position.y();
       a.position.z = f->position.z();
-      toArray(f->covariance, a.covariance.data());
+      toArray(e.covariance, a.covariance.data());
       if (!r.accepted) {  // held from earlier pairs: say why this one did not measure it
         std::ostringstream why;
         why << r.reason << "; estimate from " << stamp - f->stamp << " s before";

@@ -159,6 +159,9 @@ class CectNodelet : public nodelet::Nodelet {
   std::string last_landmarks_;    ///< which landmarks the last pair measured and which it inferred
   std::string last_trunk_;        ///< what the last pair's segmentation cut away (arms, cloth)
   std::string last_background_;   ///< what the last pair's depth gate called far background
+  /// Per acupoint, the layout's uncertainty of the pair that last measured it
+  /// (the filter averages the matching's noise over pairs, not the layout's).
+  std::map<std::string, Eigen::Matrix3d> layout_covariance_;
   std::string geometry_summary_;
 };
 

@@ -91,7 +91,9 @@ Output, one entry per acupoint of the model in the model's order:
 Stereo mode only:
   x, y, z                  the 3D point, metres, in the left camera's optical frame
                            (REP 103: x right, y down, z forward)
-  sigma_x, sigma_y, sigma_z   standard deviations of x, y, z (metres)
+  sigma_x, sigma_y, sigma_z   standard deviations of x, y, z (metres): the
+                           matching's and the layout's (inferred landmarks
+                           widen it; acupoints.yaml layout_sigma)
   disparity_sigma          standard deviation of the disparity, pixels
                            (x .. disparity_sigma NaN / empty when not valid)
 YAML: a header, then the list `acupoints:`. The header: mode; the inputs;
@@ -262,7 +264,7 @@ PointRow stereoRow(const cect::LocatedAcupoint& a) {
   if (a.placed) r.pixel = a.raw;
   if (a.valid) {
     r.position = a.point.position;
-    r.sigma = a.point.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+    r.sigma = a.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();  // matching and layout
     r.disparity_sigma = a.point.disparity_sigma;
   }
   return r;

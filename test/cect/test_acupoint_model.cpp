@@ -364,6 +364,20 @@ TEST(AcupointModelValidation, OtherProblemsThrowWithClearMessages) {
   offset_type.insert(offset_type.find("cun_per_shoulder_width"), "waist_rim_offset: low\n");
   EXPECT_NE(load("acu_offset_type.yaml", offset_type).find("'waist_rim_offset' has the wrong type"), std::string::npos);
   EXPECT_THROW(cect::levelPixel(cect::BackLandmarks{}, model(), "T13"), std::invalid_argument);
+  auto withLayout = [&](const std::string& map) {
+    std::string t = text;
+    t.insert(t.find("cun_per_shoulder_width"), "layout_sigma: " + map + "\n");
+    return t;
+  };
+  EXPECT_NE(load("acu_ls_key.yaml", withLayout("{c8_measured: 0.1}")).find("unknown key 'c8_measured'"),
+            std::string::npos);
+  EXPECT_NE(load("acu_ls_range.yaml", withLayout("{across: 1.5}")).find("layout_sigma: 1.5 is not in [0, 1)"),
+            std::string::npos);
+  EXPECT_NE(load("acu_ls_map.yaml", withLayout("0.1")).find("'layout_sigma' must be a mapping"), std::string::npos);
+  const cect::AcupointModel m = cect::loadAcupointModel(writeTemp("acu_ls_ok.yaml", withLayout("{l4_inferred: 0.3}")));
+  EXPECT_DOUBLE_EQ(m.layout_sigma.l4_inferred, 0.3);
+  EXPECT_DOUBLE_EQ(m.layout_sigma.c7_measured, cect::AcupointModel{}.layout_sigma.c7_measured);
+  EXPECT_TRUE(cect::layoutCovariance(cect::BackLandmarks{}, model(), "L4", 0.002).isZero());
 }
 
 // ---------------------------------------------------------------------------

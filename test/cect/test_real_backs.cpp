@@ -85,6 +85,20 @@ TEST(RealBacks, ArmsTouchingTheTrunkAreCutAtTheirCreasesAndC7AndL4Found) {
     EXPECT_NEAR(c7, c7_gt, 0.03 * (l4_gt - c7_gt));
     EXPECT_NEAR(l4, l4_gt, 0.06 * (l4_gt - c7_gt));
     EXPECT_GE(a.validCount(), 80);
+    // Each point's covariance holds the layout's: with L4 inferred it grows
+    // from C7's level (C7 measured) down to L4's.
+    auto layoutSigma = [&](const std::string& name) {
+      for (const cect::LocatedAcupoint& p : a.points) {
+        if (p.name != name || !p.valid) continue;
+        EXPECT_TRUE((p.covariance - p.point.covariance - p.layout_covariance).isZero(1e-15)) << name;
+        return std::sqrt(p.layout_covariance.trace());  // along and across together
+      }
+      ADD_FAILURE() << name << " not localised";
+      return 0.0;
+    };
+    const double at_c7 = layoutSigma("GV14"), at_l4 = layoutSigma("GV3");  // ~0.036 and ~0.17 of C7 -> L4
+    EXPECT_GT(at_c7, 0.005);
+    EXPECT_GT(at_l4, 3.0 * at_c7);
   }
 }
 

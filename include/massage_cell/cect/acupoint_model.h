@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
 #include <opencv2/core.hpp>
 
 #include "massage_cell/cect/segmentation.h"
@@ -55,6 +56,15 @@ struct AcupointModel {
   /// out of view), both in the image's rows.
   double shoulder_below_c7 = 0.15;
   double length_per_shoulder_width = 1.22;
+  /// The layout's own uncertainty (one sigma, fractions of the C7 -> L4
+  /// length; optional in the YAML): along the body at C7 and at L4 when the
+  /// landmark was measured or inferred (a point between them takes the
+  /// linear mix by its level), and across the body. layoutCovariance().
+  struct LayoutSigma {
+    double c7_measured = 0.03, c7_inferred = 0.21;
+    double l4_measured = 0.08, l4_inferred = 0.17;
+    double across = 0.02;
+  } layout_sigma;
   bool head_up = true;  ///< head toward the image top
   std::vector<AcupointSpec> points;
 
@@ -186,6 +196,15 @@ struct AcupointPixel {
   bool valid = false;
   std::string reason;
 };
+
+/// The layout's uncertainty of a point at `level` (AcupointModel::
+/// layout_sigma, with BackLandmarks::c7_measured / waist_measured), 3x3 in
+/// metres^2 in the left optical frame, lying in the image plane's directions
+/// (along the body's axis on the image and across it; the camera looks down
+/// on the back). `metres_per_pixel` at the point turns the C7 -> L4 length
+/// on the image into metres. Zero for an unknown level or scale.
+Eigen::Matrix3d layoutCovariance(const BackLandmarks& landmarks, const AcupointModel& model, const std::string& level,
+                                 double metres_per_pixel);
 
 /// Midline pixel of `level` in the image (interpolated along the midline with level_fraction).
 cv::Point2f levelPixel(const BackLandmarks& landmarks, const AcupointModel& model, const std::string& level);
