@@ -19,7 +19,10 @@
 //   bimodal (Otsu separability >= kBimodal): skin is the most chromatic
 //   distinct class. (A single Otsu fails on pale skin: a neutral sheet, a
 //   warm grey floor and pale skin are three classes and the floor goes with
-//   the skin.) The largest region above the threshold is the detection.
+//   the skin.) The largest region above the threshold is the detection;
+//   when the most chromatic class holds no region of min_area_fraction
+//   (only red hair or a coloured cushion), the previous threshold's. Pixels
+//   the caller marks as background (depth_gate.h: the floor) take no part.
 //   Priors reject images without skin: the region must be at least
 //   kMinSkinChroma red (median ln(R/B)) and about uniform in chroma (skin
 //   is; a multi-coloured texture is not), and cover min_area_fraction.
@@ -89,6 +92,9 @@ constexpr int kDetectionRows = 240;
 /// searched this far either side (pixels) in steps of kSnapStep.
 constexpr double kSnapReach = 2.0;
 constexpr double kSnapStep = 0.25;
+/// Highest score of skin: the back's own chroma scores +0.5, its spread
+/// (robust sigma) is below kMaxSkinSpread.
+constexpr float kMaxScore = 2.5f;
 /// Score given to pixels whose sign had to be forced to agree with the mask.
 constexpr float kForcedScore = 0.5f;
 
@@ -325,28 +331,44 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
   }
   // Otsu, then Otsu inside the upper class while it is clearly two classes.
   const double min_pixels = params.min_area_fraction * small.area();
-  OtsuSplit split = otsu(hist, 0, kHistBins);
-  if (split.bin < 0) return invalid(size, "no back in view: the image has a single colour");
+  std::vector<OtsuSplit> chain{otsu(hist, 0, kHistBins)};
+  if (chain.back().bin < 0) return invalid(size, "no back in view: the image has a single colour");
   for (;;) {
-    const OtsuSplit up = otsu(hist, split.bin, kHistBins);
+    const OtsuSplit up = otsu(hist, chain.back().bin, kHistBins);
     if (up.bin < 0 || up.separability < kBimodal || up.upper_mass < min_pixels) break;
-    split = up;
+    chain.push_back(up);
   }
-  const float threshold = static_cast<float>(kHistLow + split.bin / bin_scale);
-
-  // The largest region above the threshold.
-  cv::Mat cc_labels, cc_stats, cc_centroids;
-  const int n_cc = cv::connectedComponentsWithStats(like > threshold, cc_labels, cc_stats, cc_centroids, 8, CV_32S);
-  int best = 0, best_area = 0;
-  for (int i = 1; i < n_cc; ++i) {
-    if (cc_stats.at<int>(i, cv::CC_STAT_AREA) > best_area) {
-      best_area = cc_stats.at<int>(i, cv::CC_STAT_AREA);
-      best = i;
+  // The largest region above the most chromatic class's threshold; when that
+  // class is only scattered patches (red hair, a coloured cushion), the
+  // threshold below it: the chain's earlier splits, then Otsu inside the
+  // lower class (the hair split off first; skin and sheet below).
+  std::vector<int> bins;
+  for (auto k = chain.rbegin(); k != chain.rend(); ++k) bins.push_back(k->bin);
+  for (int extra = 0; extra < 2; ++extra) {
+    const OtsuSplit lower = otsu(hist, 0, bins.back());
+    if (lower.bin <= 0) break;
+    bins.push_back(lower.bin);
+  }
+  cv::Mat cc_labels;
+  int best = 0, best_area = 0, top_area = -1;
+  for (const int bin : bins) {
+    const float threshold = static_cast<float>(kHistLow + bin / bin_scale);
+    cv::Mat cc_stats, cc_centroids;
+    const int n_cc = cv::connectedComponentsWithStats(like > threshold, cc_labels, cc_stats, cc_centroids, 8, CV_32S);
+    best = 0;
+    best_area = 0;
+    for (int i = 1; i < n_cc; ++i) {
+      if (cc_stats.at<int>(i, cv::CC_STAT_AREA) > best_area) {
+        best_area = cc_stats.at<int>(i, cv::CC_STAT_AREA);
+        best = i;
+      }
     }
+    if (top_area < 0) top_area = best_area;
+    if (best_area >= min_pixels) break;
   }
   if (best_area < min_pixels) {
     return invalid(size, "no back in view: the largest skin-coloured region covers " +
-                             percent(double(best_area) / small.area()) + " of the image (at least " +
+                             percent(double(top_area) / small.area()) + " of the image (at least " +
                              percent(params.min_area_fraction) + " needed)");
   }
   const cv::Mat region = cc_labels == best;
@@ -447,7 +469,9 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
   }
 
   // --- mask: threshold, clean, the region of the detection, holes filled --
-  cv::Mat m = seg.score > 0;
+  // Skin lies about +0.5; far more chromatic than skin, beyond kMaxScore,
+  // is something else of a skin-like hue (red hair, a red towel).
+  cv::Mat m = (seg.score > 0) & (seg.score < kMaxScore);
   if (!background.empty()) m.setTo(0, background);
   morphology(&m, cv::MORPH_OPEN, params.open_radius);
   morphology(&m, cv::MORPH_CLOSE, params.close_radius);

@@ -33,7 +33,8 @@ struct Rendered {
 /// Subject `index` of the varied population with both arms along the trunk
 /// (abduction in radians), head in the cradle, buttocks; the view from above
 /// the neck to below L4.
-Rendered render(int index, double abduction, sim::ArmPose arms = sim::ArmPose::kAlongTrunk) {
+Rendered render(int index, double abduction, sim::ArmPose arms = sim::ArmPose::kAlongTrunk,
+                sim::HairColour hair = sim::HairColour::kBrown, const std::string& sheet = "") {
   const sim::BodyParameters body = sim::BodyParameters::varied(index);
   sim::BackModel back(body);
   sim::Dressing d;
@@ -41,6 +42,8 @@ Rendered render(int index, double abduction, sim::ArmPose arms = sim::ArmPose::k
   d.arm_abduction_left = d.arm_abduction_right = abduction;
   d.head = true;
   d.hair = sim::HairLength::kShort;
+  d.hair_colour = hair;
+  if (!sheet.empty()) d.sheet = sim::Cloth{sim::clothColour(sheet), sim::Weave::kFine};
   d.lower_body = true;
   const sim::Scene scene = sim::makeCellScene(back, 1, d);
   const sim::Renderer renderer(scene);
@@ -137,6 +140,22 @@ TEST(RealBacks, TheFloorBeyondTheTableStaysOutOfThePalestBack) {
     EXPECT_TRUE(!c.valid() || floorIn(c) > 0.05 * cv::countNonZero(c.left().mask))
         << "colour alone kept the floor out: this scene no longer tests the gate";
   }
+}
+
+TEST(RealBacks, RedHairIsNotTakenForTheBack) {
+  // Red hair is the most chromatic thing in view, a class of its own above
+  // pale skin: the back is the largest region of the class below it.
+  const Rendered r = render(21, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kRed, "grey");
+  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
+  ASSERT_TRUE(f.valid()) << f.reason();
+  const cv::Mat back = (r.frame.left.labels == sim::kLabelBack) & f.left().mask;
+  const cv::Mat hair = (r.frame.left.labels == sim::kLabelHair) & f.left().mask;
+  std::cout << "mask " << cv::countNonZero(f.left().mask) << " px: back " << cv::countNonZero(back) << ", hair "
+            << cv::countNonZero(hair) << "\n";
+  EXPECT_GT(cv::countNonZero(back), 0.85 * cv::countNonZero(f.left().mask));
+  EXPECT_LT(cv::countNonZero(hair), 0.002 * cv::countNonZero(f.left().mask));
+  EXPECT_TRUE(cect::locateAcupoints(f, model()).valid);
 }
 
 int main(int argc, char** argv) {
