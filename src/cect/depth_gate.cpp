@@ -55,7 +55,7 @@ DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, con
   const int span = static_cast<int>(std::ceil(max_disparity / factor)) - min_d + 1;
   const int num_d = 16 * ((span + 15) / 16);
   const int cols = left_rect.cols / factor;
-  if (cols < min_d + num_d + 2 * kBlock || left_rect.rows / factor < 2 * kBlock) return gate;  // nothing to match
+  if (cols < 2 * kBlock || left_rect.rows / factor < 2 * kBlock) return gate;  // nothing to match
 
   cv::Mat disparity[2];
   cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& range) {
@@ -67,10 +67,16 @@ DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, con
         cv::flip(l, l, 1);
         cv::flip(r, r, 1);
       }
+      // Padded on the left by the search range, so that the first columns
+      // (whose farther points the other camera does see) get a disparity too.
+      const int pad = min_d + num_d;
+      cv::copyMakeBorder(l, l, 0, 0, pad, 0, cv::BORDER_REPLICATE);
+      cv::copyMakeBorder(r, r, 0, 0, pad, 0, cv::BORDER_REPLICATE);
       const cv::Ptr<cv::StereoSGBM> sgbm =
           cv::StereoSGBM::create(min_d, num_d, kBlock, 8 * kBlock * kBlock, 32 * kBlock * kBlock, 1, 0, 10);
       cv::Mat d;
       sgbm->compute(l, r, d);
+      d = d.colRange(pad, d.cols).clone();
       if (v == 1) cv::flip(d, d, 1);
       disparity[v] = d;
     }
@@ -95,6 +101,9 @@ DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, con
 
   for (int v = 0; v < 2; ++v) {
     cv::Mat far = (disparity[v] > invalid) & (disparity[v] < far_d);
+    // Block matching fattens the near surfaces by half a block over the far
+    // ones next to them: the far region grown back by as much.
+    cv::dilate(far, far, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(kBlock, kBlock)));
     cv::Mat full;
     cv::resize(far, full, cv::Size(cols * factor, (left_rect.rows / factor) * factor), 0, 0, cv::INTER_NEAREST);
     cv::Mat out = cv::Mat::zeros(left_rect.size(), CV_8U);
