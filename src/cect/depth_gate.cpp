@@ -20,7 +20,7 @@ constexpr int kBlock = 5;         // SGBM block size, coarse pixels
 cv::Mat coarseGrey(const cv::Mat& img, int factor) {
   cv::Mat grey = img;
   if (img.channels() == 3) cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
-  if (factor == 1) return grey.clone();
+  if (factor == 1) return grey;
   cv::Mat small;
   cv::resize(grey, small, cv::Size(img.cols / factor, img.rows / factor), 0, 0, cv::INTER_AREA);
   return small;
@@ -57,15 +57,18 @@ DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, con
   const int cols = left_rect.cols / factor;
   if (cols < 2 * kBlock || left_rect.rows / factor < 2 * kBlock) return gate;  // nothing to match
 
+  const cv::Mat coarse_left = coarseGrey(left_rect, factor), coarse_right = coarseGrey(right_rect, factor);
   cv::Mat disparity[2];
   cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& range) {
     for (int v = range.start; v < range.end; ++v) {
       // The right view's disparity: the mirrored right image matched against the mirrored left.
-      cv::Mat l = coarseGrey(v == 0 ? left_rect : right_rect, factor);
-      cv::Mat r = coarseGrey(v == 0 ? right_rect : left_rect, factor);
-      if (v == 1) {
-        cv::flip(l, l, 1);
-        cv::flip(r, r, 1);
+      cv::Mat l, r;
+      if (v == 0) {
+        l = coarse_left;
+        r = coarse_right;
+      } else {
+        cv::flip(coarse_right, l, 1);
+        cv::flip(coarse_left, r, 1);
       }
       // Padded on the left by the search range, so that the first columns
       // (whose farther points the other camera does see) get a disparity too.
