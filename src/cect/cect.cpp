@@ -514,7 +514,8 @@ class CectFrameBuilder {
       for (int v = views.start; v < views.end; ++v)
         (v == 0 ? f_.left_seg_ : f_.right_seg_) =
             segmentBack(v == 0 ? f_.left_rect_ : f_.right_rect_, f_.params_.segmentation,
-                        v == 0 ? f_.background_.left_far : f_.background_.right_far);
+                        v == 0 ? f_.background_.left_far : f_.background_.right_far,
+                        v == 0 ? f_.background_.left_depth : f_.background_.right_depth);
     });
     f_.timings_.segment_ms = msSince(t);
     if (!f_.left_seg_.valid) return fail("left view: " + f_.left_seg_.reason, t0);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
@@ -112,6 +113,21 @@ DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, con
     cv::Mat out = cv::Mat::zeros(left_rect.size(), CV_8U);
     full.copyTo(out(cv::Rect(0, 0, full.cols, full.rows)));
     (v == 0 ? gate.left_far : gate.right_far) = out;
+    // Depth: f B / (d - offset) where the disparity is valid.
+    cv::Mat z(disparity[v].size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+    for (int y = 0; y < z.rows; ++y) {
+      const short* d = disparity[v].ptr<short>(y);
+      float* o = z.ptr<float>(y);
+      for (int x = 0; x < z.cols; ++x) {
+        const double dd = d[x] / 16.0 * factor - offset;
+        if (d[x] > invalid && dd > 0.0) o[x] = static_cast<float>(focal_baseline / dd);
+      }
+    }
+    cv::Mat z_full;
+    cv::resize(z, z_full, full.size(), 0, 0, cv::INTER_NEAREST);
+    cv::Mat depth(left_rect.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+    z_full.copyTo(depth(cv::Rect(0, 0, z_full.cols, z_full.rows)));
+    (v == 0 ? gate.left_depth : gate.right_depth) = depth;
   }
   return gate;
 }

@@ -95,6 +95,11 @@ constexpr double kSnapStep = 0.25;
 /// Highest score of skin: the back's own chroma scores +0.5, its spread
 /// (robust sigma) is below kMaxSkinSpread.
 constexpr float kMaxScore = 2.5f;
+/// fillRaisedSkin: height above the surroundings (metres), lowest score, and
+/// inset from the raised region's edge (fraction of the image's rows).
+constexpr double kRaise = 0.05;
+constexpr float kFillMinScore = -0.3f;
+constexpr double kFillInset = 1.0 / 60.0;
 /// Score given to pixels whose sign had to be forced to agree with the mask.
 constexpr float kForcedScore = 0.5f;
 
@@ -275,13 +280,30 @@ void morphology(cv::Mat* mask, cv::MorphTypes op, int radius) {
   padded(cv::Rect(radius, radius, mask->cols, mask->rows)).copyTo(*mask);
 }
 
+/// Skin whose chroma the light's sheen has pulled toward the surroundings'
+/// (dark skin under a light above it): pixels standing kRaise or more above
+/// the surroundings' depth `ring_depth` (the table) and not clearly of the
+/// surroundings' colour (score above kFillMinScore; and not beyond skin,
+/// kMaxScore) join the mask, eroded by
+/// kFillInset of the image's rows so that the coarse depth never sets the
+/// border where the colour can.
+void fillRaisedSkin(const cv::Mat& score, const cv::Mat& depth, double ring_depth, cv::Mat* mask) {
+  cv::Mat raised = (depth < static_cast<float>(ring_depth - kRaise)) & (score > kFillMinScore) & (score < kMaxScore);
+  const int inset = std::max(1, static_cast<int>(std::lround(kFillInset * depth.rows)));
+  cv::erode(raised, raised, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * inset + 1, 2 * inset + 1)));
+  *mask |= raised;
+}
+
 }  // namespace
 
-Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, const cv::Mat& background) {
+Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, const cv::Mat& background,
+                         const cv::Mat& depth) {
   if (bgr.empty()) throw std::invalid_argument("segmentBack: empty image");
   if (bgr.type() != CV_8UC3) throw std::invalid_argument("segmentBack: expected a CV_8UC3 (BGR) image");
   if (!background.empty() && (background.type() != CV_8UC1 || background.size() != bgr.size()))
     throw std::invalid_argument("segmentBack: the background mask must be CV_8U of the image's size");
+  if (!depth.empty() && (depth.type() != CV_32FC1 || depth.size() != bgr.size()))
+    throw std::invalid_argument("segmentBack: the depth map must be CV_32F of the image's size");
   const cv::Size size = bgr.size();
   std::array<float, 256> log_table;
   for (int i = 0; i < 256; ++i) log_table[static_cast<std::size_t>(i)] = static_cast<float>(std::log(i + kLogOffset));
@@ -386,6 +408,7 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
   // Every `stride`-th pixel is enough for the medians (a few thousand samples).
   const int stride = std::max(1, static_cast<int>(std::sqrt(best_area / 4000.0)));
   std::vector<float> sl, su, sv, bu, bv, ou, ov;  // region, its core, ring, all beyond the transition
+  std::vector<float> ring_depth;                   // the ring's depths (with a depth map)
   for (int y = 0; y < small.height; y += stride) {
     const cv::Vec2f* c = uv.ptr<cv::Vec2f>(y);
     const unsigned char* in_region = region.ptr<unsigned char>(y);
@@ -401,6 +424,11 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
         if (in_ring[x]) {
           bu.push_back(c[x][0]);
           bv.push_back(c[x][1]);
+          if (!depth.empty()) {
+            const float z = depth.at<float>(std::min(y * factor + factor / 2, size.height - 1),
+                                            std::min(x * factor + factor / 2, size.width - 1));
+            if (std::isfinite(z)) ring_depth.push_back(z);
+          }
         }
         ou.push_back(c[x][0]);
         ov.push_back(c[x][1]);
@@ -472,6 +500,7 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
   // Skin lies about +0.5; far more chromatic than skin, beyond kMaxScore,
   // is something else of a skin-like hue (red hair, a red towel).
   cv::Mat m = (seg.score > 0) & (seg.score < kMaxScore);
+  if (ring_depth.size() >= 10) fillRaisedSkin(seg.score, depth, median(ring_depth), &m);
   if (!background.empty()) m.setTo(0, background);
   morphology(&m, cv::MORPH_OPEN, params.open_radius);
   morphology(&m, cv::MORPH_CLOSE, params.close_radius);

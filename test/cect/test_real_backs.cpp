@@ -160,6 +160,28 @@ TEST(RealBacks, RedHairIsNotTakenForTheBack) {
   EXPECT_TRUE(cect::locateAcupoints(f, model()).valid);
 }
 
+TEST(RealBacks, SheenOnDarkSkinDoesNotCutTheBack) {
+  // Dark skin under the light above it, on a pink sheet: the sheen pales the
+  // lit back's chroma to the sheet's side of the colour score. Standing well
+  // above the table, it stays in the back (the coarse depth fills it in).
+  const Rendered r = render(43, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kBlack, "pink");
+  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
+  ASSERT_TRUE(f.valid()) << f.reason();
+  const cv::Mat back = (r.frame.left.labels == sim::kLabelBack) & (r.frame.left_visible > 0);
+  auto coverage = [&](const cv::Mat& mask) {
+    return static_cast<double>(cv::countNonZero(back & mask)) / cv::countNonZero(back);
+  };
+  const cect::Segmentation colour_only =
+      cect::segmentBack(f.leftRectified(), f.params().segmentation, f.background().left_far);
+  std::cout << "back covered: " << coverage(f.left().mask) << " (colour alone "
+            << (colour_only.valid ? coverage(colour_only.mask) : 0.0) << ")\n";
+  EXPECT_GT(coverage(f.left().mask), 0.9);
+  EXPECT_TRUE(!colour_only.valid || coverage(colour_only.mask) < 0.8)
+      << "colour alone keeps the lit back: this scene no longer tests the depth fill";
+  EXPECT_GE(cect::locateAcupoints(f, model()).validCount(), 80);
+}
+
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();

@@ -583,6 +583,7 @@ TEST(SegmentBack, KnownBackgroundNeverJoinsTheBack) {
   EXPECT_EQ(cv::countNonZero(s.mask & background), 0);
   EXPECT_GT(cv::countNonZero(s.mask(cv::Rect(104, 64, 112, 142))), 0.99 * 112 * 142);
   EXPECT_THROW(cect::segmentBack(img, {}, cv::Mat::zeros(10, 10, CV_8U)), std::invalid_argument);
+  EXPECT_THROW(cect::segmentBack(img, {}, cv::Mat(), cv::Mat::zeros(img.size(), CV_8U)), std::invalid_argument);
 }
 
 int main(int argc, char** argv) {

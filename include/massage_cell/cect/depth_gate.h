@@ -31,6 +31,10 @@ struct DepthGate {
   /// CV_8U 255 where a rectified view's pixel is far behind the nearest
   /// surfaces; empty when the gate is off or found nothing to measure.
   cv::Mat left_far, right_far;
+  /// CV_32F, each rectified view's coarse depth (metres along the optical
+  /// axis, nearest-neighbour upsampled; NaN without a disparity); empty with
+  /// left_far.
+  cv::Mat left_depth, right_depth;
   double nearest_depth = 0.0;  ///< metres: the nearest surfaces' depth (0: not measured)
   double far_depth = 0.0;      ///< metres: beyond this a pixel is far
   std::string summary() const;  ///< one line for diagnostics

@@ -78,12 +78,15 @@ struct Segmentation {
 /// Segments the back in a BGR (CV_8UC3) image. `background` (optional,
 /// CV_8U of the image's size): pixels known not to be the back whatever
 /// their colour (depth_gate.h: the floor far behind the table); they take
-/// no part in choosing the skin's colour and never join the back. Never
+/// no part in choosing the skin's colour and never join the back. `depth`
+/// (optional, CV_32F metres, NaN unknown; depth_gate.h): pixels well above
+/// the back's surroundings whose colour is not clearly the surroundings'
+/// (skin whose chroma a sheen has paled) join it, inside its border. Never
 /// throws for image content; throws std::invalid_argument for an empty or
 /// non-CV_8UC3 image or a background mask of another size or type.
 /// Thread-safe (no shared state). ~3 ms for 640 x 480 (Release, 2 cores).
 Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params = {},
-                         const cv::Mat& background = cv::Mat());
+                         const cv::Mat& background = cv::Mat(), const cv::Mat& depth = cv::Mat());
 
 /// Sub-pixel x positions where `score` changes sign along row y (y may be
 /// fractional: the score is interpolated bilinearly between rows), in
