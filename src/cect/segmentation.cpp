@@ -280,6 +280,45 @@ void morphology(cv::Mat* mask, cv::MorphTypes op, int radius) {
   padded(cv::Rect(radius, radius, mask->cols, mask->rows)).copyTo(*mask);
 }
 
+/// The detection's candidate thresholds (histogram bins), most chromatic
+/// first: Otsu, then Otsu inside the upper class while it is clearly two
+/// classes (skin is the most chromatic distinct class); then, for when that
+/// class is only scattered patches (red hair, a coloured cushion, split off
+/// first), the chain's earlier splits and up to two Otsu splits inside the
+/// lower class (skin and sheet below the hair). Empty for a single colour.
+std::vector<int> skinThresholds(const std::vector<double>& hist, double min_pixels) {
+  std::vector<OtsuSplit> chain{otsu(hist, 0, kHistBins)};
+  if (chain.back().bin < 0) return {};
+  for (;;) {
+    const OtsuSplit up = otsu(hist, chain.back().bin, kHistBins);
+    if (up.bin < 0 || up.separability < kBimodal || up.upper_mass < min_pixels) break;
+    chain.push_back(up);
+  }
+  std::vector<int> bins;
+  for (auto k = chain.rbegin(); k != chain.rend(); ++k) bins.push_back(k->bin);
+  for (int extra = 0; extra < 2; ++extra) {
+    const OtsuSplit lower = otsu(hist, 0, bins.back());
+    if (lower.bin <= 0) break;
+    bins.push_back(lower.bin);
+  }
+  return bins;
+}
+
+/// The largest 8-connected component of `binary`: its label in `labels`
+/// (CV_32S), its area (0, label 0 when there is none).
+void largestComponent(const cv::Mat& binary, cv::Mat* labels, int* best, int* area) {
+  cv::Mat stats, centroids;
+  const int n = cv::connectedComponentsWithStats(binary, *labels, stats, centroids, 8, CV_32S);
+  *best = 0;
+  *area = 0;
+  for (int i = 1; i < n; ++i) {
+    if (stats.at<int>(i, cv::CC_STAT_AREA) > *area) {
+      *area = stats.at<int>(i, cv::CC_STAT_AREA);
+      *best = i;
+    }
+  }
+}
+
 /// Skin whose chroma the light's sheen has pulled toward the surroundings'
 /// (dark skin under a light above it): pixels standing kRaise or more above
 /// the surroundings' depth `ring_depth` (the table) and not clearly of the
@@ -351,40 +390,15 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
       hist[static_cast<std::size_t>(b)] += 1.0;
     }
   }
-  // Otsu, then Otsu inside the upper class while it is clearly two classes.
   const double min_pixels = params.min_area_fraction * small.area();
-  std::vector<OtsuSplit> chain{otsu(hist, 0, kHistBins)};
-  if (chain.back().bin < 0) return invalid(size, "no back in view: the image has a single colour");
-  for (;;) {
-    const OtsuSplit up = otsu(hist, chain.back().bin, kHistBins);
-    if (up.bin < 0 || up.separability < kBimodal || up.upper_mass < min_pixels) break;
-    chain.push_back(up);
-  }
+  const std::vector<int> bins = skinThresholds(hist, min_pixels);
+  if (bins.empty()) return invalid(size, "no back in view: the image has a single colour");
   // The largest region above the most chromatic class's threshold; when that
-  // class is only scattered patches (red hair, a coloured cushion), the
-  // threshold below it: the chain's earlier splits, then Otsu inside the
-  // lower class (the hair split off first; skin and sheet below).
-  std::vector<int> bins;
-  for (auto k = chain.rbegin(); k != chain.rend(); ++k) bins.push_back(k->bin);
-  for (int extra = 0; extra < 2; ++extra) {
-    const OtsuSplit lower = otsu(hist, 0, bins.back());
-    if (lower.bin <= 0) break;
-    bins.push_back(lower.bin);
-  }
+  // class is only scattered patches, the next threshold's.
   cv::Mat cc_labels;
   int best = 0, best_area = 0, top_area = -1;
   for (const int bin : bins) {
-    const float threshold = static_cast<float>(kHistLow + bin / bin_scale);
-    cv::Mat cc_stats, cc_centroids;
-    const int n_cc = cv::connectedComponentsWithStats(like > threshold, cc_labels, cc_stats, cc_centroids, 8, CV_32S);
-    best = 0;
-    best_area = 0;
-    for (int i = 1; i < n_cc; ++i) {
-      if (cc_stats.at<int>(i, cv::CC_STAT_AREA) > best_area) {
-        best_area = cc_stats.at<int>(i, cv::CC_STAT_AREA);
-        best = i;
-      }
-    }
+    largestComponent(like > static_cast<float>(kHistLow + bin / bin_scale), &cc_labels, &best, &best_area);
     if (top_area < 0) top_area = best_area;
     if (best_area >= min_pixels) break;
   }
