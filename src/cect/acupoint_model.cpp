@@ -88,7 +88,7 @@ constexpr double kHipWider = 0.015;       // hips wider than the waist by this f
 constexpr double kMaxOutOfView = 0.25;    // L4 at most this fraction of C7 -> L4 below a back cut by the image
 constexpr double kNeckFlare = 0.1;        // the neck's base: within 10 % of the way from the neck's width to the shoulders'
 constexpr double kNeckRows = 0.04;        // a neck in view spans at least this fraction of the back's rows
-constexpr double kTopMismatch = 0.06;     // C7 from the top and from the shoulder line differ by more: the top is not the neck's base
+constexpr double kTopMismatch = 0.12;     // C7 from the top and from the shoulder line differ by more: the top is not the neck's base
 constexpr int kMinRows = 24;              // fewer rows: too small to find anything
 constexpr double kScaleWindow = 0.03;     // metres-per-pixel median over +-3 % of C7->L4 along the midline
 
