@@ -61,8 +61,8 @@ struct AcupointModel {
   /// landmark was measured or inferred (a point between them takes the
   /// linear mix by its level), and across the body. layoutCovariance().
   struct LayoutSigma {
-    double c7_measured = 0.03, c7_inferred = 0.21;
-    double l4_measured = 0.08, l4_inferred = 0.17;
+    double c7_measured = 0.025, c7_inferred = 0.22;
+    double l4_measured = 0.075, l4_inferred = 0.08;
     double across = 0.02;
   } layout_sigma;
   bool head_up = true;  ///< head toward the image top
