@@ -27,6 +27,46 @@ cv::Mat coarseGrey(const cv::Mat& img, int factor) {
   return small;
 }
 
+/// Each view's disparity (CV_16S, SGBM's fixed point) of the coarse pair:
+/// the left view's directly, the right one's by matching the mirrored pair.
+/// Padded on the left by the search range, so that the first columns (whose
+/// farther points the other camera does see) get a disparity too.
+void coarseDisparities(const cv::Mat& coarse_left, const cv::Mat& coarse_right, int min_d, int num_d,
+                       cv::Mat disparity[2]) {
+  cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& range) {
+    for (int v = range.start; v < range.end; ++v) {
+      cv::Mat l, r;
+      if (v == 0) {
+        l = coarse_left;
+        r = coarse_right;
+      } else {
+        cv::flip(coarse_right, l, 1);
+        cv::flip(coarse_left, r, 1);
+      }
+      const int pad = min_d + num_d;
+      cv::copyMakeBorder(l, l, 0, 0, pad, 0, cv::BORDER_REPLICATE);
+      cv::copyMakeBorder(r, r, 0, 0, pad, 0, cv::BORDER_REPLICATE);
+      const cv::Ptr<cv::StereoSGBM> sgbm =
+          cv::StereoSGBM::create(min_d, num_d, kBlock, 8 * kBlock * kBlock, 32 * kBlock * kBlock, 1, 0, 10);
+      cv::Mat d;
+      sgbm->compute(l, r, d);
+      d = d.colRange(pad, d.cols).clone();
+      if (v == 1) cv::flip(d, d, 1);
+      disparity[v] = d;
+    }
+  });
+}
+
+/// `coarse` (nearest-neighbour) at the full image's size; `fill` where the
+/// image's last rows and columns have no coarse pixel.
+cv::Mat toFullSize(const cv::Mat& coarse, int factor, const cv::Size& size, const cv::Scalar& fill) {
+  cv::Mat up;
+  cv::resize(coarse, up, cv::Size(coarse.cols * factor, coarse.rows * factor), 0, 0, cv::INTER_NEAREST);
+  cv::Mat out(size, coarse.type(), fill);
+  up.copyTo(out(cv::Rect(0, 0, up.cols, up.rows)));
+  return out;
+}
+
 }  // namespace
 
 std::string DepthGate::summary() const {
@@ -55,36 +95,10 @@ DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, con
   const int min_d = std::max(0, static_cast<int>(std::floor(min_disparity / factor)));
   const int span = static_cast<int>(std::ceil(max_disparity / factor)) - min_d + 1;
   const int num_d = 16 * ((span + 15) / 16);
-  const int cols = left_rect.cols / factor;
-  if (cols < 2 * kBlock || left_rect.rows / factor < 2 * kBlock) return gate;  // nothing to match
+  if (left_rect.cols / factor < 2 * kBlock || left_rect.rows / factor < 2 * kBlock) return gate;  // nothing to match
 
-  const cv::Mat coarse_left = coarseGrey(left_rect, factor), coarse_right = coarseGrey(right_rect, factor);
   cv::Mat disparity[2];
-  cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& range) {
-    for (int v = range.start; v < range.end; ++v) {
-      // The right view's disparity: the mirrored right image matched against the mirrored left.
-      cv::Mat l, r;
-      if (v == 0) {
-        l = coarse_left;
-        r = coarse_right;
-      } else {
-        cv::flip(coarse_right, l, 1);
-        cv::flip(coarse_left, r, 1);
-      }
-      // Padded on the left by the search range, so that the first columns
-      // (whose farther points the other camera does see) get a disparity too.
-      const int pad = min_d + num_d;
-      cv::copyMakeBorder(l, l, 0, 0, pad, 0, cv::BORDER_REPLICATE);
-      cv::copyMakeBorder(r, r, 0, 0, pad, 0, cv::BORDER_REPLICATE);
-      const cv::Ptr<cv::StereoSGBM> sgbm =
-          cv::StereoSGBM::create(min_d, num_d, kBlock, 8 * kBlock * kBlock, 32 * kBlock * kBlock, 1, 0, 10);
-      cv::Mat d;
-      sgbm->compute(l, r, d);
-      d = d.colRange(pad, d.cols).clone();
-      if (v == 1) cv::flip(d, d, 1);
-      disparity[v] = d;
-    }
-  });
+  coarseDisparities(coarseGrey(left_rect, factor), coarseGrey(right_rect, factor), min_d, num_d, disparity);
 
   // The nearest surfaces' depth (a quantile of the left view's disparities).
   std::vector<short> valid;
@@ -108,11 +122,7 @@ DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, con
     // Block matching fattens the near surfaces by half a block over the far
     // ones next to them: the far region grown back by as much.
     cv::dilate(far, far, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(kBlock, kBlock)));
-    cv::Mat full;
-    cv::resize(far, full, cv::Size(cols * factor, (left_rect.rows / factor) * factor), 0, 0, cv::INTER_NEAREST);
-    cv::Mat out = cv::Mat::zeros(left_rect.size(), CV_8U);
-    full.copyTo(out(cv::Rect(0, 0, full.cols, full.rows)));
-    (v == 0 ? gate.left_far : gate.right_far) = out;
+    (v == 0 ? gate.left_far : gate.right_far) = toFullSize(far, factor, left_rect.size(), cv::Scalar(0));
     // Depth: f B / (d - offset) where the disparity is valid.
     cv::Mat z(disparity[v].size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
     for (int y = 0; y < z.rows; ++y) {
@@ -123,11 +133,8 @@ DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, con
         if (d[x] > invalid && dd > 0.0) o[x] = static_cast<float>(focal_baseline / dd);
       }
     }
-    cv::Mat z_full;
-    cv::resize(z, z_full, full.size(), 0, 0, cv::INTER_NEAREST);
-    cv::Mat depth(left_rect.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
-    z_full.copyTo(depth(cv::Rect(0, 0, z_full.cols, z_full.rows)));
-    (v == 0 ? gate.left_depth : gate.right_depth) = depth;
+    (v == 0 ? gate.left_depth : gate.right_depth) =
+        toFullSize(z, factor, left_rect.size(), cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
   }
   return gate;
 }
