@@ -33,6 +33,7 @@
 #include "massage_cell/cect/cect.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -432,6 +433,54 @@ bool fitQuadratic(const std::vector<Correspondence>& V, const std::vector<int>& 
 
 /// s rounded to the nearest power of 2^(1/4).
 double quantisedScale(double s) { return std::exp2(std::round(4.0 * std::log2(s)) / 4.0); }
+
+/// One seed beside a rim vertex: u along the rim's inward normal, t across
+/// it (pixels), its disparity, its index among the vertices.
+struct RimObservation {
+  double u, t, d;
+  int vertex;
+};
+
+/// The rim profile d(u, t) = k0 + k1 sqrt(u / step) + k2 u / step + k3 t / step.
+double rimProfileAt(const Eigen::Vector4d& k, double u, double t, double step) {
+  return k(0) + k(1) * std::sqrt(u / step) + k(2) * u / step + k(3) * t / step;
+}
+
+/// Least-squares rim profile through the rim's own disparity (at u = 0,
+/// weight `rim_weight`) and the seeds `obs`; while its rms exceeds `max_rms`
+/// the seed farthest from it goes to `outliers` and the fit is repeated,
+/// as long as five seeds remain. False when it never holds.
+bool fitRimProfile(double rim_disparity, double rim_weight, double step, double max_rms,
+                   std::vector<RimObservation>* obs, Eigen::Vector4d* k, std::vector<int>* outliers) {
+  while (obs->size() >= 5) {
+    Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
+    Eigen::Vector4d b = Eigen::Vector4d::Zero();
+    auto add = [&](double u, double t, double d, double w) {
+      const Eigen::Vector4d phi(1.0, std::sqrt(u / step), u / step, t / step);
+      A += w * phi * phi.transpose();
+      b += w * d * phi;
+    };
+    add(0.0, 0.0, rim_disparity, rim_weight);
+    for (const RimObservation& o : *obs) add(o.u, o.t, o.d, 1.0);
+    *k = A.ldlt().solve(b);
+    if (!k->allFinite()) return false;
+    double ss = rim_weight * std::pow(rim_disparity - rimProfileAt(*k, 0.0, 0.0, step), 2), worst_res = -1.0;
+    std::size_t worst = 0;
+    for (std::size_t o = 0; o < obs->size(); ++o) {
+      const RimObservation& r = (*obs)[o];
+      const double res = std::abs(r.d - rimProfileAt(*k, r.u, r.t, step));
+      ss += res * res;
+      if (res > worst_res) {
+        worst_res = res;
+        worst = o;
+      }
+    }
+    if (std::sqrt(ss / (static_cast<double>(obs->size()) + rim_weight)) <= max_rms) return true;
+    outliers->push_back((*obs)[worst].vertex);
+    obs->erase(obs->begin() + static_cast<std::ptrdiff_t>(worst));
+  }
+  return false;
+}
 
 }  // namespace
 
@@ -1056,7 +1105,11 @@ class CectFrameBuilder {
   /// to the seeds within a band along its inward normal (u along it, t
   /// across it) and to the rim's own disparity at u = 0; where the fit holds
   /// (rms within 2 pixel_sigma), vertices at u = 2, 5, 9, ... px are added up
-  /// to half a seed step short of the nearest seed.
+  /// to half a seed step short of the nearest seed. Where it does not hold,
+  /// the seed farthest from the fit is dropped and the fit repeated while
+  /// five seeds remain: one bad seed on a steep flank (a window spanning a
+  /// fall of several pixels of disparity) otherwise spoils both the profile
+  /// and the interpolation from it.
   void rimProfiles() {
     auto& V = f_.vertices_;
     const double step = f_.params_.seed_step;
@@ -1067,46 +1120,33 @@ class CectFrameBuilder {
       if (V[i].source == Correspondence::Source::kSeed) seeds.push_back(static_cast<int>(i));
     const cv::Mat& mask = f_.left_seg_.mask;
     std::vector<Correspondence> added;
+    std::vector<int> drop;
     const std::size_t n_rim = std::min(rim_normals_.size(), V.size());
     for (std::size_t i = 0; i < n_rim; i += 2) {
       const Correspondence& rim = V[i];
       if (!rim.foundational()) continue;
       const cv::Point2f n = rim_normals_[i];
       const cv::Point2f t(-n.y, n.x);
-      Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
-      Eigen::Vector4d b = Eigen::Vector4d::Zero();
-      auto add = [&](double u, double tt, double d, double w) {
-        const Eigen::Vector4d phi(1.0, std::sqrt(u / step), u / step, tt / step);
-        A += w * phi * phi.transpose();
-        b += w * d * phi;
-      };
-      add(0.0, 0.0, rim.disparity, rim_weight);
-      struct Obs { double u, t, d; };
-      std::vector<Obs> obs;
-      double u_min = reach;
+      std::vector<RimObservation> obs;
       for (int j : seeds) {
         const cv::Point2f q = V[static_cast<std::size_t>(j)].left - rim.left;
         const double u = q.dot(n), tt = q.dot(t);
         if (u <= 0.0 || u > reach || std::abs(tt) > band) continue;
-        obs.push_back({u, tt, V[static_cast<std::size_t>(j)].disparity});
-        add(u, tt, obs.back().d, 1.0);
-        u_min = std::min(u_min, u);
+        obs.push_back({u, tt, V[static_cast<std::size_t>(j)].disparity, j});
       }
-      if (obs.size() < 5 || u_min > 3.0 * step) continue;
-      const Eigen::Vector4d k = A.ldlt().solve(b);
-      if (!k.allFinite()) continue;
-      auto model = [&](double u, double tt) {
-        return k(0) + k(1) * std::sqrt(u / step) + k(2) * u / step + k(3) * tt / step;
-      };
-      double ss = rim_weight * std::pow(rim.disparity - model(0, 0), 2);
-      for (const Obs& o : obs) ss += std::pow(o.d - model(o.u, o.t), 2);
-      if (std::sqrt(ss / (static_cast<double>(obs.size()) + rim_weight)) > 2.0 * f_.params_.pixel_sigma) continue;
+      Eigen::Vector4d k;
+      std::vector<int> outliers;
+      if (!fitRimProfile(rim.disparity, rim_weight, step, 2.0 * f_.params_.pixel_sigma, &obs, &k, &outliers)) continue;
+      double u_min = reach;
+      for (const RimObservation& o : obs) u_min = std::min(u_min, o.u);
+      if (u_min > 3.0 * step) continue;
+      drop.insert(drop.end(), outliers.begin(), outliers.end());
       // The profile interpolates between the rim and the seeds: a value
       // outside their range (beyond the continuity margin) is an
       // extrapolation of a fit the seeds do not hold, e.g. next to the
       // image's edge, where the back is cut and the seeds lie to one side.
       double lo = rim.disparity, hi = rim.disparity;
-      for (const Obs& o : obs) {
+      for (const RimObservation& o : obs) {
         lo = std::min(lo, o.d);
         hi = std::max(hi, o.d);
       }
@@ -1114,7 +1154,7 @@ class CectFrameBuilder {
       hi += f_.params_.continuity_margin;
       for (double u : {2.0, 5.0, 9.0, 14.0, 20.0, 27.0, 35.0, 44.0}) {
         if (u > u_min - 0.5 * step) break;
-        const double d = model(u, 0.0);
+        const double d = rimProfileAt(k, u, 0.0, step);
         if (d < lo || d > hi) break;
         const cv::Point2f q = rim.left + static_cast<float>(u) * n;
         const int x = cvRound(q.x), y = cvRound(q.y);
@@ -1127,6 +1167,10 @@ class CectFrameBuilder {
         added.push_back(c);
       }
     }
+    std::sort(drop.begin(), drop.end());
+    drop.erase(std::unique(drop.begin(), drop.end()), drop.end());
+    for (auto it = drop.rbegin(); it != drop.rend(); ++it) V.erase(V.begin() + *it);
+    f_.seed_stats_.rim_outliers += static_cast<int>(drop.size());
     V.insert(V.end(), added.begin(), added.end());
   }
 

@@ -139,6 +139,10 @@ struct CectParams {
   /// fitted to the seeds nearby) instead of interpolating linearly. The
   /// profile's values stay within the range of the rim's and those seeds'
   /// disparities (+- continuity_margin): beyond it the fit extrapolates.
+  /// Seeds that keep the fit from holding are dropped, worst first, while
+  /// five remain: on a steep flank (beside an arm's crease the trunk falls
+  /// ~10 px of disparity within 20 px of its border) a window's peak can be
+  /// several pixels off, and the linear interpolation from it worse still.
   bool rim_profile = true;
   double query_search = 0.0;    ///< pixels searched either side of a query's prediction (0: transfer only, the default: single windows on skin are noisier than the smoothed seeds, and the reported sigma undercovers them: 78 % of the acupoints' errors within 2 sigma at query_search=2)
   /// Weakest accepted correlation peak. Low on purpose: on dark skin and
@@ -270,6 +274,7 @@ struct SeedStats {
   int left_right = 0;  ///< failed constraint 3
   int continuity = 0;  ///< failed constraint 2 against their grid neighbours
   int smoothing = 0;   ///< dropped: too far from their local quadratic
+  int rim_outliers = 0;  ///< dropped: off the rim profile of the border beside them (rim_profile)
   int accepted = 0;    ///< joined the triangulation (before smoothing)
 };
 
