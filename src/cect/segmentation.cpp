@@ -321,13 +321,22 @@ void largestComponent(const cv::Mat& binary, cv::Mat* labels, int* best, int* ar
 
 /// Skin whose chroma the light's sheen has pulled toward the surroundings'
 /// (dark skin under a light above it): pixels standing kRaise or more above
-/// the surroundings' depth `ring_depth` (the table) and not clearly of the
+/// the surroundings' depth `ring_depth` (the table), or enclosed by such
+/// pixels (the highlight itself matches too far), and not clearly of the
 /// surroundings' colour (score above kFillMinScore; and not beyond skin,
 /// kMaxScore) join the mask, eroded by
 /// kFillInset of the image's rows so that the coarse depth never sets the
 /// border where the colour can.
 void fillRaisedSkin(const cv::Mat& score, const cv::Mat& depth, double ring_depth, cv::Mat* mask) {
-  cv::Mat raised = (depth < static_cast<float>(ring_depth - kRaise)) & (score > kFillMinScore) & (score < kMaxScore);
+  cv::Mat raised = depth < static_cast<float>(ring_depth - kRaise);
+  // With the holes of the raised region: a highlight on the skin is a
+  // virtual image of the light behind the surface, and stereo puts it (and
+  // the sheen around it) too far away, but it lies inside the body.
+  cv::Mat outside;
+  cv::copyMakeBorder(~raised, outside, 1, 1, 1, 1, cv::BORDER_CONSTANT, cv::Scalar(255));
+  cv::floodFill(outside, cv::Point(0, 0), cv::Scalar(0));
+  raised |= outside(cv::Rect(1, 1, raised.cols, raised.rows));
+  raised &= (score > kFillMinScore) & (score < kMaxScore);
   const int inset = std::max(1, static_cast<int>(std::lround(kFillInset * depth.rows)));
   cv::erode(raised, raised, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * inset + 1, 2 * inset + 1)));
   *mask |= raised;

@@ -586,6 +586,31 @@ TEST(SegmentBack, KnownBackgroundNeverJoinsTheBack) {
   EXPECT_THROW(cect::segmentBack(img, {}, cv::Mat(), cv::Mat::zeros(img.size(), CV_8U)), std::invalid_argument);
 }
 
+TEST(SegmentBack, AHighlightMatchedTooFarStaysInTheRaisedBack) {
+  // A body on a table (depth 0.75 m vs 0.95 m) whose top middle a sheen has
+  // paled toward the sheet's colour (score about -0.1); stereo puts the
+  // highlight behind the skin (0.92 m), so it does not stand above the
+  // table, but the raised body (and the head above it) encloses it.
+  cv::Mat img(240, 320, CV_8UC3, cv::Scalar(200, 200, 200));
+  img(cv::Rect(100, 60, 120, 150)).setTo(cv::Scalar(120, 150, 200));
+  img(cv::Rect(130, 20, 60, 40)).setTo(cv::Scalar(40, 40, 40));     // hair
+  const cv::Rect sheen(130, 60, 60, 50);
+  img(sheen).setTo(cv::Scalar(163, 178, 200));
+  cv::Mat depth(img.size(), CV_32F, cv::Scalar(0.95f));
+  depth(cv::Rect(100, 60, 120, 150)).setTo(0.75f);
+  depth(cv::Rect(130, 20, 60, 40)).setTo(0.75f);
+  depth(sheen).setTo(0.92f);
+  const cect::Segmentation colour = cect::segmentBack(img);
+  ASSERT_TRUE(colour.valid) << colour.reason;
+  const cv::Rect inner(sheen.x + 6, sheen.y + 6, sheen.width - 12, sheen.height - 12);
+  auto covered = [&](const cv::Mat& mask) { return cv::countNonZero(mask(inner)) / static_cast<double>(inner.area()); };
+  EXPECT_LT(covered(colour.mask), 0.5) << "colour alone keeps the sheen: this scene no longer tests the fill";
+  const cect::Segmentation s = cect::segmentBack(img, {}, cv::Mat(), depth);
+  ASSERT_TRUE(s.valid) << s.reason;
+  EXPECT_GT(covered(s.mask), 0.95);
+  EXPECT_EQ(cv::countNonZero(s.mask(cv::Rect(130, 20, 60, 36))), 0) << "the hair joined the back";
+}
+
 int main(int argc, char** argv) {
   ::testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();
