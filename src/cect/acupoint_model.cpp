@@ -1222,15 +1222,24 @@ double cunMetres(const BackLandmarks& landmarks, const AcupointModel& model, con
   if (!landmarks.valid || landmarks.midline.empty() || !image_scale) return kNaN;
   const PixelScale scale = bodyScale(landmarks, image_scale);
   // Metres per pixel on the shoulder line: median over its central half (the
-  // skin there; robust to holes and outliers of a measured depth).
-  const cv::Point2f centre = midlineAt(landmarks, landmarks.shoulder_row);
-  const cv::Point2f lat = lateralAt(landmarks, landmarks.shoulder_row);
-  std::vector<double> s;
-  for (int k = -4; k <= 4; ++k) {
-    const double t = 0.25 * landmarks.shoulder_width * k / 4.0;
-    s.push_back(scale(centre + static_cast<float>(t) * lat));
-  }
-  const double mpp = median(s);
+  // skin there; robust to holes and outliers of a measured depth). Where
+  // nothing there is localised (the line at the image's top edge), the
+  // nearest row below, within kMaxOutOfView of C7 -> L4, that is.
+  auto across = [&](double row) {
+    const cv::Point2f centre = midlineAt(landmarks, row);
+    const cv::Point2f lat = lateralAt(landmarks, row);
+    std::vector<double> s;
+    for (int k = -4; k <= 4; ++k) {
+      const double t = 0.25 * landmarks.shoulder_width * k / 4.0;
+      s.push_back(scale(centre + static_cast<float>(t) * lat));
+    }
+    return median(s);
+  };
+  const double length = std::abs(landmarks.l4.y - landmarks.c7.y);
+  const double step = std::max(1.0, kScaleWindow / 3.0 * length);
+  double mpp = across(landmarks.shoulder_row);
+  for (double d = step; !std::isfinite(mpp) && d <= kMaxOutOfView * length; d += step)
+    mpp = across(landmarks.shoulder_row + d);
   return model.cun_per_shoulder_width * landmarks.shoulder_width * mpp;
 }
 

@@ -483,6 +483,26 @@ TEST(AcupointLandmarks, CalibratedConstantsMatchTheMeanSubject) {
   EXPECT_NEAR(model().cun_per_shoulder_width, per_width, 0.002 * per_width);
 }
 
+TEST(AcupointLandmarks, CunFromTheRowsBelowWhenTheShoulderLineIsNotLocalised) {
+  // The image's top edge across the shoulders: nothing on the shoulder line
+  // is localised, the rows just below it are; the cun follows from them.
+  const Rendered& r = meanSubject640();
+  const cect::BackLandmarks l = cect::findLandmarks(groundTruthSegmentation(r), model());
+  ASSERT_TRUE(l.valid) << l.reason;
+  const cect::PixelScale full = depthScale(r.view.depth, r.fx);
+  const double cut = l.shoulder_row + 0.02 * (l.l4.y - l.c7.y);
+  const cect::PixelScale below = [&](const cv::Point2f& q) {
+    return q.y > cut ? full(q) : std::numeric_limits<double>::quiet_NaN();
+  };
+  const double cun = cect::cunMetres(l, model(), full), cun_below = cect::cunMetres(l, model(), below);
+  ASSERT_TRUE(std::isfinite(cun));
+  EXPECT_NEAR(cun_below, cun, 0.03 * cun);
+  const cect::PixelScale none = [&](const cv::Point2f& q) {
+    return q.y > l.shoulder_row + 0.5 * (l.l4.y - l.c7.y) ? full(q) : std::numeric_limits<double>::quiet_NaN();
+  };
+  EXPECT_TRUE(std::isnan(cect::cunMetres(l, model(), none))) << "only rows far from the shoulder line localised";
+}
+
 TEST(AcupointPlacement, MeanSubjectAcupointsNearTheTruth) {
   const Rendered& r = meanSubject640();
   const SubjectErrors e = evaluate(r, model());
