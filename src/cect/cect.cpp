@@ -566,6 +566,7 @@ class CectFrameBuilder {
                         v == 0 ? f_.background_.left_far : f_.background_.right_far,
                         v == 0 ? f_.background_.left_depth : f_.background_.right_depth);
     });
+    retryWithoutTheTable(given.background.table_margin);
     f_.timings_.segment_ms = msSince(t);
     if (!f_.left_seg_.valid) return fail("left view: " + f_.left_seg_.reason, t0);
     if (!f_.right_seg_.valid) return fail("right view: " + f_.right_seg_.reason, t0);
@@ -627,6 +628,28 @@ class CectFrameBuilder {
   }
 
  private:
+  /// A view whose segmentation failed (a sheet or towel of skin's colour
+  /// joined to the back: "multi-coloured") is segmented again with the
+  /// table's pixels (tablePixels) left out as well; kept when that works.
+  /// Only then: the coarse depth is too rough at the body's foot to leave
+  /// the table out everywhere.
+  void retryWithoutTheTable(double margin) {
+    DepthGate& g = f_.background_;
+    for (int v = 0; v < 2; ++v) {
+      Segmentation& seg = v == 0 ? f_.left_seg_ : f_.right_seg_;
+      const cv::Mat& depth = v == 0 ? g.left_depth : g.right_depth;
+      if (seg.valid || !(margin > 0.0) || depth.empty()) continue;
+      const cv::Mat& far = v == 0 ? g.left_far : g.right_far;
+      const cv::Mat table = tablePixels(depth, far, f_.geometry_, margin);
+      if (table.empty()) continue;
+      Segmentation retry = segmentBack(v == 0 ? f_.left_rect_ : f_.right_rect_, f_.params_.segmentation,
+                                       far.empty() ? table : (far | table), depth);
+      if (!retry.valid) continue;
+      seg = std::move(retry);
+      (v == 0 ? g.left_table : g.right_table) = table;
+    }
+  }
+
   void fail(const std::string& why, Clock::time_point t0) {
     f_.valid_ = false;
     f_.reason_ = why;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <random>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
@@ -10,6 +11,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
+#include <Eigen/Dense>
 
 namespace massage_cell::cect {
 
@@ -75,6 +77,12 @@ std::string DepthGate::summary() const {
   if (left_far.empty()) return "no depth gate";
   s << "background beyond " << std::fixed << far_depth << " m (nearest surfaces at " << nearest_depth << " m): "
     << cv::countNonZero(left_far) << " px left, " << cv::countNonZero(right_far) << " px right";
+  for (int v = 0; v < 2; ++v) {
+    const cv::Mat& t = v == 0 ? left_table : right_table;
+    if (!t.empty())
+      s << "; the table (" << cv::countNonZero(t) << " px) left out of the " << (v == 0 ? "left" : "right")
+        << " view's back";
+  }
   return s.str();
 }
 
@@ -137,6 +145,77 @@ DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, con
         toFullSize(z, factor, left_rect.size(), cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
   }
   return gate;
+}
+
+namespace {
+
+double signedDistance(const Eigen::Vector4d& plane, const Eigen::Vector3d& p) { return plane.head<3>().dot(p) + plane(3); }
+
+/// The plane with the most points within `tolerance` among `tries` random
+/// triples, of those with at most `max_behind` of the points more than
+/// `tolerance` behind it (farther from the camera); normal toward the camera.
+bool ransacSupport(const std::vector<Eigen::Vector3d>& pts, double tolerance, double max_behind, int tries,
+                   Eigen::Vector4d* best) {
+  std::mt19937 rng(12345u);
+  std::uniform_int_distribution<std::size_t> pick(0, pts.size() - 1);
+  std::size_t best_in = 0;
+  for (int it = 0; it < tries; ++it) {
+    const Eigen::Vector3d &a = pts[pick(rng)], &b = pts[pick(rng)], &c = pts[pick(rng)];
+    Eigen::Vector3d n = (b - a).cross(c - a);
+    if (!(n.norm() > 1e-9)) continue;
+    n.normalize();
+    Eigen::Vector4d plane(n.x(), n.y(), n.z(), -n.dot(a));
+    if (plane(3) < 0.0) plane = -plane;
+    std::size_t in = 0, behind = 0;
+    for (const Eigen::Vector3d& p : pts) {
+      const double s = signedDistance(plane, p);
+      if (std::abs(s) < tolerance) ++in;
+      else if (s < -tolerance) ++behind;
+    }
+    if (behind > max_behind * pts.size() || in <= best_in) continue;
+    best_in = in;
+    *best = plane;
+  }
+  return best_in > 0;
+}
+
+}  // namespace
+
+cv::Mat tablePixels(const cv::Mat& depth, const cv::Mat& far, const StereoGeometry& geometry, double margin) {
+  constexpr double kTolerance = 0.02, kMaxBehind = 0.05, kMinShare = 0.1;
+  constexpr int kStep = 4, kTries = 200;
+  if (depth.empty() || depth.type() != CV_32FC1 || !(margin > 0.0) || geometry.empty()) return cv::Mat();
+  std::vector<Eigen::Vector3d> pts;
+  for (int y = kStep / 2; y < depth.rows; y += kStep)
+    for (int x = kStep / 2; x < depth.cols; x += kStep) {
+      const float z = depth.at<float>(y, x);
+      if (!(z > 0.0f) || (!far.empty() && far.at<std::uint8_t>(y, x))) continue;
+      pts.push_back(geometry.triangulate(x, y, geometry.disparityAtDepth(z)));
+    }
+  Eigen::Vector4d plane;
+  if (pts.size() < 100 || !ransacSupport(pts, kTolerance, kMaxBehind, kTries, &plane)) return cv::Mat();
+  // Least squares on its points: the normal is the smallest principal axis.
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  std::size_t n = 0;
+  for (const Eigen::Vector3d& p : pts)
+    if (std::abs(signedDistance(plane, p)) < kTolerance) mean += p, ++n;
+  if (n < kMinShare * pts.size()) return cv::Mat();
+  mean /= static_cast<double>(n);
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& p : pts)
+    if (std::abs(signedDistance(plane, p)) < kTolerance) cov += (p - mean) * (p - mean).transpose();
+  const Eigen::Vector3d normal = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
+  plane << normal, -normal.dot(mean);
+  if (plane(3) < 0.0) plane = -plane;
+  cv::Mat table(depth.size(), CV_8U, cv::Scalar(0));
+  for (int y = 0; y < depth.rows; ++y) {
+    const float* z = depth.ptr<float>(y);
+    std::uint8_t* t = table.ptr<std::uint8_t>(y);
+    for (int x = 0; x < depth.cols; ++x)
+      if (z[x] > 0.0f && signedDistance(plane, geometry.triangulate(x, y, geometry.disparityAtDepth(z[x]))) < margin)
+        t[x] = 255;
+  }
+  return table;
 }
 
 }  // namespace massage_cell::cect

@@ -59,6 +59,7 @@ cect::CectParams cectParams(const CECTConfig& c) {
   p.min_depth = c.min_depth;
   p.max_depth = c.max_depth;
   p.background.gap = c.background_gap;
+  p.background.table_margin = c.table_margin;
   p.min_disparity = c.min_disparity;
   p.max_disparity = c.max_disparity;
   p.min_crossing_angle = c.min_crossing_angle;

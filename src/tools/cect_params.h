@@ -20,6 +20,7 @@ inline const std::map<std::string, std::function<void(cect::CectParams&, double)
       {"min_disparity", [](P& p, double v) { p.min_disparity = v; }},
       {"max_disparity", [](P& p, double v) { p.max_disparity = v; }},
       {"background_gap", [](P& p, double v) { p.background.gap = v; }},
+      {"table_margin", [](P& p, double v) { p.background.table_margin = v; }},
       {"min_crossing_angle", [](P& p, double v) { p.min_crossing_angle = v; }},
       {"sample_spacing", [](P& p, double v) { p.sample_spacing = v; }},
       {"seed_step", [](P& p, double v) { p.seed_step = static_cast<int>(v); }},

@@ -221,6 +221,26 @@ TEST(RealBacks, SheenOnDarkSkinDoesNotCutTheBack) {
   EXPECT_GE(cect::locateAcupoints(f, model()).validCount(), 80);
 }
 
+TEST(RealBacks, ASheetOfSkinsColourIsLeftOutByTheTablesPlane) {
+  // Pale skin on a beige sheet: by colour the back and the sheet are one
+  // "multi-coloured" region. The view is segmented again without the pixels
+  // on the table's plane (the coarse depth), and the back is found.
+  const Rendered r = render(21, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kBrown, "beige");
+  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  cect::CectParams no_table;
+  no_table.background.table_margin = 0.0;
+  const cect::CectFrame colour = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, no_table);
+  ASSERT_FALSE(colour.valid()) << "colour alone finds the back: this scene no longer tests the table";
+  EXPECT_NE(colour.reason().find("multi-coloured"), std::string::npos) << colour.reason();
+  const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
+  ASSERT_TRUE(f.valid()) << f.reason();
+  std::cout << f.background().summary() << "\n";
+  EXPECT_FALSE(f.background().left_table.empty() && f.background().right_table.empty());
+  const cv::Mat sheet = r.frame.left.labels == sim::kLabelTable;
+  EXPECT_LT(cv::countNonZero(f.left().mask & sheet), 0.01 * cv::countNonZero(f.left().mask));
+  EXPECT_GE(cect::locateAcupoints(f, model()).validCount(), 80);
+}
+
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();

@@ -554,6 +554,32 @@ TEST(DepthGate, MarksTheFarSurfaceNotTheNearOne) {
   EXPECT_GT(cv::countNonZero(g.right_far(far_r)), 0.9 * far_r.area());
 }
 
+TEST(DepthGate, TablePixelsAreTheSupportsPlaneNotTheBodyOnIt) {
+  // A table tilted along the rows (0.9 -> 1.0 m), a body 20 cm above it in
+  // the middle, the floor (far) at the right; the plane through the body's
+  // top has the table behind it and is not taken.
+  const cect::StereoGeometry g = twoDepths().geometry;
+  cv::Mat depth(480, 640, CV_32F), far(480, 640, CV_8U, cv::Scalar(0));
+  for (int y = 0; y < 480; ++y)
+    for (int x = 0; x < 640; ++x) depth.at<float>(y, x) = static_cast<float>(0.9 + 0.1 * y / 479.0);
+  const cv::Rect body(200, 100, 200, 300), floor(560, 0, 80, 480);
+  for (int y = body.y; y < body.br().y; ++y)
+    for (int x = body.x; x < body.br().x; ++x) depth.at<float>(y, x) -= 0.2f;
+  depth(floor).setTo(2.0f);
+  far(floor).setTo(255);
+  depth(cv::Rect(40, 40, 20, 20)).setTo(std::numeric_limits<float>::quiet_NaN());
+  const cv::Mat t = cect::tablePixels(depth, far, g, 0.03);
+  ASSERT_FALSE(t.empty());
+  EXPECT_EQ(cv::countNonZero(t(body)), 0);
+  const cv::Rect table(0, 0, 180, 480);
+  EXPECT_GT(cv::countNonZero(t(table)), 0.98 * table.area() - 400);
+  EXPECT_EQ(cv::countNonZero(t(cv::Rect(40, 40, 20, 20))), 0) << "no depth: not the table";
+  EXPECT_TRUE(cect::tablePixels(depth, far, g, 0.0).empty());
+  EXPECT_TRUE(cect::tablePixels(cv::Mat(480, 640, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN())), far,
+                                g, 0.03)
+                  .empty());
+}
+
 TEST(DepthGate, OffOrUnmatchableGivesNothingAndBadInputThrows) {
   const TwoDepthPair p = twoDepths();
   cect::DepthGateParams off;

@@ -25,6 +25,11 @@ struct DepthGateParams {
   /// surfaces": their depth is this quantile of the depths (the body and
   /// the table fill most of a cell's view).
   double nearest_quantile = 0.2;
+  /// Metres above the support's plane (tablePixels) below which a pixel is
+  /// the table: used only to retry a view whose segmentation failed (a sheet
+  /// or towel of skin's colour joined to the back). The rim of a prone trunk
+  /// seen from above stands at half its thickness, ~10 cm up. 0: no retry.
+  double table_margin = 0.03;
 };
 
 struct DepthGate {
@@ -35,6 +40,9 @@ struct DepthGate {
   /// axis, nearest-neighbour upsampled; NaN without a disparity); empty with
   /// left_far.
   cv::Mat left_depth, right_depth;
+  /// CV_8U 255 where a view's pixel was taken for the table (tablePixels)
+  /// to retry its segmentation; empty where no retry was needed or helped.
+  cv::Mat left_table, right_table;
   double nearest_depth = 0.0;  ///< metres: the nearest surfaces' depth (0: not measured)
   double far_depth = 0.0;      ///< metres: beyond this a pixel is far
   std::string summary() const;  ///< one line for diagnostics
@@ -47,5 +55,14 @@ struct DepthGate {
 /// types.
 DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, const StereoGeometry& geometry,
                         const cv::Vec2d& range, const DepthGateParams& params = {});
+
+/// The pixels of one view (its coarse `depth`, CV_32F, NaN unknown; `far`,
+/// CV_8U or empty) lying less than `margin` metres above its support's
+/// plane: the largest plane (RANSAC, 2 cm) with no more than 5 % of the
+/// view's near points behind it (a plane through the back has the table
+/// behind it), refined by least squares. The view's own pixel coordinates
+/// are triangulated with `geometry`'s left camera (the plane is used only
+/// in that view). Empty when no plane holds 10 % of the points.
+cv::Mat tablePixels(const cv::Mat& depth, const cv::Mat& far, const StereoGeometry& geometry, double margin);
 
 }  // namespace massage_cell::cect
