@@ -33,7 +33,6 @@
 #include "massage_cell/cect/cect.h"
 
 #include <algorithm>
-#include <cstdlib>
 #include <array>
 #include <chrono>
 #include <cmath>
