@@ -1,0 +1,35 @@
+# Piecewise-planar reconstruction from multiple calibrated views (issue 27,
+# thesis Ch. 4 after Baillard & Zisserman): the ROS-free library, its tools
+# and its tests. Included from the top-level CMakeLists.txt.
+
+add_library(massage_cell_planar STATIC
+  src/planar/views.cpp
+  src/planar/camera_views.cpp
+  src/planar/features.cpp
+  src/planar/model.cpp
+  src/planar/coplanarity.cpp
+  src/planar/half_plane.cpp
+  src/planar/extend.cpp
+  src/planar/reconstruct.cpp
+  src/planar/evaluation.cpp)
+target_include_directories(massage_cell_planar PUBLIC include ${OpenCV_INCLUDE_DIRS} ${EIGEN3_INCLUDE_DIR})
+target_link_libraries(massage_cell_planar PUBLIC massage_cell_camera ${OpenCV_LIBS} yaml-cpp Threads::Threads)
+install(TARGETS massage_cell_planar ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION})
+
+if(CATKIN_ENABLE_TESTING)
+  foreach(name views features model half_plane evaluation)
+    catkin_add_gtest(test_planar_${name} ${PROJECT_SOURCE_DIR}/test/planar/test_${name}.cpp)
+    if(TARGET test_planar_${name})
+      target_link_libraries(test_planar_${name} massage_cell_planar massage_cell_sim)
+      target_compile_definitions(test_planar_${name} PRIVATE MASSAGE_CELL_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+    endif()
+  endforeach()
+endif()
+
+# Command-line tools: views in, planes out; the evaluation against exact planes.
+add_executable(planar_reconstruct src/tools/planar_reconstruct.cpp)
+target_link_libraries(planar_reconstruct massage_cell_planar)
+add_executable(planar_eval src/tools/planar_eval.cpp)
+target_link_libraries(planar_eval massage_cell_planar massage_cell_sim)
+target_compile_definitions(planar_eval PRIVATE MASSAGE_CELL_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+install(TARGETS planar_reconstruct planar_eval RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
