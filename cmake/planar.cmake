@@ -8,6 +8,7 @@ add_library(massage_cell_planar STATIC
   src/planar/features.cpp
   src/planar/model.cpp
   src/planar/coplanarity.cpp
+  src/planar/photo_consistency.cpp
   src/planar/half_plane.cpp
   src/planar/extend.cpp
   src/planar/reconstruct.cpp

@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "massage_cell/planar/coplanarity.h"
+#include "massage_cell/planar/photo_consistency.h"
 
 namespace massage_cell::planar {
 
@@ -223,6 +224,31 @@ double polygonGap(const Region& a, const Region& b) {
   return gap;
 }
 
+/// Photo-consistency of the whole grown region: its polygon's pixels in the
+/// reference view (a grid of at most ~kRegionSamples) carried into the other
+/// views by its plane.
+double regionScore(const Region& r, const View& view, const PhotoConsistency& photo) {
+  constexpr double kRegionSamples = 3000.0;
+  std::vector<cv::Point2f> polygon;
+  std::vector<Eigen::Vector2d> corners;
+  for (const auto& p : r.polygon) {
+    Eigen::Vector2d q;
+    if (!project(view.P, r.frame.to3d(p), &q)) return -1.0;
+    polygon.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
+    corners.push_back(q);
+  }
+  const cv::Rect box = cv::boundingRect(polygon) & cv::Rect(0, 0, view.image.cols, view.image.rows);
+  const double area = std::abs(cv::contourArea(polygon));
+  const double step = std::max(1.0, std::sqrt(area / kRegionSamples));
+  std::vector<Eigen::Vector2d> pixels;
+  for (double y = box.y; y < box.y + box.height; y += step) {
+    for (double x = box.x; x < box.x + box.width; x += step) {
+      if (cv::pointPolygonTest(polygon, cv::Point2f(float(x), float(y)), false) > 0) pixels.emplace_back(x, y);
+    }
+  }
+  return photo.score(photo.sample(r.reference_view, pixels, corners), r.plane);
+}
+
 /// The region's plane refitted to its support (least squares), its frame
 /// turned with it (e2 still into the half-plane). False when the support is
 /// degenerate (the plane stays).
@@ -360,6 +386,8 @@ void ExtendParams::validate() const {
   check(std::isfinite(merge_angle_deg) && merge_angle_deg > 0.0 && merge_angle_deg < 45.0, "merge_angle_deg",
         merge_angle_deg, "expected 0 .. 45 degrees");
   check(min_support >= 0 && min_support <= 10000, "min_support", min_support, "expected 0 .. 10000");
+  check(std::isfinite(min_region_ncc) && min_region_ncc > -1.0 && min_region_ncc < 1.0, "min_region_ncc",
+        min_region_ncc, "expected -1 < min_region_ncc < 1");
 }
 
 PlanarModel extendAndMerge(const std::vector<View>& views, const std::vector<PointTrack>& points,
@@ -368,6 +396,7 @@ PlanarModel extendAndMerge(const std::vector<View>& views, const std::vector<Poi
   params.validate();
   const auto t0 = std::chrono::steady_clock::now();
   const CoplanarityTest on(views, params.coplanar_pixels);
+  const PhotoConsistency photo(views);
   std::vector<Region> regions;
   for (const HalfPlane& h : half_planes) {
     if (h.line < 0 || h.line >= static_cast<int>(lines.size()) || h.reference_view < 0 ||
@@ -389,6 +418,9 @@ PlanarModel extendAndMerge(const std::vector<View>& views, const std::vector<Poi
       if (pass == 0 && !refit(&r)) break;
     }
     if (static_cast<int>(r.support.size()) - r.line_points < params.min_support || r.polygon.size() < 3) continue;
+    // A region grown over points of other planes does not carry the views onto each other: not a plane.
+    const double score = regionScore(r, views[static_cast<std::size_t>(r.reference_view)], photo);
+    if (score > -1.0 && score < params.min_region_ncc) continue;
     extended.push_back(r);
   }
   const std::vector<int> group = mergeGroups(extended, on, params);

@@ -10,56 +10,16 @@
 
 #include <Eigen/Dense>
 #include <opencv2/core/utility.hpp>
-#include <opencv2/imgproc.hpp>
 
 namespace massage_cell::planar {
 
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kMinInsideShare = 0.8;  // a view scores a strip when this share of its samples lands in the image
-constexpr double kMinTextureSigma = 2.0; // grey levels: a flatter strip cannot be verified
 constexpr double kEndInset = 3.0;        // px left out at both ends of the segment (the corners belong to other edges)
 
 void check(bool ok, const std::string& field, double value, const std::string& want) {
   if (!ok) throw std::invalid_argument("HalfPlaneParams." + field + " = " + std::to_string(value) + ": " + want);
-}
-
-float bilinear(const cv::Mat& grey, double x, double y) {
-  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
-  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
-  const float* r0 = grey.ptr<float>(y0);
-  const float* r1 = grey.ptr<float>(y0 + 1);
-  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
-}
-
-bool inside(const cv::Mat& grey, double x, double y) {
-  return x >= 0.0 && y >= 0.0 && x < grey.cols - 1.0 && y < grey.rows - 1.0;
-}
-
-double ncc(const std::vector<float>& a, const std::vector<float>& b) {
-  const double n = static_cast<double>(a.size());
-  double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    sa += a[i];
-    sb += b[i];
-    saa += double(a[i]) * a[i];
-    sbb += double(b[i]) * b[i];
-    sab += double(a[i]) * b[i];
-  }
-  const double va = saa - sa * sa / n, vb = sbb - sb * sb / n;
-  if (va <= 0.0 || vb <= 0.0) return -1.0;
-  return (sab - sa * sb / n) / std::sqrt(va * vb);
-}
-
-/// The homogeneous world point on `plane` seen at reference pixel x:
-/// X = [(pi^T C) I - C pi^T] P^+ x, as a 4x3 matrix of x.
-Eigen::Matrix<double, 4, 3> backProjectionOnto(const Projection& P, const Plane& plane) {
-  const Eigen::Vector4d pi(plane.n.x(), plane.n.y(), plane.n.z(), plane.d);
-  const Eigen::Vector4d C = cameraCentre(P).homogeneous();
-  const Eigen::Matrix<double, 4, 3> pinv = P.transpose() * (P * P.transpose()).inverse();
-  const Eigen::Matrix4d M = pi.dot(C) * Eigen::Matrix4d::Identity() - C * pi.transpose();
-  return M * pinv;
 }
 
 /// Perpendicular basis (u, v) of a unit direction, the same for every call.
@@ -117,29 +77,14 @@ double angleAboutLine(const Eigen::Vector3d& point, const Eigen::Vector3d& direc
 // ---------------------------------------------------------------------------
 
 struct HalfPlaneSearch::Strip {
-  int reference_view = -1;
-  std::vector<Eigen::Vector3d> pixels;  ///< homogeneous reference pixels of the samples
-  std::vector<float> values;            ///< their grey levels
-  Eigen::Vector3d corners[4];           ///< homogeneous reference pixels of the strip's corners
-  bool valid = false;
+  PhotoConsistency::Samples samples;
+  bool valid() const { return samples.textured; }
 };
 
 HalfPlaneSearch::HalfPlaneSearch(const std::vector<View>& views, const std::vector<PointTrack>& points,
                                  const std::vector<LineTrack>& lines, const HalfPlaneParams& params)
     : views_(views), points_(points), lines_(lines), params_(params),
-      coplanarity_(views, (params.validate(), params.coplanar_pixels)) {
-  validateViews(views);
-  for (const View& view : views) {
-    cv::Mat grey;
-    if (view.image.channels() == 3) {
-      cv::cvtColor(view.image, grey, cv::COLOR_BGR2GRAY);
-    } else {
-      grey = view.image;
-    }
-    grey.convertTo(grey, CV_32F);
-    grey_.push_back(grey);
-  }
-}
+      coplanarity_(views, (params.validate(), params.coplanar_pixels)), photo_((validateViews(views), views)) {}
 
 int HalfPlaneSearch::referenceView(int line) const {
   const LineTrack& L = lines_.at(static_cast<std::size_t>(line));
@@ -158,7 +103,6 @@ int HalfPlaneSearch::referenceView(int line) const {
 
 HalfPlaneSearch::Strip HalfPlaneSearch::makeStrip(int line, int side, int reference_view) const {
   Strip strip;
-  strip.reference_view = reference_view;
   const LineTrack& L = lines_.at(static_cast<std::size_t>(line));
   const Projection& P = views_[static_cast<std::size_t>(reference_view)].P;
   Eigen::Vector2d pa, pb;
@@ -168,63 +112,20 @@ HalfPlaneSearch::Strip HalfPlaneSearch::makeStrip(int line, int side, int refere
   const Eigen::Vector2d along = (pb - pa) / length;
   // imageLine's (a, b) is the unit normal along which its equation grows: `side` picks the sign.
   const Eigen::Vector2d across = side * imageLine(pa, pb).head<2>();
-  const cv::Mat& grey = grey_[static_cast<std::size_t>(reference_view)];
   const double o0 = params_.strip_offset, o1 = params_.strip_offset + params_.strip_width;
+  std::vector<Eigen::Vector2d> pixels;
   for (double t = kEndInset; t <= length - kEndInset; t += params_.sample_step) {
-    for (double o = o0; o <= o1; o += params_.sample_step) {
-      const Eigen::Vector2d q = pa + t * along + o * across;
-      if (!inside(grey, q.x(), q.y())) continue;
-      strip.pixels.push_back(q.homogeneous());
-      strip.values.push_back(bilinear(grey, q.x(), q.y()));
-    }
+    for (double o = o0; o <= o1; o += params_.sample_step) pixels.push_back(pa + t * along + o * across);
   }
-  const Eigen::Vector2d c[4] = {pa + kEndInset * along + o0 * across, pb - kEndInset * along + o0 * across,
-                                pa + kEndInset * along + o1 * across, pb - kEndInset * along + o1 * across};
-  for (int k = 0; k < 4; ++k) strip.corners[k] = c[k].homogeneous();
-  double mean = 0.0, sq = 0.0;
-  for (float v : strip.values) {
-    mean += v;
-    sq += double(v) * v;
-  }
-  const double n = static_cast<double>(strip.values.size());
-  strip.valid = n >= 8 && std::sqrt(std::max(0.0, sq / n - (mean / n) * (mean / n))) >= kMinTextureSigma;
+  const std::vector<Eigen::Vector2d> corners = {
+      pa + kEndInset * along + o0 * across, pb - kEndInset * along + o0 * across,
+      pa + kEndInset * along + o1 * across, pb - kEndInset * along + o1 * across};
+  strip.samples = photo_.sample(reference_view, pixels, corners);
   return strip;
 }
 
 double HalfPlaneSearch::scoreStrip(const Strip& strip, const Plane& plane) const {
-  if (!strip.valid) return -1.0;
-  const Projection& Pr = views_[static_cast<std::size_t>(strip.reference_view)].P;
-  const Eigen::Matrix<double, 4, 3> M = backProjectionOnto(Pr, plane);
-  // Every corner must land on the plane in front of the reference camera.
-  for (const Eigen::Vector3d& c : strip.corners) {
-    const Eigen::Vector4d X = M * c;
-    if (std::abs(X.w()) < 1e-12 || !(depthOf(Pr, X.hnormalized()) > 0.0)) return -1.0;
-  }
-  double sum = 0.0;
-  int scored = 0;
-  std::vector<float> ref, other;
-  for (std::size_t v = 0; v < views_.size(); ++v) {
-    if (static_cast<int>(v) == strip.reference_view) continue;
-    const Projection& Pv = views_[v].P;
-    bool in_front = true;
-    for (const Eigen::Vector3d& c : strip.corners) in_front = in_front && depthOf(Pv, (M * c).hnormalized()) > 0.0;
-    if (!in_front) continue;
-    const Eigen::Matrix3d H = Pv * M;
-    const cv::Mat& grey = grey_[v];
-    ref.clear();
-    other.clear();
-    for (std::size_t i = 0; i < strip.pixels.size(); ++i) {
-      const Eigen::Vector3d y = H * strip.pixels[i];
-      const double x = y.x() / y.z(), yy = y.y() / y.z();
-      if (!inside(grey, x, yy)) continue;
-      ref.push_back(strip.values[i]);
-      other.push_back(bilinear(grey, x, yy));
-    }
-    if (ref.size() < kMinInsideShare * strip.pixels.size()) continue;
-    sum += ncc(ref, other);
-    ++scored;
-  }
-  return scored > 0 ? sum / scored : -1.0;
+  return photo_.score(strip.samples, plane);
 }
 
 double HalfPlaneSearch::score(int line, int side, int reference_view, const Plane& plane) const {
@@ -334,7 +235,7 @@ std::vector<HalfPlane> HalfPlaneSearch::byFeaturePoints(SearchStats* stats) cons
     const int ref = referenceView(line);
     if (ref < 0) return;
     const Strip strip = makeStrip(line, side, ref);
-    if (!strip.valid) return;
+    if (!strip.valid()) return;
     std::vector<std::vector<int>> groups;
     const std::vector<Plane> candidates = pointCandidates(line, side, ref, &groups);
     for (std::size_t c = 0; c < candidates.size(); ++c) {
@@ -351,7 +252,7 @@ std::vector<HalfPlane> HalfPlaneSearch::bySweep(SearchStats* stats) const {
     const int ref = referenceView(line);
     if (ref < 0) return;
     const Strip strip = makeStrip(line, side, ref);
-    if (!strip.valid) return;
+    if (!strip.valid()) return;
     const LineTrack& L = lines_[static_cast<std::size_t>(line)];
     const double step = params_.sweep_step_deg * kPi / 180.0;
     const int n = static_cast<int>(std::ceil(kPi / step));

@@ -113,7 +113,9 @@ inline float positiveScale(float feature_size) {
 Eigen::Vector3f clamp01(const Eigen::Vector3f& c) { return c.cwiseMax(0.0f).cwiseMin(1.0f); }
 
 // Pattern ids used to decorrelate the noise fields of different patterns.
-enum : std::uint32_t { kSaltSkin = 1, kSaltCloth = 2, kSaltTexture = 3, kSaltTerry = 4, kSaltWaffle = 5, kSaltHair = 6 };
+enum : std::uint32_t {
+  kSaltSkin = 1, kSaltCloth = 2, kSaltTexture = 3, kSaltTerry = 4, kSaltWaffle = 5, kSaltHair = 6, kSaltPrint = 7
+};
 
 Eigen::Vector3f skinAlbedo(const Material& m, const Eigen::Vector2f& uv) {
   const float fs = positiveScale(m.feature_size);
@@ -217,6 +219,35 @@ void checkFinite(const Eigen::Vector3f& v, const std::string& what) {
   if (!v.allFinite()) throw std::invalid_argument(what + " must be finite");
 }
 
+/// Printed packaging: a pale board with ink marks on a lattice of pitch fs,
+/// rows of small glyph-like blocks (text) and, every few rows, larger solid
+/// panels, so the surface has corners and straight edges as labels do.
+Eigen::Vector3f printAlbedo(const Material& m, const Eigen::Vector2f& uv) {
+  const float fs = positiveScale(m.feature_size);
+  const Cell c = cellOf(uv, fs);
+  const float lx = static_cast<float>(uv.x() / fs - std::floor(uv.x() / fs));
+  const float ly = static_cast<float>(uv.y() / fs - std::floor(uv.y() / fs));
+  const std::uint32_t row = hash3(0u, c.y0, salt(m.seed, kSaltPrint, 0, 0));
+  const std::uint32_t h = hash3(c.x0, c.y0, salt(m.seed, kSaltPrint, 1, 0));
+  Eigen::Vector3f board = m.albedo;
+  const bool text_row = unitFloat(row) < 0.75f;
+  const bool panel = unitFloat(mix32(row)) < 0.1f;
+  bool ink = false;
+  if (panel) {
+    ink = true;  // a solid band across the face
+  } else if (text_row && unitFloat(h) < 0.8f) {
+    const float x0 = 0.1f + 0.3f * unitFloat(mix32(h)), x1 = 0.6f + 0.3f * unitFloat(mix32(h ^ 0x9e37u));
+    const float y0 = 0.15f + 0.2f * unitFloat(mix32(h ^ 0x7f4au)), y1 = 0.65f + 0.25f * unitFloat(mix32(h ^ 0x3c6eu));
+    ink = lx > x0 && lx < x1 && ly > y0 && ly < y1;
+  }
+  if (!ink) return clamp01(board.cwiseProduct(Eigen::Vector3f::Constant(1.0f + 0.05f * (unitFloat(h) - 0.5f))));
+  // Ink: dark or one of the label's colours, the same along a row.
+  const std::uint32_t colour = mix32(row ^ (panel ? 0x1234u : 0u));
+  const Eigen::Vector3f tint(unitFloat(colour), unitFloat(mix32(colour)), unitFloat(mix32(colour ^ 0x55u)));
+  const float darkness = unitFloat(mix32(colour ^ 0xabcu)) < 0.5f ? 0.15f : 0.55f;
+  return clamp01(board.cwiseProduct(darkness * Eigen::Vector3f::Ones() + m.contrast * 0.5f * tint));
+}
+
 }  // namespace
 
 Eigen::Vector3f albedoAt(const Material& material, const Eigen::Vector2f& uv) {
@@ -235,6 +266,8 @@ Eigen::Vector3f albedoAt(const Material& material, const Eigen::Vector2f& uv) {
       return waffleAlbedo(material, uv);
     case Material::Pattern::kHair:
       return hairAlbedo(material, uv);
+    case Material::Pattern::kPrint:
+      return printAlbedo(material, uv);
   }
   return material.albedo;
 }

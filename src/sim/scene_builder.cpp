@@ -43,16 +43,33 @@ void addTableAndFloor(Scene& scene, std::uint32_t seed) {
                                   floorMaterial(seed), kLabelFloor));
 }
 
+/// Most boxes are printed packaging (labels, text), some plain textured
+/// board; colours and print density vary.
 Material boxMaterial(std::mt19937& rng) {
-  std::uniform_real_distribution<float> u(0.2f, 0.8f);
+  std::uniform_real_distribution<float> u(0.2f, 0.8f), unit(0.0f, 1.0f);
   Material m;
-  m.pattern = Material::Pattern::kTexture;
-  m.albedo = {u(rng), u(rng), u(rng)};
+  if (unit(rng) < 0.7f) {
+    m.pattern = Material::Pattern::kPrint;
+    m.albedo = {0.6f + 0.5f * u(rng) * 0.6f, 0.6f + 0.5f * u(rng) * 0.6f, 0.6f + 0.5f * u(rng) * 0.6f};
+    m.feature_size = 0.01f + 0.01f * unit(rng);
+  } else {
+    m.pattern = Material::Pattern::kTexture;
+    m.albedo = {u(rng), u(rng), u(rng)};
+    m.feature_size = 0.012f;
+  }
   m.contrast = 0.6f;
-  m.feature_size = 0.012f;
   m.specular = 0.05f;
   m.seed = static_cast<std::uint32_t>(rng());
   return m;
+}
+
+/// Each face of a box its own part of the material's pattern (a box's faces
+/// would otherwise repeat one print, as no real box does).
+void offsetFaceTextures(Mesh& box) {
+  for (std::size_t v = 0; v < box.uv.size(); ++v) {
+    const float face = static_cast<float>(v / 4);
+    box.uv[v] += Eigen::Vector2f(0.37f * face, 0.61f * face);
+  }
 }
 
 }  // namespace
@@ -79,6 +96,7 @@ Scene makeBoxesScene(std::uint32_t seed, int count) {
     const float sy = size_y * (0.9f + 0.1f * unit(rng));
     Mesh box = makeBox("box_" + std::to_string(i), {-sx / 2, -sy / 2, 0.0f}, {sx / 2, sy / 2, h}, boxMaterial(rng),
                        kLabelBoxFace, static_cast<std::uint8_t>(kLabelBoxFace + 6 * i));
+    offsetFaceTextures(box);
     const float yaw = (unit(rng) - 0.5f) * 0.6f;
     const Eigen::Vector3f offset(-0.27f + (unit(rng) - 0.5f) * 0.06f, (unit(rng) - 0.5f) * 0.06f, base_z);
     transform(box, Eigen::AngleAxisf(yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix(), offset);

@@ -25,8 +25,8 @@ namespace {
 using namespace massage_cell;
 using tools::require;
 
-const char* const kUsage = R"(Usage: planar_eval [--sets cube,boxes,merton] [--views N] [--seed S]
-                   [--detector akaze|orb|sift] [--pictures DIR] [--data DIR]
+const char* const kUsage = R"(Usage: planar_eval [--sets cube,boxes,merton] [--views N] [--seed S] [--seeds K]
+                   [--distance M] [--detector akaze|orb|sift] [--pictures DIR] [--data DIR]
 
 Reconstructs each set with both half-plane searches from the same features and
 tracks, and prints one row per set and search:
@@ -34,14 +34,16 @@ tracks, and prints one row per set and search:
   angle       error of the angle between every pair of reference planes at more
               than 5 degrees, mean / max (thesis Tables 4.1, 4.2)
   coverage    share of the reference planes' visible pixels covered (rendered
-              sets only)
+              sets only); `faces`: the same over the box / cube faces alone
+              (without the table)
   vertices    distance of the model's vertices to their reference plane, mean /
               max, in % of the scene's depth
   half-plane  candidates scored and seconds of the half-plane search (thesis
               Tables 4.3, 4.4); `total` adds features, matching and extension
 
 Sets: cube (one textured cube, 3 rendered views), boxes (the simulator's stacked
-boxes on the table, --views views, seed --seed), merton (Merton College I from
+boxes on the table, printed or textured, --views views --distance M away
+(default 0.8 m), one set per seed from --seed, --seeds K sets: default 3), merton (Merton College I from
 --data, default $MASSAGE_CELL_DATA or ../shared/data next to the package; the
 reference planes are fitted to its 3D points). A missing data set is reported
 and skipped. Exit status: 0 done, 1 bad data, 2 bad usage.
@@ -51,6 +53,8 @@ struct Options {
   std::vector<std::string> sets{"cube", "boxes", "merton"};
   int views = 3;
   std::uint32_t seed = 1;
+  int seeds = 3;
+  double distance = 0.8;
   std::string pictures;
   std::string data;
   planar::ReconstructParams params;
@@ -76,6 +80,14 @@ bool parse(int argc, char** argv, Options* o) {
     require(o->views >= 2 && o->views <= 12, opt + ": expected 2 .. 12 views");
   };
   table.values["--seed"] = [o](const std::string& opt, const std::string& v) { o->seed = tools::parseSeed(opt, v); };
+  table.values["--seeds"] = [o](const std::string& opt, const std::string& v) {
+    o->seeds = tools::parseInt(opt, v);
+    require(o->seeds >= 1 && o->seeds <= 100, opt + ": expected 1 .. 100");
+  };
+  table.values["--distance"] = [o](const std::string& opt, const std::string& v) {
+    o->distance = tools::parseDouble(opt, v);
+    require(o->distance >= 0.3 && o->distance <= 10.0, opt + ": expected 0.3 .. 10 m");
+  };
   table.values["--detector"] = [o](const std::string& opt, const std::string& v) {
     require(v == "akaze" || v == "orb" || v == "sift", opt + ": expected akaze, orb or sift, got '" + v + "'");
     o->params.features.detector = v;
@@ -127,14 +139,31 @@ EvalSet merton(const Options& o) {
   return e;
 }
 
+/// Coverage of the reference planes other than the table (the faces), NaN without masks.
+double facesCoverage(const EvalSet& set, const planar::Evaluation& ev) {
+  double covered = 0.0, visible = 0.0;
+  for (const planar::PlaneMatch& m : ev.matches) {
+    const planar::ReferencePlane& ref = set.reference[static_cast<std::size_t>(m.reference)];
+    if (ref.visible.empty() || ref.name == "table") continue;
+    double pixels = 0.0;
+    for (const cv::Mat& mask : ref.visible) pixels += cv::countNonZero(mask);
+    covered += m.coverage * pixels;
+    visible += pixels;
+  }
+  return visible > 0.0 ? covered / visible : std::nan("");
+}
+
+std::string percent(double share) {
+  return std::isnan(share) ? std::string("-") : std::to_string(int(std::lround(100 * share))) + " %";
+}
+
 void printRow(const EvalSet& set, planar::HalfPlaneMethod method, const planar::Evaluation& ev,
               const planar::SearchStats& search, double total) {
   std::cout << std::left << std::setw(8) << set.name << std::setw(8) << planar::halfPlaneMethodName(method)
             << std::right << std::fixed << std::setprecision(2) << std::setw(4) << ev.reconstructed << "/"
             << std::left << std::setw(4) << set.reference.size() << std::right << std::setw(7)
-            << ev.mean_pair_error_deg << " /" << std::setw(6) << ev.max_pair_error_deg << std::setw(9)
-            << (std::isnan(ev.coverage) ? std::string("-") : std::to_string(int(std::lround(100 * ev.coverage))) + " %")
-            << std::setw(8) << 100 * ev.vertex_distance_mean / set.depth << " /" << std::setw(6)
+            << ev.mean_pair_error_deg << " /" << std::setw(6) << ev.max_pair_error_deg << std::setw(7)
+            << percent(ev.coverage) << std::setw(7) << percent(facesCoverage(set, ev)) << std::setw(8) << 100 * ev.vertex_distance_mean / set.depth << " /" << std::setw(6)
             << 100 * ev.vertex_distance_max / set.depth << std::setw(10) << search.candidates << std::setw(9)
             << std::setprecision(3) << search.seconds << std::setw(9) << total << "\n";
 }
@@ -171,7 +200,8 @@ void evaluateSet(const EvalSet& set, const Options& o) {
 }
 
 void run(const Options& o) {
-  std::cout << "set     search  planes   angle error deg  coverage  vertices %depth  candidates  half-plane s  total s\n";
+  std::cout << "set     search  planes   angle error deg    all  faces  vertices %depth  candidates  half-plane s"
+               "  total s\n";
   for (const std::string& name : o.sets) {
     sim::MultiViewOptions mv;
     mv.views = o.views;
@@ -179,7 +209,11 @@ void run(const Options& o) {
     if (name == "cube") {
       evaluateSet(fromRendered("cube", sim::renderCubeViews(0.3, mv)), o);
     } else if (name == "boxes") {
-      evaluateSet(fromRendered("boxes", sim::renderBoxesViews(3, mv)), o);
+      mv.distance = o.distance;
+      for (int k = 0; k < o.seeds; ++k) {
+        mv.seed = o.seed + static_cast<std::uint32_t>(k);
+        evaluateSet(fromRendered("boxes" + std::to_string(mv.seed), sim::renderBoxesViews(3, mv)), o);
+      }
     } else {
       EvalSet set;
       try {

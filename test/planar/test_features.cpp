@@ -511,6 +511,22 @@ TEST(MatchLines, TwoViewsRecoverTheEdgesOutsideEpipolarPlanes) {
   EXPECT_GE(r.edges_found.size(), scene.edges.size() - 4);
 }
 
+TEST(MatchLines, ThirdViewSupportAloneIsNotEnough) {
+  // The true segments, but each view's image replaced by independent noise:
+  // every pair still finds its 3D line on the third view's segments, yet
+  // the strips beside the segments no longer agree, so no track is made.
+  Scene scene = threeViews();
+  cv::RNG rng(7);
+  for (planar::View& v : scene.views) {
+    cv::Mat noise(v.image.size(), CV_8UC3);
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+    cv::GaussianBlur(noise, v.image, cv::Size(), 2.0);
+  }
+  const std::vector<planar::LineTrack> tracks =
+      planar::matchLines(scene.views, sceneFeatures("akaze"), planar::FeatureParams());
+  EXPECT_LE(tracks.size(), 2u);
+}
+
 // ---------------------------------------------------------------------------
 // Merton College I
 

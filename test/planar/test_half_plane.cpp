@@ -9,6 +9,7 @@
 
 #include "massage_cell/planar/extend.h"
 #include "massage_cell/planar/half_plane.h"
+#include "massage_cell/planar/photo_consistency.h"
 #include "synthetic_cube.h"
 
 namespace mp = massage_cell::planar;
@@ -170,6 +171,45 @@ TEST(ExtendAndMerge, TheCubesThreeFacesAtRightAngles) {
     EXPECT_NEAR(area, cube.edge * cube.edge, 0.1 * cube.edge * cube.edge) << "face " << face;
   }
   EXPECT_EQ(seen.size(), 3u);
+}
+
+TEST(PhotoConsistency, AWholeFaceTellsItsPlaneFromATiltedOne) {
+  const auto cube = makeSyntheticCube();
+  const mp::PhotoConsistency photo(cube.views);
+  const mp::test::CubeFace& face = cube.faces[2];  // +z, seen by every view
+  const mp::Plane top = facePlane(face);
+  // The face's projection in view 0, sampled on a grid, and its corners.
+  std::vector<Eigen::Vector2d> pixels, corners;
+  for (double s = 0.05; s <= 0.951; s += 0.03) {
+    for (double t = 0.05; t <= 0.951; t += 0.03) {
+      Eigen::Vector2d q;
+      ASSERT_TRUE(mp::project(cube.views[0].P, face.corner + s * face.ex + t * face.ey, &q));
+      pixels.push_back(q);
+    }
+  }
+  for (double s : {0.05, 0.95}) {
+    for (double t : {0.05, 0.95}) {
+      Eigen::Vector2d q;
+      mp::project(cube.views[0].P, face.corner + s * face.ex + t * face.ey, &q);
+      corners.push_back(q);
+    }
+  }
+  const auto samples = photo.sample(0, pixels, corners);
+  ASSERT_TRUE(samples.textured);
+  const double right = photo.score(samples, top);
+  EXPECT_GT(right, 0.9);
+  // The plane turned by 10 degrees about the face's edge along ey at s = 1.
+  const mp::LineTrack& L = cube.lines[5];
+  const double a = mp::angleAboutLine(L.a, L.direction(), L.a + top.n.cross(L.direction()));
+  for (double tilt : {0.17, -0.17}) {
+    EXPECT_LT(photo.score(samples, mp::planeAboutLine(L.a, L.direction(), a + tilt)), right - 0.3) << tilt;
+  }
+  // Untextured samples cannot be scored.
+  auto grey = cube;
+  for (auto& view : grey.views) view.image.setTo(cv::Scalar::all(90));
+  const mp::PhotoConsistency flat(grey.views);
+  EXPECT_FALSE(flat.sample(0, pixels, corners).textured);
+  EXPECT_DOUBLE_EQ(flat.score(flat.sample(0, pixels, corners), top), -1.0);
 }
 
 TEST(ExtendAndMerge, AHalfPlaneOfAMissingLineIsAnError) {

@@ -1,8 +1,9 @@
 // From half-planes to the planar model (thesis Sec. 4.3): each verified
 // half-plane is bounded by the fixed lines it shares with its neighbouring
 // half-planes, grown over the feature points and line segments coplanar with
-// it inside those bounds, and the extended half-planes that lie on one world
-// plane and touch are merged into one facet. ROS-free.
+// it inside those bounds, checked as a whole by photo-consistency, and the
+// extended half-planes that lie on one world plane and touch are merged into
+// one facet. ROS-free.
 //
 // Fixed lines: two world planes induce homographies between two views that
 // agree exactly on the image of the planes' common 3D line (the fixed line of
@@ -29,6 +30,9 @@ struct ExtendParams {
   double neighbour_reach = 250.0;     ///< px: half-planes whose lines come this near (reference view) bound each other
   double merge_angle_deg = 4.0;       ///< facets within this angle, each one's evidence on the other's plane, touching, merge
   int min_support = 4;                ///< a facet needs this many points and line end points besides its own line
+  /// A grown region whose pixels, carried by its plane into the other views,
+  /// correlate less than this is dropped (untextured regions cannot be checked and stay).
+  double min_region_ncc = 0.5;
   /// Throws std::invalid_argument naming the field for a bad value.
   void validate() const;
 };

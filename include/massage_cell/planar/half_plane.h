@@ -30,6 +30,7 @@
 #include "massage_cell/planar/coplanarity.h"
 #include "massage_cell/planar/features.h"
 #include "massage_cell/planar/model.h"
+#include "massage_cell/planar/photo_consistency.h"
 #include "massage_cell/planar/views.h"
 
 namespace massage_cell::planar {
@@ -96,8 +97,8 @@ class HalfPlaneSearch {
   const std::vector<PointTrack>& points_;
   const std::vector<LineTrack>& lines_;
   HalfPlaneParams params_;
-  std::vector<cv::Mat> grey_;  ///< CV_32F per view
   CoplanarityTest coplanarity_;
+  PhotoConsistency photo_;
 };
 
 /// The plane through the 3D line (point, unit direction) at `angle` radians

@@ -49,7 +49,8 @@ struct Material {
     kTexture,  ///< strong multi-scale colour texture (boxes, efficiency scenes)
     kTerry,    ///< terry towelling: a dense field of small loops (feature_size = loop pitch)
     kWaffle,   ///< waffle weave: raised ridges around square cells (feature_size = cell pitch)
-    kHair      ///< hair: fine strands along u (feature_size = strand width), clumps and sheen in the albedo
+    kHair,     ///< hair: fine strands along u (feature_size = strand width), clumps and sheen in the albedo
+    kPrint     ///< printed packaging: ink glyph rows and panels on a pale board (feature_size = glyph pitch)
   };
   Pattern pattern = Pattern::kFlat;
   Eigen::Vector3f albedo{0.5f, 0.5f, 0.5f};
