@@ -26,7 +26,8 @@ using namespace massage_cell;
 using tools::require;
 
 const char* const kUsage = R"(Usage: planar_eval [--sets cube,boxes,merton] [--views N] [--seed S] [--seeds K]
-                   [--distance M] [--detector akaze|orb|sift] [--pictures DIR] [--data DIR]
+                   [--distance M] [--detector akaze|orb|sift] [--strip-width PX] [--min-ncc X]
+                   [--pictures DIR] [--data DIR]
 
 Reconstructs each set with both half-plane searches from the same features and
 tracks, and prints one row per set and search:
@@ -92,9 +93,21 @@ bool parse(int argc, char** argv, Options* o) {
     require(v == "akaze" || v == "orb" || v == "sift", opt + ": expected akaze, orb or sift, got '" + v + "'");
     o->params.features.detector = v;
   };
+  table.values["--strip-width"] = [o](const std::string& opt, const std::string& v) {
+    o->params.half_planes.strip_width = tools::parseDouble(opt, v);
+  };
+  table.values["--min-ncc"] = [o](const std::string& opt, const std::string& v) {
+    o->params.half_planes.min_ncc = tools::parseDouble(opt, v);
+  };
   table.values["--pictures"] = [o](const std::string&, const std::string& v) { o->pictures = v; };
   table.values["--data"] = [o](const std::string&, const std::string& v) { o->data = v; };
-  return tools::parseArguments(argc, argv, table, kUsage);
+  if (!tools::parseArguments(argc, argv, table, kUsage)) return false;
+  try {
+    o->params.validate();
+  } catch (const std::invalid_argument& e) {
+    throw tools::UsageError(e.what());
+  }
+  return true;
 }
 
 std::string dataFolder(const Options& o) {

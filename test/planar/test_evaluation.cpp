@@ -19,6 +19,7 @@
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
+#include "merton_data.h"
 #include "massage_cell/planar/evaluation.h"
 #include "massage_cell/sim/multiview_set.h"
 #include "massage_cell/sim/renderer.h"
@@ -27,6 +28,8 @@ namespace planar = massage_cell::planar;
 namespace sim = massage_cell::sim;
 
 namespace {
+
+using massage_cell::planar::test::mertonFolder;
 
 sim::MultiViewOptions smallOptions() {
   sim::MultiViewOptions o;
@@ -151,12 +154,6 @@ void tilt(planar::Facet& facet, const Eigen::Vector3d& axis, double degrees) {
   facet.plane.d = -facet.plane.n.dot(centre);
 }
 
-std::string dataRoot() {
-  const char* env = std::getenv("MASSAGE_CELL_DATA");
-  return env != nullptr ? std::string(env) : std::string(MASSAGE_CELL_SOURCE_DIR) + "/../shared/data";
-}
-
-std::string mertonFolder() { return dataRoot() + "/multiview/merton_college_1"; }
 
 }  // namespace
 

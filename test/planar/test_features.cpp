@@ -27,12 +27,16 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "merton_data.h"
 #include "massage_cell/planar/features.h"
 #include "massage_cell/planar/views.h"
 
 namespace planar = massage_cell::planar;
 
 namespace {
+
+using massage_cell::planar::test::mertonFolder;
+using massage_cell::planar::test::readNumbers;
 
 // ---------------------------------------------------------------------------
 // The rendered scene
@@ -283,23 +287,6 @@ LineResult lineResult(const Scene& scene, const std::vector<planar::LineTrack>& 
 // ---------------------------------------------------------------------------
 // Merton College I
 
-std::string dataRoot() {
-  const char* env = std::getenv("MASSAGE_CELL_DATA");
-  return env != nullptr ? std::string(env) : std::string(MASSAGE_CELL_SOURCE_DIR) + "/../shared/data";
-}
-
-std::string mertonFolder() { return dataRoot() + "/multiview/merton_college_1"; }
-
-std::vector<std::vector<double>> readNumbers(const std::string& path, int per_row) {
-  std::ifstream in(path);
-  std::vector<std::vector<double>> rows;
-  std::vector<double> row(static_cast<std::size_t>(per_row));
-  while (true) {
-    for (double& v : row)
-      if (!(in >> v)) return rows;
-    rows.push_back(row);
-  }
-}
 
 double millisecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();

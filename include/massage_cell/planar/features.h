@@ -65,10 +65,13 @@ struct LineTrack {
 std::vector<PointTrack> matchPoints(const std::vector<View>& views, const std::vector<ViewFeatures>& features,
                                     const FeatureParams& params);
 
-/// Line tracks over all views (segments of view i whose epipolar band meets
-/// a segment of view j; with a third view the triangulated line must
-/// reproject onto one of its segments, with two views the strips must
-/// correlate). Lines in an epipolar plane cannot be triangulated and are left out.
+/// Line tracks over all views: segments of view i whose epipolar band meets
+/// a segment of view j. Where another view can check the triangulated line,
+/// it must reproject onto one of that view's segments and the strips beside
+/// the two segments must still correlate loosely (0.5); where none can (two
+/// views, or the line out of frame or near-epipolar elsewhere), the strips
+/// must correlate at min_line_ncc, and supported candidates rank first. Lines
+/// within 10 degrees of an epipolar direction cannot be triangulated and are left out.
 std::vector<LineTrack> matchLines(const std::vector<View>& views, const std::vector<ViewFeatures>& features,
                                   const FeatureParams& params);
 
