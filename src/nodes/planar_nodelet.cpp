@@ -178,10 +178,10 @@ void PlanarNodelet::onPair(const StereoPair& pair) {
     const camera::CameraCalibration lc = toCalibration(li), rc = toCalibration(ri);
     std::vector<planar::View> views;
     try {
-      views.push_back(planar::viewFromCameraInfo("left", toBgr(pair.left_image, "left"), lc,
-                                                 Eigen::Isometry3d::Identity()));
-      views.push_back(planar::viewFromCameraInfo("right", toBgr(pair.right_image, "right"), rc,
-                                                 camera::rightCameraInLeft(lc, rc)));
+      views.push_back(
+          planar::viewFromCameraInfo("left", toBgr(pair.left_image, "left"), lc, Eigen::Isometry3d::Identity()));
+      views.push_back(
+          planar::viewFromCameraInfo("right", toBgr(pair.right_image, "right"), rc, camera::rightCameraInLeft(lc, rc)));
     } catch (const std::invalid_argument& e) {
       throw BadInput(e.what());
     }

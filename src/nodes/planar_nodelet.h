@@ -50,8 +50,8 @@ class PlanarNodelet : public nodelet::Nodelet {
   std::unique_ptr<StereoPairInput> input_;
   ros::Publisher mesh_pub_, planes_pub_;
   ros::ServiceServer reconstruct_srv_;
-  std::string views_frame_;     ///< ~views_frame: frame of ~reconstruct's view poses when the request names none
-  std::string output_prefix_;   ///< ~output_prefix: write every stereo model as <prefix>.obj / .ply (empty: no)
+  std::string views_frame_;    ///< ~views_frame: frame of ~reconstruct's view poses when the request names none
+  std::string output_prefix_;  ///< ~output_prefix: write every stereo model as <prefix>.obj / .ply (empty: no)
 
   boost::recursive_mutex config_mutex_;
   std::unique_ptr<dynamic_reconfigure::Server<Config>> reconfigure_server_;

@@ -130,7 +130,8 @@ std::vector<View> loadViewYaml(const std::filesystem::path& file) {
     const auto t = numbers(v, "position", 3, where);
     const auto q = numbers(v, "orientation", 4, where);
     const Eigen::Quaterniond rotation(q[3], q[0], q[1], q[2]);
-    if (std::abs(rotation.norm() - 1.0) > 1e-3) throw std::runtime_error(where + ": orientation is not a unit quaternion");
+    if (std::abs(rotation.norm() - 1.0) > 1e-3)
+      throw std::runtime_error(where + ": orientation is not a unit quaternion");
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
     pose.linear() = rotation.normalized().toRotationMatrix();
     pose.translation() = Eigen::Vector3d(t[0], t[1], t[2]);

@@ -63,11 +63,8 @@ std::vector<Eigen::Vector3d> clip(const std::vector<Eigen::Vector3d>& polygon, c
 /// coordinates x = P0.X / w, y = P1.X / w of normalised P, w = P2.X > 0.
 std::vector<HalfSpace> frustum(const Projection& P, int width, int height) {
   const Eigen::Vector4d px = P.row(0).transpose(), py = P.row(1).transpose(), pw = P.row(2).transpose();
-  return {pw - kMinDepth * Eigen::Vector4d::UnitW(),
-          px + kClipMargin * pw,
-          (width - 1 + kClipMargin) * pw - px,
-          py + kClipMargin * pw,
-          (height - 1 + kClipMargin) * pw - py};
+  return {pw - kMinDepth * Eigen::Vector4d::UnitW(), px + kClipMargin * pw, (width - 1 + kClipMargin) * pw - px,
+          py + kClipMargin * pw, (height - 1 + kClipMargin) * pw - py};
 }
 
 /// Depth w of the facet plane along the ray of each pixel: with P = [M | p],
@@ -228,8 +225,8 @@ std::vector<Candidate> candidates(const PlanarModel& model, const std::vector<Vi
   for (std::size_t r = 0; r < reference.size(); ++r) {
     const ReferencePlane& ref = reference[r];
     const bool masks = !ref.visible.empty();
-    const std::vector<long> covered = masks ? coveredPixels(ref, index, model.facets.size())
-                                            : coveredPoints(ref, model, views, index, max_distance);
+    const std::vector<long> covered =
+        masks ? coveredPixels(ref, index, model.facets.size()) : coveredPoints(ref, model, views, index, max_distance);
     const double total = masks ? static_cast<double>(visiblePixels(ref)) : static_cast<double>(ref.points.size());
     for (std::size_t f = 0; f < model.facets.size(); ++f) {
       const Facet& facet = model.facets[f];
@@ -269,8 +266,8 @@ std::vector<PlaneMatch> assign(std::vector<Candidate> cands, std::size_t referen
 // Scores
 
 /// Fills each match's coverage and the overall coverage.
-void scoreCoverage(const std::vector<ReferencePlane>& reference, const std::vector<cv::Mat>& index,
-                   std::size_t facets, Evaluation& e) {
+void scoreCoverage(const std::vector<ReferencePlane>& reference, const std::vector<cv::Mat>& index, std::size_t facets,
+                   Evaluation& e) {
   long covered_all = 0, visible_all = 0;
   for (PlaneMatch& m : e.matches) {
     const ReferencePlane& ref = reference[static_cast<std::size_t>(m.reference)];

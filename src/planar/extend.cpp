@@ -110,11 +110,11 @@ double distanceTo(const Polygon2& poly, const Eigen::Vector2d& p) {
 struct Region {
   Plane plane;
   int reference_view = 0;
-  double pixels_per_unit = 1.0;             ///< at the line's midpoint, reference view
-  std::vector<Eigen::Vector3d> support;     ///< the line's end points, then joined points and segment ends
+  double pixels_per_unit = 1.0;          ///< at the line's midpoint, reference view
+  std::vector<Eigen::Vector3d> support;  ///< the line's end points, then joined points and segment ends
   int line_points = 2;
   double score = 0.0;
-  Polygon2 polygon;                         ///< in `frame`
+  Polygon2 polygon;  ///< in `frame`
   PlaneFrame frame;
 };
 
@@ -155,8 +155,8 @@ std::vector<Bound> fixedLineBounds(const Region& h, const LineTrack& L, const st
     // A neighbour bounds h where the two planes meet: its line must lie on h's plane (an edge they share).
     const LineTrack& Lg = lines[static_cast<std::size_t>(half_planes[g].line)];
     if (!on.onPlane(Lg.a, h.plane, h.reference_view) || !on.onPlane(Lg.b, h.plane, h.reference_view)) continue;
-    const double near = std::min({(Lg.a - L.a).norm(), (Lg.a - L.b).norm(), (Lg.b - L.a).norm(),
-                                  (Lg.b - L.b).norm(), (0.5 * (Lg.a + Lg.b) - 0.5 * (L.a + L.b)).norm()});
+    const double near = std::min({(Lg.a - L.a).norm(), (Lg.a - L.b).norm(), (Lg.b - L.a).norm(), (Lg.b - L.b).norm(),
+                                  (0.5 * (Lg.a + Lg.b) - 0.5 * (L.a + L.b)).norm()});
     if (near > reach) continue;
     // pg restricted to h's plane: pg.n . (o + x e1 + y e2) + pg.d = 0.
     Bound bound{Eigen::Vector2d(pg.n.dot(h.frame.e1), pg.n.dot(h.frame.e2)), pg.distance(h.frame.origin)};
@@ -195,7 +195,8 @@ void grow(Region* h, const std::vector<Eigen::Vector3d>& evidence, const std::ve
     for (std::size_t i = 0; i < candidates.size(); ++i) {
       if (joined[i]) continue;
       double d = current.empty() ? std::numeric_limits<double>::infinity() : distanceTo(current, candidates[i]);
-      for (std::size_t k = 0; current.empty() && k < region.size(); ++k) d = std::min(d, (region[k] - candidates[i]).norm());
+      for (std::size_t k = 0; current.empty() && k < region.size(); ++k)
+        d = std::min(d, (region[k] - candidates[i]).norm());
       if (d > step) continue;
       joined[i] = true;
       region.push_back(candidates[i]);
@@ -352,9 +353,9 @@ cv::Vec3b facetColour(const Facet& facet, const View& view) {
   cv::fillConvexPoly(mask, pix, cv::Scalar(255));
   if (cv::countNonZero(mask) == 0) return facet.colour;
   const cv::Scalar m = cv::mean(view.image, mask);
-  return view.image.channels() == 3 ? cv::Vec3b(cv::saturate_cast<uchar>(m[0]), cv::saturate_cast<uchar>(m[1]),
-                                                cv::saturate_cast<uchar>(m[2]))
-                                    : cv::Vec3b::all(cv::saturate_cast<uchar>(m[0]));
+  return view.image.channels() == 3
+             ? cv::Vec3b(cv::saturate_cast<uchar>(m[0]), cv::saturate_cast<uchar>(m[1]), cv::saturate_cast<uchar>(m[2]))
+             : cv::Vec3b::all(cv::saturate_cast<uchar>(m[0]));
 }
 
 Region startRegion(const View& view, const LineTrack& L, const HalfPlane& h) {
@@ -370,8 +371,7 @@ Region startRegion(const View& view, const LineTrack& L, const HalfPlane& h) {
     frame.e1 = -frame.e1;
     frame.e2 = h.plane.n.cross(frame.e1);
   }
-  Region r{h.plane, h.reference_view, pixelsPerUnit(view.P, mid), {L.a, L.b}, 2,
-           h.score, {}, frame};
+  Region r{h.plane, h.reference_view, pixelsPerUnit(view.P, mid), {L.a, L.b}, 2, h.score, {}, frame};
   return r;
 }
 
@@ -401,10 +401,10 @@ PlanarModel extendAndMerge(const std::vector<View>& views, const std::vector<Poi
   for (const HalfPlane& h : half_planes) {
     if (h.line < 0 || h.line >= static_cast<int>(lines.size()) || h.reference_view < 0 ||
         h.reference_view >= static_cast<int>(views.size()))
-      throw std::invalid_argument("extendAndMerge: half-plane refers to line " + std::to_string(h.line) +
-                                  " / view " + std::to_string(h.reference_view) + ", which do not exist");
-    regions.push_back(startRegion(views[static_cast<std::size_t>(h.reference_view)],
-                                  lines[static_cast<std::size_t>(h.line)], h));
+      throw std::invalid_argument("extendAndMerge: half-plane refers to line " + std::to_string(h.line) + " / view " +
+                                  std::to_string(h.reference_view) + ", which do not exist");
+    regions.push_back(
+        startRegion(views[static_cast<std::size_t>(h.reference_view)], lines[static_cast<std::size_t>(h.line)], h));
   }
   std::vector<Region> extended;
   for (std::size_t i = 0; i < regions.size(); ++i) {

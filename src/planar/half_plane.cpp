@@ -16,7 +16,7 @@ namespace massage_cell::planar {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kEndInset = 3.0;        // px left out at both ends of the segment (the corners belong to other edges)
+constexpr double kEndInset = 3.0;  // px left out at both ends of the segment (the corners belong to other edges)
 
 void check(bool ok, const std::string& field, double value, const std::string& want) {
   if (!ok) throw std::invalid_argument("HalfPlaneParams." + field + " = " + std::to_string(value) + ": " + want);
@@ -41,8 +41,8 @@ void HalfPlaneParams::validate() const {
         "expected 4 .. 200 px");
   check(std::isfinite(strip_offset) && strip_offset >= 0.0 && strip_offset <= 20.0, "strip_offset", strip_offset,
         "expected 0 .. 20 px");
-  check(std::isfinite(sample_step) && sample_step >= 0.5 && sample_step <= strip_width / 2, "sample_step",
-        sample_step, "expected 0.5 px .. strip_width / 2");
+  check(std::isfinite(sample_step) && sample_step >= 0.5 && sample_step <= strip_width / 2, "sample_step", sample_step,
+        "expected 0.5 px .. strip_width / 2");
   check(std::isfinite(min_ncc) && min_ncc > -1.0 && min_ncc < 1.0, "min_ncc", min_ncc, "expected -1 < min_ncc < 1");
   check(std::isfinite(region_depth) && region_depth > strip_offset, "region_depth", region_depth,
         "expected more than strip_offset");
@@ -83,8 +83,12 @@ struct HalfPlaneSearch::Strip {
 
 HalfPlaneSearch::HalfPlaneSearch(const std::vector<View>& views, const std::vector<PointTrack>& points,
                                  const std::vector<LineTrack>& lines, const HalfPlaneParams& params)
-    : views_(views), points_(points), lines_(lines), params_(params),
-      coplanarity_(views, (params.validate(), params.coplanar_pixels)), photo_((validateViews(views), views)) {}
+    : views_(views),
+      points_(points),
+      lines_(lines),
+      params_(params),
+      coplanarity_(views, (params.validate(), params.coplanar_pixels)),
+      photo_((validateViews(views), views)) {}
 
 int HalfPlaneSearch::referenceView(int line) const {
   const LineTrack& L = lines_.at(static_cast<std::size_t>(line));
@@ -118,8 +122,8 @@ HalfPlaneSearch::Strip HalfPlaneSearch::makeStrip(int line, int side, int refere
     for (double o = o0; o <= o1; o += params_.sample_step) pixels.push_back(pa + t * along + o * across);
   }
   const std::vector<Eigen::Vector2d> corners = {
-      pa + kEndInset * along + o0 * across, pb - kEndInset * along + o0 * across,
-      pa + kEndInset * along + o1 * across, pb - kEndInset * along + o1 * across};
+      pa + kEndInset * along + o0 * across, pb - kEndInset * along + o0 * across, pa + kEndInset * along + o1 * across,
+      pb - kEndInset * along + o1 * across};
   strip.samples = photo_.sample(reference_view, pixels, corners);
   return strip;
 }
@@ -213,7 +217,8 @@ std::vector<HalfPlane> searchAll(int line_count, const SideSearch& search_side, 
   std::vector<long> counts(found.size(), 0);
   cv::parallel_for_(cv::Range(0, 2 * line_count), [&](const cv::Range& range) {
     for (int i = range.start; i < range.end; ++i) {
-      search_side(i / 2, i % 2 == 0 ? 1 : -1, &found[static_cast<std::size_t>(i)], &counts[static_cast<std::size_t>(i)]);
+      search_side(i / 2, i % 2 == 0 ? 1 : -1, &found[static_cast<std::size_t>(i)],
+                  &counts[static_cast<std::size_t>(i)]);
     }
   });
   std::vector<HalfPlane> accepted;
@@ -270,7 +275,8 @@ std::vector<HalfPlane> HalfPlaneSearch::bySweep(SearchStats* stats) const {
     const double sp = scores[static_cast<std::size_t>((best + 1) % n)];
     const double s0 = scores[static_cast<std::size_t>(best)];
     const double denom = sm - 2.0 * s0 + sp;
-    const double offset = (sm > -1.0 && sp > -1.0 && denom < 0.0) ? std::clamp(0.5 * (sm - sp) / denom, -0.5, 0.5) : 0.0;
+    const double offset =
+        (sm > -1.0 && sp > -1.0 && denom < 0.0) ? std::clamp(0.5 * (sm - sp) / denom, -0.5, 0.5) : 0.0;
     *out = HalfPlane{line, side, ref, planeAboutLine(L.a, L.direction(), (best + offset) * step), s0, {}};
   };
   return searchAll(static_cast<int>(lines_.size()), side_search, stats);

@@ -48,8 +48,7 @@ void checkPolygon(const char* caller, std::size_t facet, std::size_t index,
                                 std::to_string(polygon.size()) + " vertices (needs >= 3)");
   for (const auto& X : polygon)
     if (!X.allFinite())
-      throw std::invalid_argument(std::string(caller) + ": " + polygonName(facet, index) +
-                                  " has a non-finite vertex");
+      throw std::invalid_argument(std::string(caller) + ": " + polygonName(facet, index) + " has a non-finite vertex");
 }
 
 // ---------------------------------------------------------------------------
@@ -161,12 +160,12 @@ void writeObjFaces(const TriangleMesh& mesh, std::ofstream* out) {
 // Overlay
 
 /// Distinct colours (BGR) for facets, by index.
-const cv::Scalar kPalette[] = {{180, 119, 31}, {14, 127, 255}, {44, 160, 44},  {40, 39, 214},  {189, 103, 148},
+const cv::Scalar kPalette[] = {{180, 119, 31}, {14, 127, 255},  {44, 160, 44},  {40, 39, 214},  {189, 103, 148},
                                {75, 86, 140},  {194, 119, 227}, {47, 217, 255}, {34, 189, 188}, {207, 190, 23}};
 constexpr double kFillAlpha = 0.4;
-constexpr int kShift = 4;                 ///< fractional bits of the polygon vertices handed to OpenCV
-constexpr double kClipMarginPx = 16.0;    ///< polygons are clipped this far outside the image
-constexpr double kNearFraction = 1e-9;    ///< near plane, relative to the polygon's largest depth
+constexpr int kShift = 4;               ///< fractional bits of the polygon vertices handed to OpenCV
+constexpr double kClipMarginPx = 16.0;  ///< polygons are clipped this far outside the image
+constexpr double kNearFraction = 1e-9;  ///< near plane, relative to the polygon's largest depth
 
 cv::Scalar facetColour(std::size_t facet) { return kPalette[facet % (sizeof(kPalette) / sizeof(kPalette[0]))]; }
 
@@ -266,8 +265,7 @@ void drawLabel(cv::Mat* image, std::size_t facet, const cv::Point2d& at) {
   const cv::Size size = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, scale, thickness, &baseline);
   const cv::Point origin(cvRound(at.x - size.width / 2.0), cvRound(at.y + size.height / 2.0));
   cv::putText(*image, text, origin, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0, 0, 0), thickness + 2, cv::LINE_AA);
-  cv::putText(*image, text, origin, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(255, 255, 255), thickness,
-              cv::LINE_AA);
+  cv::putText(*image, text, origin, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(255, 255, 255), thickness, cv::LINE_AA);
 }
 
 }  // namespace

@@ -85,8 +85,8 @@ PhotoConsistency::Samples PhotoConsistency::sample(int reference_view, const std
   }
   for (const Eigen::Vector2d& c : corners) s.corners.push_back(c.homogeneous());
   const double n = static_cast<double>(s.values.size());
-  s.textured = s.values.size() >= kMinSamples &&
-               std::sqrt(std::max(0.0, sq / n - (mean / n) * (mean / n))) >= kMinTextureSigma;
+  s.textured =
+      s.values.size() >= kMinSamples && std::sqrt(std::max(0.0, sq / n - (mean / n) * (mean / n))) >= kMinTextureSigma;
   return s;
 }
 

@@ -51,7 +51,8 @@ Reconstruction reconstruct(const std::vector<View>& views, const ReconstructPara
   r.times.matching = secondsSince(t0);
 
   const HalfPlaneSearch search(views, r.points, r.lines, params.half_planes);
-  r.half_planes = params.method == HalfPlaneMethod::kSweep ? search.bySweep(&r.search) : search.byFeaturePoints(&r.search);
+  r.half_planes =
+      params.method == HalfPlaneMethod::kSweep ? search.bySweep(&r.search) : search.byFeaturePoints(&r.search);
   r.times.half_planes = r.search.seconds;
 
   r.model = extendAndMerge(views, r.points, r.lines, r.half_planes, params.extension, &r.extension);

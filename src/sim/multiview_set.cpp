@@ -287,9 +287,10 @@ MultiViewSet renderCubeViews(double edge, const MultiViewOptions& options) {
     throw std::invalid_argument("renderCubeViews: edge must be > 0, got " + num(edge));
   }
   if (options.spread_deg >= 90.0 || options.elevation_deg >= 90.0) {
-    throw std::invalid_argument("renderCubeViews: options.spread_deg and elevation_deg must be below 90 (every view "
-                                "must see two sides), got " + num(options.spread_deg) + " and " +
-                                num(options.elevation_deg));
+    throw std::invalid_argument(
+        "renderCubeViews: options.spread_deg and elevation_deg must be below 90 (every view "
+        "must see two sides), got " +
+        num(options.spread_deg) + " and " + num(options.elevation_deg));
   }
   MultiViewSet set;
   const float e = static_cast<float>(edge);

@@ -173,12 +173,12 @@ std::string percent(double share) {
 void printRow(const EvalSet& set, planar::HalfPlaneMethod method, const planar::Evaluation& ev,
               const planar::SearchStats& search, double total) {
   std::cout << std::left << std::setw(8) << set.name << std::setw(8) << planar::halfPlaneMethodName(method)
-            << std::right << std::fixed << std::setprecision(2) << std::setw(4) << ev.reconstructed << "/"
-            << std::left << std::setw(4) << set.reference.size() << std::right << std::setw(7)
-            << ev.mean_pair_error_deg << " /" << std::setw(6) << ev.max_pair_error_deg << std::setw(7)
-            << percent(ev.coverage) << std::setw(7) << percent(facesCoverage(set, ev)) << std::setw(8) << 100 * ev.vertex_distance_mean / set.depth << " /" << std::setw(6)
-            << 100 * ev.vertex_distance_max / set.depth << std::setw(10) << search.candidates << std::setw(9)
-            << std::setprecision(3) << search.seconds << std::setw(9) << total << "\n";
+            << std::right << std::fixed << std::setprecision(2) << std::setw(4) << ev.reconstructed << "/" << std::left
+            << std::setw(4) << set.reference.size() << std::right << std::setw(7) << ev.mean_pair_error_deg << " /"
+            << std::setw(6) << ev.max_pair_error_deg << std::setw(7) << percent(ev.coverage) << std::setw(7)
+            << percent(facesCoverage(set, ev)) << std::setw(8) << 100 * ev.vertex_distance_mean / set.depth << " /"
+            << std::setw(6) << 100 * ev.vertex_distance_max / set.depth << std::setw(10) << search.candidates
+            << std::setw(9) << std::setprecision(3) << search.seconds << std::setw(9) << total << "\n";
 }
 
 /// Both searches on one set, from the same features and tracks.
@@ -204,7 +204,8 @@ void evaluateSet(const EvalSet& set, const Options& o) {
     if (!o.pictures.empty()) {
       std::filesystem::create_directories(o.pictures);
       const std::string path = o.pictures + "/" + set.name + "_" + planar::halfPlaneMethodName(method) + ".png";
-      if (!cv::imwrite(path, planar::drawOverlay(set.views[0], model))) throw std::runtime_error("cannot write " + path);
+      if (!cv::imwrite(path, planar::drawOverlay(set.views[0], model)))
+        throw std::runtime_error("cannot write " + path);
     }
   }
   std::cout << "        " << base.points.size() << " point tracks, " << base.lines.size()

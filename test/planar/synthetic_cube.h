@@ -24,9 +24,9 @@ struct CubeFace {
 struct SyntheticCube {
   double edge = 0.3;
   std::vector<View> views;
-  std::array<CubeFace, 3> faces;  ///< +x, +y, +z (the three the cameras see)
-  std::vector<PointTrack> points; ///< exact points on the three faces
-  std::vector<LineTrack> lines;   ///< the nine visible edges, exact
+  std::array<CubeFace, 3> faces;   ///< +x, +y, +z (the three the cameras see)
+  std::vector<PointTrack> points;  ///< exact points on the three faces
+  std::vector<LineTrack> lines;    ///< the nine visible edges, exact
 };
 
 /// A camera at `eye` looking at `target` (image y down toward world -z).
@@ -65,8 +65,8 @@ inline SyntheticCube makeSyntheticCube(int view_count = 3, int width = 640, int 
   for (int v = 0; v < view_count; ++v) {
     const double az = (45.0 + 12.0 * (v - (view_count - 1) / 2.0)) * M_PI / 180.0;
     const double el = (35.0 + 4.0 * (v % 2)) * M_PI / 180.0;
-    const Eigen::Vector3d eye = centre + 1.3 * Eigen::Vector3d(std::cos(el) * std::cos(az),
-                                                               std::cos(el) * std::sin(az), std::sin(el));
+    const Eigen::Vector3d eye =
+        centre + 1.3 * Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
     View view;
     view.name = "cube" + std::to_string(v);
     view.P = normalisedProjection(lookAt(eye, centre, f, width, height));
@@ -100,8 +100,7 @@ inline SyntheticCube makeSyntheticCube(int view_count = 3, int width = 640, int 
       cube.points.push_back(p);
     }
   }
-  const Eigen::Vector3d c[8] = {{0, 0, 0}, {e, 0, 0}, {0, e, 0}, {e, e, 0},
-                                {0, 0, e}, {e, 0, e}, {0, e, e}, {e, e, e}};
+  const Eigen::Vector3d c[8] = {{0, 0, 0}, {e, 0, 0}, {0, e, 0}, {e, e, 0}, {0, 0, e}, {e, 0, e}, {0, e, e}, {e, e, e}};
   const int edges[9][2] = {{1, 3}, {1, 5}, {3, 7}, {2, 3}, {2, 6}, {5, 7}, {6, 7}, {4, 5}, {4, 6}};
   for (const auto& ed : edges) {
     LineTrack l;

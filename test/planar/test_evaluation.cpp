@@ -154,7 +154,6 @@ void tilt(planar::Facet& facet, const Eigen::Vector3d& axis, double degrees) {
   facet.plane.d = -facet.plane.n.dot(centre);
 }
 
-
 }  // namespace
 
 // ---------------------------------------------------------------------------
@@ -323,8 +322,8 @@ TEST(EvaluateModel, ExactFacetsScoreNoErrorAndFullCoverage) {
   EXPECT_FALSE(e.pair_errors.empty());
   EXPECT_NEAR(e.max_pair_error_deg, 0.0, 1e-6);
   EXPECT_NEAR(e.vertex_distance_max, 0.0, 1e-9);
-  std::cout << "exact model: " << e.reconstructed << " planes, coverage " << e.coverage << ", "
-            << e.pair_errors.size() << " pairs\n";
+  std::cout << "exact model: " << e.reconstructed << " planes, coverage " << e.coverage << ", " << e.pair_errors.size()
+            << " pairs\n";
 }
 
 TEST(EvaluateModel, WithoutMasksFacetsAreMatchedByTheReferencePoints) {

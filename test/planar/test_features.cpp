@@ -287,7 +287,6 @@ LineResult lineResult(const Scene& scene, const std::vector<planar::LineTrack>& 
 // ---------------------------------------------------------------------------
 // Merton College I
 
-
 double millisecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }

@@ -151,7 +151,8 @@ TEST(ExtendAndMerge, TheCubesThreeFacesAtRightAngles) {
   const mp::HalfPlaneSearch search(cube.views, cube.points, cube.lines, mp::HalfPlaneParams{});
   const auto found = search.byFeaturePoints();
   mp::ExtendStats stats;
-  const mp::PlanarModel model = mp::extendAndMerge(cube.views, cube.points, cube.lines, found, mp::ExtendParams{}, &stats);
+  const mp::PlanarModel model =
+      mp::extendAndMerge(cube.views, cube.points, cube.lines, found, mp::ExtendParams{}, &stats);
   ASSERT_EQ(model.facets.size(), 3u) << stats.half_planes << " half-planes, " << stats.extended << " extended";
   std::set<int> seen;
   for (const mp::Facet& f : model.facets) {
@@ -166,7 +167,8 @@ TEST(ExtendAndMerge, TheCubesThreeFacesAtRightAngles) {
       for (const Eigen::Vector3d& X : poly) {
         EXPECT_NEAR(facePlane(cube.faces[static_cast<std::size_t>(face)]).distance(X), 0.0, 1e-3);
       }
-      for (std::size_t i = 1; i + 1 < poly.size(); ++i) area += 0.5 * (poly[i] - poly[0]).cross(poly[i + 1] - poly[0]).norm();
+      for (std::size_t i = 1; i + 1 < poly.size(); ++i)
+        area += 0.5 * (poly[i] - poly[0]).cross(poly[i + 1] - poly[0]).norm();
     }
     EXPECT_NEAR(area, cube.edge * cube.edge, 0.1 * cube.edge * cube.edge) << "face " << face;
   }

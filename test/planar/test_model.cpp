@@ -106,8 +106,8 @@ std::vector<std::string> readLines(const std::string& path) {
 }
 
 int countPrefix(const std::vector<std::string>& lines, const std::string& prefix) {
-  return static_cast<int>(std::count_if(lines.begin(), lines.end(),
-                                        [&](const std::string& l) { return l.rfind(prefix, 0) == 0; }));
+  return static_cast<int>(
+      std::count_if(lines.begin(), lines.end(), [&](const std::string& l) { return l.rfind(prefix, 0) == 0; }));
 }
 
 bool contains(const std::vector<std::string>& lines, const std::string& line) {

@@ -116,7 +116,6 @@ std::vector<planar::View> twoValidViews() {
 // ---------------------------------------------------------------------------
 // Merton College I
 
-
 /// nview-corners: per 3D point, the corner index in each view (-1 for '*').
 std::vector<std::vector<int>> readMatches(const std::string& path, int views) {
   std::ifstream in(path);

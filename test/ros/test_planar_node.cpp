@@ -46,8 +46,11 @@ struct Rendered {
 const Rendered& rendered() {
   static Rendered* r = [] {
     auto* out = new Rendered;
-    const auto run = runCommand(std::string(RENDER_SCENE_TOOL) + " --preset boxes --width 640 --height 480 --fx 500"
-                                                                 " --supersample 1 --out " + out->dir.str(), 120);
+    const auto run = runCommand(std::string(RENDER_SCENE_TOOL) +
+                                    " --preset boxes --width 640 --height 480 --fx 500"
+                                    " --supersample 1 --out " +
+                                    out->dir.str(),
+                                120);
     EXPECT_EQ(run.exit_code, 0) << run.output;
     sensor_msgs::CameraInfo* info[2] = {&out->pair.left_info, &out->pair.right_info};
     sensor_msgs::Image* image[2] = {&out->pair.left, &out->pair.right};
@@ -117,10 +120,10 @@ TEST(PlanarNode, StereoPairGivesPlanesWhereTheSceneIs) {
   ros::NodeHandle nh;
   massage_cell::PlanarModelConstPtr model;
   visualization_msgs::MarkerConstPtr mesh;
-  auto planes_sub = nh.subscribe<massage_cell::PlanarModel>(kNode + "/planes", 1,
-                                                            [&](const massage_cell::PlanarModelConstPtr& m) { model = m; });
-  auto mesh_sub = nh.subscribe<visualization_msgs::Marker>(kNode + "/mesh", 1,
-                                                           [&](const visualization_msgs::MarkerConstPtr& m) { mesh = m; });
+  auto planes_sub = nh.subscribe<massage_cell::PlanarModel>(
+      kNode + "/planes", 1, [&](const massage_cell::PlanarModelConstPtr& m) { model = m; });
+  auto mesh_sub = nh.subscribe<visualization_msgs::Marker>(
+      kNode + "/mesh", 1, [&](const visualization_msgs::MarkerConstPtr& m) { mesh = m; });
   ros::NodeHandle ns("/planar_test");
   PairPublisher input(ns, 2);
   ASSERT_TRUE(spinUntil([&] { return input.subscribed(); }, 30.0)) << "the node did not subscribe to the pair";
@@ -167,15 +170,13 @@ TEST(PlanarNode, BadRequestsAreRefusedAndTheNodeGoesOn) {
   struct Case {
     std::string path, expect;
   };
-  const std::vector<Case> cases = {{"", "path is empty"},
-                                   {"/nonexistent/views", "/nonexistent/views"},
-                                   {writeViewSet(r, 1), "at least 2 views"}};
+  const std::vector<Case> cases = {
+      {"", "path is empty"}, {"/nonexistent/views", "/nonexistent/views"}, {writeViewSet(r, 1), "at least 2 views"}};
   for (const Case& c : cases) {
     massage_cell::Reconstruct srv;
     ASSERT_TRUE(call(c.path, "", &srv)) << "the service is gone after '" << c.path << "'";
     EXPECT_FALSE(srv.response.success) << c.path;
-    EXPECT_NE(srv.response.message.find(c.expect), std::string::npos)
-        << "'" << c.path << "': " << srv.response.message;
+    EXPECT_NE(srv.response.message.find(c.expect), std::string::npos) << "'" << c.path << "': " << srv.response.message;
   }
   // An uncalibrated pair is skipped and named in the diagnostics' last error; the node goes on.
   ros::NodeHandle nh, ns("/planar_test");

@@ -29,26 +29,28 @@ struct ReferencePlane {
 };
 
 struct PlaneMatch {
-  int reference = -1;  ///< index into the reference planes
-  int facet = -1;      ///< index into the model's facets (-1: none found)
-  double angle_deg = 0.0;   ///< between the facet's and the reference plane's normals
-  double coverage = 0.0;    ///< share of the reference's visible pixels (all views) covered by the facet's polygons (NaN without masks)
+  int reference = -1;      ///< index into the reference planes
+  int facet = -1;          ///< index into the model's facets (-1: none found)
+  double angle_deg = 0.0;  ///< between the facet's and the reference plane's normals
+  double coverage =
+      0.0;  ///< share of the reference's visible pixels (all views) covered by the facet's polygons (NaN without masks)
 };
 
 struct PairAngleError {
   int reference_a = -1, reference_b = -1;
-  double true_angle_deg = 0.0;     ///< between the two reference planes
-  double model_angle_deg = 0.0;    ///< between the facets matched to them
-  double error_deg = 0.0;          ///< |model - true|
+  double true_angle_deg = 0.0;   ///< between the two reference planes
+  double model_angle_deg = 0.0;  ///< between the facets matched to them
+  double error_deg = 0.0;        ///< |model - true|
 };
 
 struct Evaluation {
   std::vector<PlaneMatch> matches;          ///< one per reference plane
   std::vector<PairAngleError> pair_errors;  ///< every pair of non-parallel (> 5 deg) reference planes both matched
   double mean_pair_error_deg = 0.0, max_pair_error_deg = 0.0;
-  double coverage = 0.0;          ///< visible reference area covered, all planes with masks together (NaN without masks)
-  double vertex_distance_mean = 0.0, vertex_distance_max = 0.0;  ///< model vertices to their matched reference plane, world units
-  int reconstructed = 0;          ///< reference planes with a matched facet
+  double coverage = 0.0;  ///< visible reference area covered, all planes with masks together (NaN without masks)
+  double vertex_distance_mean = 0.0,
+         vertex_distance_max = 0.0;  ///< model vertices to their matched reference plane, world units
+  int reconstructed = 0;             ///< reference planes with a matched facet
 };
 
 /// Matches each reference plane to the facet that covers most of its

@@ -25,11 +25,12 @@
 namespace massage_cell::planar {
 
 struct ExtendParams {
-  double coplanar_pixels = 2.0;       ///< a point is on a plane when moving it there moves its images this little
-  double growth_step = 60.0;          ///< px in the reference view: a coplanar point joins a region this near it
-  double neighbour_reach = 250.0;     ///< px: half-planes whose lines come this near (reference view) bound each other
-  double merge_angle_deg = 4.0;       ///< facets within this angle, each one's evidence on the other's plane, touching, merge
-  int min_support = 4;                ///< a facet needs this many points and line end points besides its own line
+  double coplanar_pixels = 2.0;    ///< a point is on a plane when moving it there moves its images this little
+  double growth_step = 60.0;       ///< px in the reference view: a coplanar point joins a region this near it
+  double neighbour_reach = 250.0;  ///< px: half-planes whose lines come this near (reference view) bound each other
+  double merge_angle_deg =
+      4.0;              ///< facets within this angle, each one's evidence on the other's plane, touching, merge
+  int min_support = 4;  ///< a facet needs this many points and line end points besides its own line
   /// A grown region whose pixels, carried by its plane into the other views,
   /// correlate less than this is dropped (untextured regions cannot be checked and stay).
   double min_region_ncc = 0.5;
@@ -38,9 +39,9 @@ struct ExtendParams {
 };
 
 struct ExtendStats {
-  int half_planes = 0;   ///< half-planes given
-  int extended = 0;      ///< of which kept with enough support
-  int facets = 0;        ///< after merging
+  int half_planes = 0;  ///< half-planes given
+  int extended = 0;     ///< of which kept with enough support
+  int facets = 0;       ///< after merging
   double seconds = 0.0;
 };
 

@@ -21,21 +21,22 @@
 namespace massage_cell::planar {
 
 struct FeatureParams {
-  std::string detector = "akaze";   ///< "akaze", "orb" or "sift"
-  int max_keypoints = 5000;         ///< per view, strongest kept
+  std::string detector = "akaze";     ///< "akaze", "orb" or "sift"
+  int max_keypoints = 5000;           ///< per view, strongest kept
   double min_segment_length = 0.025;  ///< line segments shorter than this fraction of the image diagonal are dropped
-  double epipolar_tolerance = 1.5;  ///< pixels: distance of a match from its epipolar line / of a reprojection
-  double ratio = 0.8;               ///< Lowe's ratio test on descriptor distances
-  double min_line_ncc = 0.6;        ///< two-view line matches: strip correlation at least this
-  double max_line_angle_deg = 20.0; ///< 2-view line matches: orientation difference at most this (after accounting for the views' rotation it is loose)
+  double epipolar_tolerance = 1.5;    ///< pixels: distance of a match from its epipolar line / of a reprojection
+  double ratio = 0.8;                 ///< Lowe's ratio test on descriptor distances
+  double min_line_ncc = 0.6;          ///< two-view line matches: strip correlation at least this
+  double max_line_angle_deg = 20.0;  ///< 2-view line matches: orientation difference at most this (after accounting for
+                                     ///< the views' rotation it is loose)
   /// Throws std::invalid_argument naming the field for a bad value.
   void validate() const;
 };
 
 struct ViewFeatures {
   std::vector<cv::KeyPoint> keypoints;
-  cv::Mat descriptors;               ///< one row per keypoint
-  std::vector<cv::Vec4f> segments;   ///< x0 y0 x1 y1, pixels
+  cv::Mat descriptors;              ///< one row per keypoint
+  std::vector<cv::Vec4f> segments;  ///< x0 y0 x1 y1, pixels
 };
 
 /// Keypoints, descriptors and line segments of one view.

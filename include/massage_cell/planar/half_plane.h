@@ -36,22 +36,23 @@
 namespace massage_cell::planar {
 
 struct HalfPlaneParams {
-  double strip_width = 18.0;   ///< px: the verified region beside the line in the reference view
-  double strip_offset = 2.0;   ///< px next to the line left out (the edge itself agrees under every plane about L)
-  double sample_step = 2.0;    ///< px between samples along and across the strip
-  double min_ncc = 0.65;       ///< a half-plane is accepted at this score or above
-  double region_depth = 150.0; ///< px: the region constraint's reach from the line in the reference view
-  double coplanar_pixels = 2.0;  ///< a point is on a plane when moving it there moves its images this little (coplanarity.h)
-  int min_coplanar_points = 2; ///< the coplanar constraint: a candidate needs this many points coplanar with the line
-  double sweep_step_deg = 1.0; ///< the exhaustive sweep's step about the line
-  double grazing_deg = 10.0;   ///< planes within this angle of the reference camera's viewing direction are skipped
+  double strip_width = 18.0;    ///< px: the verified region beside the line in the reference view
+  double strip_offset = 2.0;    ///< px next to the line left out (the edge itself agrees under every plane about L)
+  double sample_step = 2.0;     ///< px between samples along and across the strip
+  double min_ncc = 0.65;        ///< a half-plane is accepted at this score or above
+  double region_depth = 150.0;  ///< px: the region constraint's reach from the line in the reference view
+  double coplanar_pixels =
+      2.0;  ///< a point is on a plane when moving it there moves its images this little (coplanarity.h)
+  int min_coplanar_points = 2;  ///< the coplanar constraint: a candidate needs this many points coplanar with the line
+  double sweep_step_deg = 1.0;  ///< the exhaustive sweep's step about the line
+  double grazing_deg = 10.0;    ///< planes within this angle of the reference camera's viewing direction are skipped
   /// Throws std::invalid_argument naming the field for a bad value.
   void validate() const;
 };
 
 struct HalfPlane {
-  int line = -1;            ///< index into the line tracks
-  int side = 1;             ///< +1 / -1: the side of the line's image (sign of the image line's equation) in the reference view
+  int line = -1;  ///< index into the line tracks
+  int side = 1;   ///< +1 / -1: the side of the line's image (sign of the image line's equation) in the reference view
   int reference_view = 0;
   Plane plane;
   double score = 0.0;       ///< NCC of the strip against the other views
@@ -90,7 +91,8 @@ class HalfPlaneSearch {
   struct Strip;
   Strip makeStrip(int line, int side, int reference_view) const;
   double scoreStrip(const Strip& strip, const Plane& plane) const;
-  std::vector<Plane> pointCandidates(int line, int side, int reference_view, std::vector<std::vector<int>>* groups) const;
+  std::vector<Plane> pointCandidates(int line, int side, int reference_view,
+                                     std::vector<std::vector<int>>* groups) const;
   bool grazing(int line, int reference_view, const Plane& plane) const;
 
   const std::vector<View>& views_;

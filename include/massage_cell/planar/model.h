@@ -44,8 +44,8 @@ struct PlanarModel {
 
 struct TriangleMesh {
   std::vector<Eigen::Vector3f> vertices;
-  std::vector<cv::Vec3b> colours;             ///< per vertex, BGR
-  std::vector<Eigen::Vector2f> uv;            ///< per vertex texture coordinates in [0,1]^2 of texture_view (empty: none)
+  std::vector<cv::Vec3b> colours;   ///< per vertex, BGR
+  std::vector<Eigen::Vector2f> uv;  ///< per vertex texture coordinates in [0,1]^2 of texture_view (empty: none)
   std::vector<std::array<int, 3>> triangles;  ///< vertex indices, counter-clockwise seen from the facet's normal side
   std::vector<int> triangle_facet;            ///< per triangle: index of its facet
 };

@@ -16,10 +16,10 @@
 namespace massage_cell::sim {
 
 struct TruePlane {
-  std::string name;              ///< "table", "box 0 +z", ...
-  std::uint8_t label = 0;        ///< the renderer's label of its pixels
+  std::string name;                              ///< "table", "box 0 +z", ...
+  std::uint8_t label = 0;                        ///< the renderer's label of its pixels
   Eigen::Vector3d n = Eigen::Vector3d::UnitZ();  ///< unit normal, pointing out of the solid
-  double d = 0.0;                ///< n . X + d = 0
+  double d = 0.0;                                ///< n . X + d = 0
 };
 
 struct MultiViewSet {
