@@ -10,6 +10,7 @@
 
 #include <Eigen/Dense>
 #include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
 
 namespace massage_cell::planar {
 
@@ -32,6 +33,29 @@ void basisAbout(const Eigen::Vector3d& d, Eigen::Vector3d* u, Eigen::Vector3d* v
 double angleGap(double a, double b) {
   double g = std::fmod(std::abs(a - b), kPi);
   return std::min(g, kPi - g);
+}
+
+/// A grid over the convex hull of `points` (every `step` px, coarser so that
+/// at most ~kRegionSamples samples fall inside); returns the hull's vertices.
+std::vector<Eigen::Vector2d> regionGrid(const std::vector<Eigen::Vector2d>& points, double step,
+                                        std::vector<Eigen::Vector2d>* pixels) {
+  constexpr double kRegionSamples = 2000.0;
+  std::vector<cv::Point2f> in, hull;
+  for (const auto& p : points) in.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+  cv::convexHull(in, hull);
+  std::vector<Eigen::Vector2d> vertices;
+  for (const auto& p : hull) vertices.emplace_back(p.x, p.y);
+  if (hull.size() < 3) return vertices;
+  const cv::Rect box = cv::boundingRect(hull);
+  const double grid = std::max(step, std::sqrt(std::abs(cv::contourArea(hull)) / kRegionSamples));
+  for (double y = box.y; y <= box.y + box.height; y += grid) {
+    for (double x = box.x; x <= box.x + box.width; x += grid) {
+      if (cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(x), static_cast<float>(y)), false) >= 0) {
+        pixels->emplace_back(x, y);
+      }
+    }
+  }
+  return vertices;
 }
 
 }  // namespace
@@ -105,7 +129,8 @@ int HalfPlaneSearch::referenceView(int line) const {
   return best;
 }
 
-HalfPlaneSearch::Strip HalfPlaneSearch::makeStrip(int line, int side, int reference_view) const {
+HalfPlaneSearch::Strip HalfPlaneSearch::makeStrip(int line, int side, int reference_view,
+                                                  const std::vector<Eigen::Vector2d>& region) const {
   Strip strip;
   const LineTrack& L = lines_.at(static_cast<std::size_t>(line));
   const Projection& P = views_[static_cast<std::size_t>(reference_view)].P;
@@ -117,13 +142,17 @@ HalfPlaneSearch::Strip HalfPlaneSearch::makeStrip(int line, int side, int refere
   // imageLine's (a, b) is the unit normal along which its equation grows: `side` picks the sign.
   const Eigen::Vector2d across = side * imageLine(pa, pb).head<2>();
   const double o0 = params_.strip_offset, o1 = params_.strip_offset + params_.strip_width;
+  std::vector<Eigen::Vector2d> corners = {pa + kEndInset * along + o0 * across, pb - kEndInset * along + o0 * across,
+                                          pa + kEndInset * along + o1 * across, pb - kEndInset * along + o1 * across};
   std::vector<Eigen::Vector2d> pixels;
-  for (double t = kEndInset; t <= length - kEndInset; t += params_.sample_step) {
-    for (double o = o0; o <= o1; o += params_.sample_step) pixels.push_back(pa + t * along + o * across);
+  if (region.empty()) {
+    for (double t = kEndInset; t <= length - kEndInset; t += params_.sample_step) {
+      for (double o = o0; o <= o1; o += params_.sample_step) pixels.push_back(pa + t * along + o * across);
+    }
+  } else {
+    corners.insert(corners.end(), region.begin(), region.end());
+    corners = regionGrid(corners, params_.sample_step, &pixels);
   }
-  const std::vector<Eigen::Vector2d> corners = {
-      pa + kEndInset * along + o0 * across, pb - kEndInset * along + o0 * across, pa + kEndInset * along + o1 * across,
-      pb - kEndInset * along + o1 * across};
   strip.samples = photo_.sample(reference_view, pixels, corners);
   return strip;
 }
@@ -143,22 +172,17 @@ bool HalfPlaneSearch::grazing(int line, int reference_view, const Plane& plane) 
   return std::abs(plane.n.dot(ray)) < std::sin(params_.grazing_deg * kPi / 180.0);
 }
 
-std::vector<Plane> HalfPlaneSearch::pointCandidates(int line, int side, int reference_view,
-                                                    std::vector<std::vector<int>>* groups) const {
+std::vector<HalfPlaneSearch::RegionPoint> HalfPlaneSearch::regionPoints(int line, int side,
+                                                                        int reference_view) const {
   const LineTrack& L = lines_.at(static_cast<std::size_t>(line));
   const Projection& P = views_[static_cast<std::size_t>(reference_view)].P;
   Eigen::Vector2d pa, pb;
-  std::vector<Plane> planes;
-  if (!project(P, L.a, &pa) || !project(P, L.b, &pb)) return planes;
+  std::vector<RegionPoint> region;
+  if (!project(P, L.a, &pa) || !project(P, L.b, &pb)) return region;
   const Eigen::Vector3d l = imageLine(pa, pb);
   const Eigen::Vector3d d = L.direction();
   const double length2 = (pb - pa).squaredNorm();
   // Region constraint: reference pixels on this side, near the line, alongside the segment.
-  struct Near {
-    int index;
-    double angle, radius, tolerance;
-  };
-  std::vector<Near> region;
   for (std::size_t k = 0; k < points_.size(); ++k) {
     Eigen::Vector2d q;
     if (!project(P, points_[k].X, &q)) continue;
@@ -171,8 +195,17 @@ std::vector<Plane> HalfPlaneSearch::pointCandidates(int line, int side, int refe
     if (radius <= 0.0) continue;
     const Eigen::Vector3d normal = d.cross(off / radius);  // of the plane through L and the point
     region.push_back({static_cast<int>(k), angleAboutLine(L.a, d, points_[k].X), radius,
-                      coplanarity_.tolerance(points_[k].X, normal, reference_view)});
+                      coplanarity_.tolerance(points_[k].X, normal, reference_view), q});
   }
+  return region;
+}
+
+std::vector<Plane> HalfPlaneSearch::pointCandidates(int line, int side, int reference_view,
+                                                    std::vector<std::vector<int>>* groups) const {
+  const LineTrack& L = lines_.at(static_cast<std::size_t>(line));
+  const Eigen::Vector3d d = L.direction();
+  std::vector<Plane> planes;
+  const std::vector<RegionPoint> region = regionPoints(line, side, reference_view);
   // Coplanar constraint: the points at one angle about L (within each one's
   // tolerance at its distance from L) make one candidate, largest group first.
   std::vector<bool> used(region.size(), false);
@@ -244,7 +277,15 @@ std::vector<HalfPlane> HalfPlaneSearch::byFeaturePoints(SearchStats* stats) cons
     std::vector<std::vector<int>> groups;
     const std::vector<Plane> candidates = pointCandidates(line, side, ref, &groups);
     for (std::size_t c = 0; c < candidates.size(); ++c) {
-      const double s = scoreStrip(strip, candidates[c]);
+      // Verified over the strip and the region its coplanar points span.
+      std::vector<Eigen::Vector2d> spanned;
+      for (int k : groups[c]) {
+        Eigen::Vector2d q;
+        if (project(views_[static_cast<std::size_t>(ref)].P, points_[static_cast<std::size_t>(k)].X, &q)) {
+          spanned.push_back(q);
+        }
+      }
+      const double s = scoreStrip(makeStrip(line, side, ref, spanned), candidates[c]);
       ++*count;
       if (s >= params_.min_ncc && s > out->score) *out = HalfPlane{line, side, ref, candidates[c], s, groups[c]};
     }
@@ -261,11 +302,18 @@ std::vector<HalfPlane> HalfPlaneSearch::bySweep(SearchStats* stats) const {
     const LineTrack& L = lines_[static_cast<std::size_t>(line)];
     const double step = params_.sweep_step_deg * kPi / 180.0;
     const int n = static_cast<int>(std::ceil(kPi / step));
+    const std::vector<RegionPoint> region = regionPoints(line, side, ref);
     std::vector<double> scores(static_cast<std::size_t>(n), -1.0);
     for (int k = 0; k < n; ++k) {
       const Plane plane = planeAboutLine(L.a, L.direction(), k * step);
       if (grazing(line, ref, plane)) continue;
-      scores[static_cast<std::size_t>(k)] = scoreStrip(strip, plane);
+      // The same verification as the feature-point search: the strip and the region the plane's points span.
+      std::vector<Eigen::Vector2d> spanned;
+      for (const RegionPoint& p : region) {
+        if (angleGap(p.angle, k * step) * p.radius <= p.tolerance) spanned.push_back(p.pixel);
+      }
+      scores[static_cast<std::size_t>(k)] =
+          spanned.size() < 2 ? scoreStrip(strip, plane) : scoreStrip(makeStrip(line, side, ref, spanned), plane);
       ++*count;
     }
     const int best = static_cast<int>(std::max_element(scores.begin(), scores.end()) - scores.begin());

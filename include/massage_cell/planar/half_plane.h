@@ -1,9 +1,12 @@
 // Half-planes about 3D lines (thesis Sec. 4.2, after Baillard & Zisserman,
 // CVPR 1999). A world plane bordered by a 3D line L is one of the
 // one-parameter family of half-planes that rotate about L. Which one is
-// decided by photo-consistency: the strip beside L's image in a reference
-// view is carried into the other views by the homography the candidate plane
-// induces, and the normalised cross-correlation of the grey levels scores it.
+// decided by photo-consistency: the region beside L's image in a reference
+// view — the strip along it, widened to the convex hull of the feature points
+// the candidate plane holds there — is carried into the other views by the
+// homography the candidate induces, and the normalised cross-correlation of
+// the grey levels scores it (near the line every plane about it agrees, so the
+// points' region is what tells them apart).
 //
 // Two searches share that score:
 // - byFeaturePoints (the thesis): the candidates are the planes through L and
@@ -15,7 +18,8 @@
 //   one candidate (its plane fitted to L and the
 //   group; groups of fewer than `min_coplanar_points` are no candidates).
 //   A few candidates per side instead of 180 angles.
-// - bySweep (Baillard's baseline): every `sweep_step_deg` about L.
+// - bySweep (Baillard's baseline): every `sweep_step_deg` about L, each angle
+//   verified over the strip and the region of the points on that plane.
 // Both keep a side's best candidate when its score reaches `min_ncc`.
 //
 // Tolerances are in pixels (coplanarity.h), so world units may be metres or
@@ -89,7 +93,15 @@ class HalfPlaneSearch {
 
  private:
   struct Strip;
-  Strip makeStrip(int line, int side, int reference_view) const;
+  /// A point of the region constraint: its track, angle about the line, distance from it, tolerance, pixel.
+  struct RegionPoint {
+    int index;
+    double angle, radius, tolerance;
+    Eigen::Vector2d pixel;
+  };
+  /// The strip beside the line; with `region` pixels, the convex hull of the strip and them.
+  Strip makeStrip(int line, int side, int reference_view, const std::vector<Eigen::Vector2d>& region = {}) const;
+  std::vector<RegionPoint> regionPoints(int line, int side, int reference_view) const;
   double scoreStrip(const Strip& strip, const Plane& plane) const;
   std::vector<Plane> pointCandidates(int line, int side, int reference_view,
                                      std::vector<std::vector<int>>* groups) const;
