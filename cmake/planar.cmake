@@ -11,6 +11,7 @@ add_library(massage_cell_planar STATIC
   src/planar/photo_consistency.cpp
   src/planar/half_plane.cpp
   src/planar/extend.cpp
+  src/planar/delineate.cpp
   src/planar/reconstruct.cpp
   src/planar/evaluation.cpp)
 target_include_directories(massage_cell_planar PUBLIC include ${OpenCV_INCLUDE_DIRS} ${EIGEN3_INCLUDE_DIR})
@@ -18,7 +19,7 @@ target_link_libraries(massage_cell_planar PUBLIC massage_cell_camera ${OpenCV_LI
 install(TARGETS massage_cell_planar ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION})
 
 if(CATKIN_ENABLE_TESTING)
-  foreach(name views features model half_plane evaluation)
+  foreach(name views features model half_plane delineate evaluation)
     catkin_add_gtest(test_planar_${name} ${PROJECT_SOURCE_DIR}/test/planar/test_${name}.cpp)
     if(TARGET test_planar_${name})
       target_link_libraries(test_planar_${name} massage_cell_planar massage_cell_sim)

@@ -31,6 +31,9 @@ planar::ReconstructParams toParams(const massage_cell::PlanarConfig& c) {
   p.extension.growth_step = c.growth_step;
   p.extension.merge_angle_deg = c.merge_angle_deg;
   p.extension.min_support = c.min_support;
+  p.delineation.enabled = c.delineate;
+  p.delineation.min_ncc = c.delineate_min_ncc;
+  p.delineation.coplanar_pixels = c.coplanar_pixels;
   p.validate();
   return p;
 }

@@ -41,20 +41,19 @@ double ncc(const std::vector<float>& a, const std::vector<float>& b) {
   return (sab - sa * sb / n) / std::sqrt(va * vb);
 }
 
-/// The homogeneous world point on `plane` seen at reference pixel x, as a 4x3 matrix of x.
-Eigen::Matrix<double, 4, 3> backProjectionOnto(const Projection& P, const Plane& plane) {
+bool inFront(const Projection& P, const Eigen::Vector4d& X) {
+  return std::abs(X.w()) > 1e-12 && depthOf(P, X.hnormalized()) > 0.0;
+}
+
+}  // namespace
+
+Eigen::Matrix<double, 4, 3> planeBackProjection(const Projection& P, const Plane& plane) {
   const Eigen::Vector4d pi(plane.n.x(), plane.n.y(), plane.n.z(), plane.d);
   const Eigen::Vector4d C = cameraCentre(P).homogeneous();
   const Eigen::Matrix<double, 4, 3> pinv = P.transpose() * (P * P.transpose()).inverse();
   const Eigen::Matrix4d M = pi.dot(C) * Eigen::Matrix4d::Identity() - C * pi.transpose();
   return M * pinv;
 }
-
-bool inFront(const Projection& P, const Eigen::Vector4d& X) {
-  return std::abs(X.w()) > 1e-12 && depthOf(P, X.hnormalized()) > 0.0;
-}
-
-}  // namespace
 
 PhotoConsistency::PhotoConsistency(const std::vector<View>& views) : views_(views) {
   for (const View& view : views) {
@@ -93,7 +92,7 @@ PhotoConsistency::Samples PhotoConsistency::sample(int reference_view, const std
 double PhotoConsistency::score(const Samples& samples, const Plane& plane) const {
   if (!samples.textured) return -1.0;
   const Projection& Pr = views_[static_cast<std::size_t>(samples.reference_view)].P;
-  const Eigen::Matrix<double, 4, 3> M = backProjectionOnto(Pr, plane);
+  const Eigen::Matrix<double, 4, 3> M = planeBackProjection(Pr, plane);
   for (const Eigen::Vector3d& c : samples.corners) {
     if (!inFront(Pr, M * c)) return -1.0;
   }

@@ -20,6 +20,7 @@ void ReconstructParams::validate() const {
   features.validate();
   half_planes.validate();
   extension.validate();
+  delineation.validate();
 }
 
 HalfPlaneMethod halfPlaneMethod(const std::string& name) {
@@ -57,6 +58,8 @@ Reconstruction reconstruct(const std::vector<View>& views, const ReconstructPara
 
   r.model = extendAndMerge(views, r.points, r.lines, r.half_planes, params.extension, &r.extension);
   r.times.extension = r.extension.seconds;
+  r.model = delineate(views, r.points, r.model, params.delineation, &r.delineation);
+  r.times.delineation = r.delineation.seconds;
   return r;
 }
 

@@ -27,6 +27,7 @@ using tools::require;
 
 const char* const kUsage = R"(Usage: planar_eval [--sets cube,boxes,merton] [--views N] [--seed S] [--seeds K]
                    [--distance M] [--detector akaze|orb|sift] [--strip-width PX] [--min-ncc X]
+                   [--delineate]
                    [--pictures DIR] [--data DIR]
 
 Reconstructs each set with both half-plane searches from the same features and
@@ -41,6 +42,7 @@ tracks, and prints one row per set and search:
               max, in % of the scene's depth
   half-plane  candidates scored and seconds of the half-plane search (thesis
               Tables 4.3, 4.4); `total` adds features, matching and extension
+              (and with --delineate the per-pixel delineation, off by default)
 
 Sets: cube (one textured cube, 3 rendered views), boxes (the simulator's stacked
 boxes on the table, printed or textured, --views views --distance M away
@@ -99,6 +101,7 @@ bool parse(int argc, char** argv, Options* o) {
   table.values["--min-ncc"] = [o](const std::string& opt, const std::string& v) {
     o->params.half_planes.min_ncc = tools::parseDouble(opt, v);
   };
+  table.flags["--delineate"] = [o] { o->params.delineation.enabled = true; };
   table.values["--pictures"] = [o](const std::string&, const std::string& v) { o->pictures = v; };
   table.values["--data"] = [o](const std::string&, const std::string& v) { o->data = v; };
   if (!tools::parseArguments(argc, argv, table, kUsage)) return false;
@@ -196,10 +199,12 @@ void evaluateSet(const EvalSet& set, const Options& o) {
     const auto half_planes =
         method == planar::HalfPlaneMethod::kSweep ? search.bySweep(&stats) : search.byFeaturePoints(&stats);
     planar::ExtendStats ext;
-    const planar::PlanarModel model =
-        planar::extendAndMerge(set.views, base.points, base.lines, half_planes, o.params.extension, &ext);
+    planar::DelineateStats del;
+    const planar::PlanarModel model = planar::delineate(
+        set.views, base.points, planar::extendAndMerge(set.views, base.points, base.lines, half_planes, o.params.extension, &ext),
+        o.params.delineation, &del);
     const planar::Evaluation ev = planar::evaluateModel(model, set.views, set.reference, 10.0, 0.03 * set.depth);
-    printRow(set, method, ev, stats, front + stats.seconds + ext.seconds);
+    printRow(set, method, ev, stats, front + stats.seconds + ext.seconds + del.seconds);
     seconds[method == planar::HalfPlaneMethod::kSweep ? 1 : 0] = stats.seconds;
     if (!o.pictures.empty()) {
       std::filesystem::create_directories(o.pictures);

@@ -20,6 +20,7 @@ using tools::require;
 
 const char* const kUsage = R"(Usage: planar_reconstruct --views PATH [--out DIR] [--method points|sweep]
                           [--detector akaze|orb|sift] [--min-ncc X] [--strip-width PX]
+                          [--delineate]
 
 Reconstructs the planes of a scene seen by >= 2 calibrated views: features and
 line segments per view, their matches in 3D, the half-planes about each 3D line
@@ -36,6 +37,9 @@ the coplanar ones merged.
 --out DIR        writes DIR/model.obj, DIR/model.ply (vertex colours) and
                  DIR/overlay_<view>.png (the planes drawn on each view)
 --method         points (default: the thesis) or sweep (Baillard)
+--delineate      also extend each plane over the pixels its homographies carry
+                 consistently into the other views, with planes through
+                 left-over coplanar points (off by default: see docs/planar.md)
 
 Prints the counts of each stage, its time, and one line per plane (unit normal,
 offset, area in world units, supporting points, verification score).
@@ -70,6 +74,7 @@ bool parse(int argc, char** argv, Options* o) {
   table.values["--strip-width"] = [o](const std::string& opt, const std::string& v) {
     o->params.half_planes.strip_width = tools::parseDouble(opt, v);
   };
+  table.flags["--delineate"] = [o] { o->params.delineation.enabled = true; };
   if (!tools::parseArguments(argc, argv, table, kUsage)) return false;
   require(!o->views.empty(), "--views is required");
   try {
@@ -93,8 +98,13 @@ void printSummary(const std::vector<planar::View>& views, const planar::Reconstr
             << " s)\n"
             << "half-planes (" << planar::halfPlaneMethodName(m) << "): " << r.half_planes.size() << " verified of "
             << r.search.candidates << " candidates scored (" << r.times.half_planes << " s)\n"
-            << "extension: " << r.extension.extended << " extended, " << r.model.facets.size() << " planes ("
+            << "extension: " << r.extension.extended << " extended, " << r.extension.facets << " planes ("
             << r.times.extension << " s)\n"
+            << (r.delineation.labelling_view >= 0
+                    ? "delineation: " + std::to_string(r.delineation.point_planes) + " planes from left-over points, " +
+                          std::to_string(r.delineation.dropped) + " dropped, " +
+                          std::to_string(r.model.facets.size()) + " planes\n"
+                    : std::string())
             << "total " << r.times.total() << " s\n";
   for (std::size_t i = 0; i < r.model.facets.size(); ++i) {
     const planar::Facet& f = r.model.facets[i];

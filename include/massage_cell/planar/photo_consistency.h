@@ -16,6 +16,10 @@
 
 namespace massage_cell::planar {
 
+/// The homogeneous world point on `plane` seen at pixel x of the camera P is
+/// X = M x (a 4x3 matrix); the plane-induced homography into a view Pv is Pv M.
+Eigen::Matrix<double, 4, 3> planeBackProjection(const Projection& P, const Plane& plane);
+
 class PhotoConsistency {
  public:
   /// Grey samples of a region of the reference view.
@@ -38,6 +42,9 @@ class PhotoConsistency {
   /// with every corner in front of both cameras; -1 when none does or the
   /// samples have no texture.
   double score(const Samples& samples, const Plane& plane) const;
+
+  /// The grey levels (CV_32F, 0..255) of view `v`.
+  const cv::Mat& grey(int v) const { return grey_.at(static_cast<std::size_t>(v)); }
 
  private:
   const std::vector<View>& views_;

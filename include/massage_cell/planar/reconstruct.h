@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "massage_cell/planar/delineate.h"
 #include "massage_cell/planar/extend.h"
 #include "massage_cell/planar/features.h"
 #include "massage_cell/planar/half_plane.h"
@@ -21,14 +22,15 @@ struct ReconstructParams {
   FeatureParams features;
   HalfPlaneParams half_planes;
   ExtendParams extension;
+  DelineateParams delineation;
   HalfPlaneMethod method = HalfPlaneMethod::kFeaturePoints;
   /// Throws std::invalid_argument naming the field for a bad value.
   void validate() const;
 };
 
 struct StageTimes {
-  double features = 0.0, matching = 0.0, half_planes = 0.0, extension = 0.0;  ///< seconds
-  double total() const { return features + matching + half_planes + extension; }
+  double features = 0.0, matching = 0.0, half_planes = 0.0, extension = 0.0, delineation = 0.0;  ///< seconds
+  double total() const { return features + matching + half_planes + extension + delineation; }
 };
 
 struct Reconstruction {
@@ -39,6 +41,7 @@ struct Reconstruction {
   std::vector<HalfPlane> half_planes;
   SearchStats search;
   ExtendStats extension;
+  DelineateStats delineation;
   StageTimes times;
 };
 
