@@ -7,7 +7,8 @@ add_library(massage_cell_arm STATIC
   src/arm/profile.cpp
   src/arm/plan.cpp
   src/arm/controller.cpp
-  src/arm/sim_cell.cpp)
+  src/arm/sim_cell.cpp
+  src/arm/session.cpp)
 target_include_directories(massage_cell_arm PUBLIC include ${EIGEN3_INCLUDE_DIR})
 target_link_libraries(massage_cell_arm PUBLIC massage_cell_can yaml-cpp Threads::Threads)
 
@@ -19,7 +20,7 @@ install(TARGETS massage_cell_arm ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTIN
 install(TARGETS arm_bench RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
 
 if(CATKIN_ENABLE_TESTING)
-  foreach(name config profile plan controller)
+  foreach(name config profile plan controller session)
     catkin_add_gtest(test_arm_${name} ${PROJECT_SOURCE_DIR}/test/arm/test_${name}.cpp)
     if(TARGET test_arm_${name})
       target_link_libraries(test_arm_${name} massage_cell_arm)

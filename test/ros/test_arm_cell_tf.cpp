@@ -88,9 +88,10 @@ TEST(ArmCellTf, EveryFrameHasOneParentAndOnePublisher) {
   }
   EXPECT_EQ(join(all.at("stereo_camera_mount").parents), "table");
   EXPECT_EQ(join(all.at("stereo_left_optical_frame").parents), "stereo_camera_mount");
-  // ... the camera (its recording, played by rosbag) the left -> right edge from the calibration.
+  // ... the camera (its recording, played as a live camera by the session player) the left -> right edge from the
+  // calibration.
   EXPECT_EQ(join(all.at("stereo_right_optical_frame").parents), "stereo_left_optical_frame");
-  EXPECT_EQ(join(all.at("stereo_right_optical_frame").publishers), "/player");
+  EXPECT_EQ(join(all.at("stereo_right_optical_frame").publishers), "/stereo/session_player");
   // The acupoints hang under the camera's left optical frame, as the arm expects them.
   for (const auto& [child, e] : all) {
     if (child.rfind("acupoint/", 0) != 0) continue;

@@ -1,0 +1,90 @@
+// A massage session (the cell's main job): the routine from
+// config/session.yaml, the wait for a stable acupoint fix before the arm
+// moves, and the record of each press against the recording's ground truth,
+// summarised for the user. ROS-free (Eigen + yaml-cpp); the massage_session
+// node (src/nodes/massage_session.cpp) drives it.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace massage_cell::arm {
+
+struct SessionConfig {
+  std::vector<std::string> acupoints;  ///< pressed in this order (names of config/acupoints.yaml)
+  std::string technique = "press";     ///< press or knead
+  double depth = 0.003;                ///< m past the surface (the arm clamps it to the region's limit)
+  double hold = 2.0;                   ///< s at depth
+  int repeats = 1;                     ///< presses per acupoint
+  std::string frame_prefix = "acupoint/";
+  /// A fix is stable when every acupoint of the routine has `fix_samples`
+  /// valid estimates within the last `fix_window` s, all within
+  /// `fix_tolerance` m of their mean.
+  double fix_window = 1.5;
+  int fix_samples = 5;
+  double fix_tolerance = 0.004;
+  double fix_timeout = 60.0;  ///< s: no stable fix by then is a failed session
+  /// Loads and validates a session file; throws std::runtime_error naming
+  /// the file and the field.
+  static SessionConfig load(const std::string& path);
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+};
+
+/// Recent estimates per acupoint, and whether they have settled.
+class StableFix {
+ public:
+  StableFix(double window_s, int samples, double tolerance_m);
+  /// One estimate at time t (s); an invalid one clears the acupoint's history.
+  void add(const std::string& name, double t, const Eigen::Vector3d& position, bool valid);
+  bool stable(const std::string& name, double now) const;
+  /// The acupoints of `names` not stable at `now`.
+  std::vector<std::string> unstable(const std::vector<std::string>& names, double now) const;
+  /// Mean of the recent estimates (NaN when none).
+  Eigen::Vector3d mean(const std::string& name, double now) const;
+
+ private:
+  struct Sample {
+    double t;
+    Eigen::Vector3d p;
+  };
+  std::vector<Sample> recent(const std::string& name, double now) const;
+  double window_, tolerance_;
+  int samples_;
+  std::map<std::string, std::vector<Sample>> history_;
+};
+
+/// One acupoint's press, as the session saw it.
+struct PressRecord {
+  std::string acupoint;
+  bool success = false;
+  std::string message;  ///< the arm's answer
+  double seconds = 0.0;
+  bool measured = false;             ///< the tool was seen holding at depth and the truth was known
+  Eigen::Vector3d tool_at_depth{};   ///< mean tool tip while holding, arm base frame
+  Eigen::Vector3d truth_at_depth{};  ///< ground-truth acupoint pushed `depth` down (-z of the arm base)
+  double error() const { return (tool_at_depth - truth_at_depth).norm(); }
+};
+
+/// The acupoint fix against the truth at the moment the session started.
+struct FixRecord {
+  std::string acupoint;
+  double error = 0.0;  ///< m, |estimate - truth| in the camera frame
+};
+
+struct SessionReport {
+  int pairs = 0;                ///< stereo pairs the CECT node reported on
+  double seconds_to_fix = 0.0;  ///< from start to a stable fix
+  std::vector<FixRecord> fix;
+  std::vector<PressRecord> presses;
+  std::vector<std::string> faults;  ///< what went wrong (empty: nothing)
+  /// Presses done and within `tolerance` m of the truth.
+  int within(double tolerance) const;
+  /// Lines for the terminal: the fix, every press, the verdict.
+  std::string summary(double tolerance) const;
+};
+
+}  // namespace massage_cell::arm

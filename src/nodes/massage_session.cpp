@@ -1,0 +1,243 @@
+// massage_session: the cell's main job. Waits until the CECT node's acupoints
+// of the routine (config/session.yaml) have settled, homes the arm, presses
+// each acupoint by its tf frame through the arm's ~massage service, and
+// prints a report: the fix and every press against the recording's ground
+// truth (the tool tip while it holds at depth against the true acupoint
+// pushed to that depth), the verdict.
+//
+// Subscribes (in its namespace, e.g. /stereo): acupoints
+//   (massage_cell/AcupointArray), ground_truth/acupoints (the session
+//   player's truth, optional); <arm>/state (massage_cell/ArmState).
+// Calls: <arm>/home, <arm>/massage.
+// Parameters: ~session (YAML path, required), ~arm ("/arm"), ~base_frame
+//   ("arm_base_link"), ~tolerance (0.005 m: the report counts the presses
+//   within it of the truth), ~max_error (0.02 m: a press further from the
+//   truth, about an acupoint's own size, fails the session), ~service_timeout
+//   (30 s).
+// Exit status: 0 every press done (and, with ground truth, within
+//   ~max_error); 1 a press failed or missed, no stable fix, or the arm was
+//   not there; 2 a bad session file.
+#include <geometry_msgs/PointStamped.h>
+#include <ros/ros.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_geometry_msgs/tf2_geometry_msgs.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+
+#include <cstdio>
+#include <map>
+#include <mutex>
+
+#include "massage_cell/AcupointArray.h"
+#include "massage_cell/ArmState.h"
+#include "massage_cell/Massage.h"
+#include "massage_cell/arm/session.h"
+
+namespace {
+
+namespace arm = massage_cell::arm;
+
+class Session {
+ public:
+  Session(ros::NodeHandle& nh, ros::NodeHandle& pnh, const arm::SessionConfig& config)
+      : config_(config), fix_(config.fix_window, config.fix_samples, config.fix_tolerance), listener_(tf_) {
+    pnh.param("arm", arm_ns_, arm_ns_);
+    pnh.param("base_frame", base_frame_, base_frame_);
+    pnh.param("tolerance", tolerance_, tolerance_);
+    pnh.param("max_error", max_error_, max_error_);
+    pnh.param("service_timeout", service_timeout_, service_timeout_);
+    acupoints_sub_ = nh.subscribe("acupoints", 5, &Session::onAcupoints, this);
+    truth_sub_ = nh.subscribe("ground_truth/acupoints", 5, &Session::onTruth, this);
+    state_sub_ = nh.subscribe(arm_ns_ + "/state", 20, &Session::onState, this);
+    home_ = nh.serviceClient<std_srvs::Trigger>(arm_ns_ + "/home");
+    massage_ = nh.serviceClient<massage_cell::Massage>(arm_ns_ + "/massage");
+  }
+
+  /// The whole session; the report's verdict as the exit status.
+  int run() {
+    const ros::WallTime start = ros::WallTime::now();
+    if (!waitForArm() || !waitForFix(start) || !homeArm()) return finish();
+    for (const std::string& name : config_.acupoints) press(name);
+    return finish();
+  }
+
+ private:
+  bool waitForArm() {
+    if (home_.waitForExistence(ros::Duration(service_timeout_)) &&
+        massage_.waitForExistence(ros::Duration(service_timeout_)))
+      return true;
+    fault("the arm's services " + arm_ns_ + "/home and /massage did not appear within " +
+          std::to_string(static_cast<int>(service_timeout_)) + " s (is the arm node running?)");
+    return false;
+  }
+
+  bool waitForFix(const ros::WallTime& start) {
+    ROS_INFO("massage_session: waiting for a stable fix of %zu acupoints", config_.acupoints.size());
+    ros::WallRate poll(10.0);
+    std::vector<std::string> unstable = config_.acupoints;
+    while (ros::ok() && (ros::WallTime::now() - start).toSec() < config_.fix_timeout) {
+      {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        unstable = fix_.unstable(config_.acupoints, latest_stamp_);
+        if (unstable.empty()) {
+          report_.seconds_to_fix = (ros::WallTime::now() - start).toSec();
+          recordFix();
+          return true;
+        }
+      }
+      poll.sleep();
+    }
+    std::string names;
+    for (const std::string& n : unstable) names += (names.empty() ? "" : ", ") + n;
+    fault("no stable fix within " + std::to_string(static_cast<int>(config_.fix_timeout)) + " s for: " + names + " (" +
+          std::to_string(report_.pairs) + " pairs seen)");
+    return false;
+  }
+
+  void recordFix() {
+    for (const std::string& name : config_.acupoints) {
+      const auto t = truth_.find(name);
+      if (t == truth_.end()) continue;
+      const Eigen::Vector3d estimate = fix_.mean(name, latest_stamp_);
+      report_.fix.push_back({name, (estimate - t->second).norm()});
+    }
+  }
+
+  bool homeArm() {
+    std_srvs::Trigger srv;
+    if (home_.call(srv) && srv.response.success) return true;
+    fault("homing the arm failed: " + (srv.response.message.empty() ? "no answer" : srv.response.message));
+    return false;
+  }
+
+  void press(const std::string& name) {
+    massage_cell::Massage srv;
+    srv.request.frames = {config_.frame_prefix + name};
+    srv.request.technique = config_.technique;
+    srv.request.depth = config_.depth;
+    srv.request.hold = config_.hold;
+    srv.request.repeats = config_.repeats;
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      holding_ = {};
+      truth_holding_ = {};
+      current_ = name;
+    }
+    ROS_INFO("massage_session: pressing %s", name.c_str());
+    const ros::WallTime t0 = ros::WallTime::now();
+    arm::PressRecord record;
+    record.acupoint = name;
+    record.success = massage_.call(srv) && srv.response.success;
+    record.message = srv.response.message.empty() ? "the arm did not answer" : srv.response.message;
+    record.seconds = (ros::WallTime::now() - t0).toSec();
+    const std::lock_guard<std::mutex> lock(mutex_);
+    current_.clear();
+    if (!holding_.empty() && !truth_holding_.empty()) {
+      record.measured = true;
+      record.tool_at_depth = average(holding_);
+      record.truth_at_depth = average(truth_holding_) - config_.depth * Eigen::Vector3d::UnitZ();
+    }
+    ROS_INFO("massage_session: %s %s (%.1f s)", name.c_str(), record.success ? "done" : "FAILED", record.seconds);
+    report_.presses.push_back(record);
+  }
+
+  int finish() {
+    std::printf("%s", report_.summary(tolerance_).c_str());
+    std::fflush(stdout);
+    bool ok = report_.faults.empty() && report_.presses.size() == config_.acupoints.size();
+    for (const arm::PressRecord& p : report_.presses) {
+      ok = ok && p.success && (!p.measured || p.error() <= max_error_);
+      if (p.measured && p.error() > max_error_)
+        std::printf("FAILED: %s was pressed %.1f mm from its true position (limit %.1f mm)\n", p.acupoint.c_str(),
+                    1e3 * p.error(), 1e3 * max_error_);
+    }
+    std::printf("%s\n", ok ? "the session went well" : "the session FAILED (see above)");
+    return ok ? 0 : 1;
+  }
+
+  void fault(const std::string& what) {
+    ROS_ERROR("massage_session: %s", what.c_str());
+    const std::lock_guard<std::mutex> lock(mutex_);
+    report_.faults.push_back(what);
+  }
+
+  static Eigen::Vector3d average(const std::vector<Eigen::Vector3d>& v) {
+    Eigen::Vector3d m = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3d& p : v) m += p;
+    return m / static_cast<double>(v.size());
+  }
+
+  void onAcupoints(const massage_cell::AcupointArrayConstPtr& msg) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    ++report_.pairs;
+    latest_stamp_ = msg->header.stamp.toSec();
+    for (const auto& a : msg->acupoints)
+      fix_.add(a.name, latest_stamp_, Eigen::Vector3d(a.position.x, a.position.y, a.position.z), a.valid);
+  }
+
+  void onTruth(const massage_cell::AcupointArrayConstPtr& msg) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    truth_header_ = msg->header;
+    for (const auto& a : msg->acupoints) truth_[a.name] = Eigen::Vector3d(a.position.x, a.position.y, a.position.z);
+  }
+
+  /// While the current acupoint is held at depth: the tool tip, and the truth in the arm base frame.
+  void onState(const massage_cell::ArmStateConstPtr& msg) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (current_.empty() || msg->activity.find(current_ + ": hold") == std::string::npos) return;
+    holding_.emplace_back(msg->tool.x, msg->tool.y, msg->tool.z);
+    const auto t = truth_.find(current_);
+    if (t == truth_.end()) return;
+    geometry_msgs::PointStamped in, out;
+    in.header = truth_header_;
+    in.header.stamp = ros::Time(0);  // the camera's mount is static: the latest transform
+    in.point.x = t->second.x();
+    in.point.y = t->second.y();
+    in.point.z = t->second.z();
+    try {
+      tf_.transform(in, out, base_frame_, ros::Duration(0.05));
+      truth_holding_.emplace_back(out.point.x, out.point.y, out.point.z);
+    } catch (const tf2::TransformException& e) {
+      ROS_WARN_THROTTLE(5.0, "massage_session: the truth cannot be put in %s: %s", base_frame_.c_str(), e.what());
+    }
+  }
+
+  arm::SessionConfig config_;
+  arm::StableFix fix_;
+  arm::SessionReport report_;
+  tf2_ros::Buffer tf_;
+  tf2_ros::TransformListener listener_;
+  std::string arm_ns_ = "/arm", base_frame_ = "arm_base_link";
+  double tolerance_ = 0.005, max_error_ = 0.02, service_timeout_ = 30.0;
+  ros::Subscriber acupoints_sub_, truth_sub_, state_sub_;
+  ros::ServiceClient home_, massage_;
+  std::mutex mutex_;
+  double latest_stamp_ = 0.0;
+  std::map<std::string, Eigen::Vector3d> truth_;
+  std_msgs::Header truth_header_;
+  std::string current_;
+  std::vector<Eigen::Vector3d> holding_, truth_holding_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "massage_session");
+  ros::NodeHandle nh, pnh("~");
+  std::string path;
+  pnh.param("session", path, path);
+  arm::SessionConfig config;
+  try {
+    if (path.empty()) throw std::runtime_error("~session (the routine's YAML file) is not set");
+    config = arm::SessionConfig::load(path);
+  } catch (const std::exception& e) {
+    ROS_FATAL("massage_session: %s", e.what());
+    return 2;
+  }
+  ros::AsyncSpinner spinner(3);
+  spinner.start();
+  Session session(nh, pnh, config);
+  const int status = session.run();
+  spinner.stop();
+  return status;
+}

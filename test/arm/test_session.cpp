@@ -1,0 +1,93 @@
+// The massage session's routine file, the stable-fix test and the report.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "massage_cell/arm/session.h"
+
+namespace arm = massage_cell::arm;
+
+namespace {
+
+std::string writeFile(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + "/" + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string loadError(const std::string& text) {
+  try {
+    arm::SessionConfig::load(writeFile("session.yaml", text));
+  } catch (const std::runtime_error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(SessionConfig, TheShippedRoutineLoads) {
+  const arm::SessionConfig c = arm::SessionConfig::load(std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/session.yaml");
+  EXPECT_GE(c.acupoints.size(), 6u);
+  EXPECT_EQ(c.technique, "press");
+  EXPECT_GT(c.depth, 0.0);
+  EXPECT_EQ(c.frame_prefix, "acupoint/");
+}
+
+TEST(SessionConfig, BadFilesAreNamed) {
+  EXPECT_NE(loadError("acupoints: []\n").find("acupoints"), std::string::npos);
+  EXPECT_NE(loadError("acupoints: [GV14, GV14]\n").find("twice"), std::string::npos);
+  EXPECT_NE(loadError("acupoints: [GV14]\ntechnique: slap\n").find("technique"), std::string::npos);
+  EXPECT_NE(loadError("acupoints: [GV14]\ndepth: 0.5\n").find("depth"), std::string::npos);
+  EXPECT_NE(loadError("acupoints: [GV14]\nrepeat: 2\n").find("unknown field 'repeat'"), std::string::npos);
+  EXPECT_NE(loadError("acupoints: [GV14\n").find("session.yaml"), std::string::npos) << "a YAML error names the file";
+  EXPECT_THROW(arm::SessionConfig::load("/nonexistent/session.yaml"), std::runtime_error);
+}
+
+TEST(StableFix, SettlesOnlyWithEnoughCloseEstimates) {
+  arm::StableFix fix(1.0, 4, 0.003);
+  for (int i = 0; i < 3; ++i) fix.add("BL23_L", 0.1 * i, Eigen::Vector3d(0.1, 0.0, 0.7), true);
+  EXPECT_FALSE(fix.stable("BL23_L", 0.2)) << "3 of 4 samples";
+  fix.add("BL23_L", 0.3, Eigen::Vector3d(0.1, 0.001, 0.7), true);
+  EXPECT_TRUE(fix.stable("BL23_L", 0.3));
+  EXPECT_NEAR(fix.mean("BL23_L", 0.3).y(), 0.00025, 1e-12);
+  EXPECT_FALSE(fix.stable("BL23_L", 1.35)) << "the window has passed";
+  fix.add("BL23_L", 0.4, Eigen::Vector3d(0.1, 0.02, 0.7), true);
+  EXPECT_FALSE(fix.stable("BL23_L", 0.4)) << "a jump of 2 cm";
+  for (int i = 0; i < 4; ++i) fix.add("GV14", 2.0 + 0.1 * i, Eigen::Vector3d(0, 0, 0.7), true);
+  fix.add("GV14", 2.4, Eigen::Vector3d::Zero(), false);
+  EXPECT_FALSE(fix.stable("GV14", 2.4)) << "an invalid estimate starts over";
+  EXPECT_EQ(fix.unstable({"GV14", "NEVER_SEEN"}, 2.4).size(), 2u);
+  EXPECT_FALSE(fix.mean("NEVER_SEEN", 0.0).allFinite());
+}
+
+TEST(SessionReport, CountsPressesWithinTheTolerance) {
+  arm::SessionReport r;
+  r.pairs = 120;
+  arm::PressRecord a;
+  a.acupoint = "BL23_L";
+  a.success = a.measured = true;
+  a.tool_at_depth = Eigen::Vector3d(0.1, 0.2, 0.05);
+  a.truth_at_depth = Eigen::Vector3d(0.1, 0.203, 0.05);
+  arm::PressRecord b = a;
+  b.acupoint = "BL23_R";
+  b.truth_at_depth.y() = 0.21;
+  arm::PressRecord c;
+  c.acupoint = "GV14";
+  c.message = "'acupoint/GV14' is stale";
+  r.presses = {a, b, c};
+  EXPECT_EQ(r.within(0.005), 1);
+  const std::string s = r.summary(0.005);
+  EXPECT_NE(s.find("press BL23_L: done"), std::string::npos) << s;
+  EXPECT_NE(s.find("3.0 mm from the ground truth"), std::string::npos) << s;
+  EXPECT_NE(s.find("press GV14: FAILED"), std::string::npos) << s;
+  EXPECT_NE(s.find("is stale"), std::string::npos) << s;
+  EXPECT_NE(s.find("result: 2 of 3 presses done, 1 within 5 mm"), std::string::npos) << s;
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
