@@ -9,8 +9,8 @@ add_library(massage_cell_arm STATIC
   src/arm/controller.cpp
   src/arm/sim_cell.cpp
   src/arm/session.cpp)
-target_include_directories(massage_cell_arm PUBLIC include ${EIGEN3_INCLUDE_DIR})
-target_link_libraries(massage_cell_arm PUBLIC massage_cell_can yaml-cpp Threads::Threads)
+target_include_directories(massage_cell_arm PUBLIC include ${EIGEN3_INCLUDE_DIR} ${OpenCV_INCLUDE_DIRS})
+target_link_libraries(massage_cell_arm PUBLIC massage_cell_can yaml-cpp ${OpenCV_LIBS} Threads::Threads)
 
 # Cycle jitter, e-stop latency and move error against the simulated drives.
 add_executable(arm_bench src/tools/arm_bench.cpp)

@@ -4,7 +4,8 @@
 # recording played as a live camera, HBDS, CECT, the planar node, the arm on
 # simulated drives) and the massage session in the foreground: it waits for a
 # stable acupoint fix, homes the arm, presses the routine (config/session.yaml)
-# and prints its report. Exits with the session's status (0: it went well).
+# and prints its report (index.html and pictures in $CELL_REPORT, default
+# _build/session_report). Exits with the session's status (0: it went well).
 # Extra arguments go to roslaunch, e.g. `scripts/run_cell.sh rviz:=true`.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -30,5 +31,7 @@ if ! kill -0 $launch 2>/dev/null; then
   exit 1
 fi
 status=0
-rosrun massage_cell massage_session __ns:=stereo _session:="$root/config/session.yaml" || status=$?
+report=${CELL_REPORT:-$root/_build/session_report}
+rm -rf "$report"
+rosrun massage_cell massage_session __ns:=stereo _session:="$root/config/session.yaml" _report:="$report" || status=$?
 exit $status

@@ -1,14 +1,17 @@
 // The massage session's routine, fix and report (see session.h).
 #include "massage_cell/arm/session.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <limits>
 #include <set>
 #include <sstream>
 #include <stdexcept>
 
 #include <yaml-cpp/yaml.h>
+#include <opencv2/imgproc.hpp>
 
 namespace massage_cell::arm {
 
@@ -123,6 +126,14 @@ std::vector<std::string> StableFix::unstable(const std::vector<std::string>& nam
   return out;
 }
 
+double LatencyRecord::quantile(double q) const {
+  if (samples.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> v = samples;
+  std::sort(v.begin(), v.end());
+  const auto rank = static_cast<std::size_t>(std::ceil(std::clamp(q, 0.0, 1.0) * v.size()));
+  return v[rank == 0 ? 0 : rank - 1];
+}
+
 int SessionReport::within(double tolerance) const {
   int n = 0;
   for (const PressRecord& p : presses) n += (p.success && p.measured && p.error() <= tolerance) ? 1 : 0;
@@ -141,6 +152,12 @@ std::string SessionReport::summary(double tolerance) const {
     if (!p.success) out << " (" << p.message << ")";
     out << "\n";
   }
+  for (const LatencyRecord& l : latencies) {
+    if (l.samples.empty()) continue;
+    out << "  latency " << l.stage << ": p50 "
+        << format("%.0f ms, p95 %.0f ms", 1e3 * l.quantile(0.5), 1e3 * l.quantile(0.95)) << " (" << l.samples.size()
+        << ")\n";
+  }
   for (const std::string& f : faults) out << "  fault: " << f << "\n";
   int done = 0;
   for (const PressRecord& p : presses) done += p.success ? 1 : 0;
@@ -148,6 +165,108 @@ std::string SessionReport::summary(double tolerance) const {
       << format("%.0f mm", 1e3 * tolerance) << " of the ground truth"
       << (faults.empty() ? "" : ", " + std::to_string(faults.size()) + " fault(s)") << "\n";
   return out.str();
+}
+
+namespace {
+
+std::string escape(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    if (c == '<')
+      out += "&lt;";
+    else if (c == '>')
+      out += "&gt;";
+    else if (c == '&')
+      out += "&amp;";
+    else
+      out += c;
+  }
+  return out;
+}
+
+}  // namespace
+
+void SessionReport::writeHtml(const std::string& dir, double tolerance,
+                              const std::vector<std::pair<std::string, std::string>>& pictures) const {
+  const std::string path = dir + "/index.html";
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("cannot write " + path);
+  out << "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>Massage session</title>\n"
+      << "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
+      << "td,th{border:1px solid #aaa;padding:4px 10px;text-align:left}.bad{color:#b00}img{max-width:48%;margin:4px}"
+      << "</style></head><body>\n<h1>Massage session</h1>\n<pre>" << escape(summary(tolerance)) << "</pre>\n";
+  out << "<h2>Presses</h2>\n<table><tr><th>acupoint</th><th>result</th><th>s</th><th>tool at depth vs truth (mm)</th>"
+      << "<th>arm's answer</th></tr>\n";
+  for (const PressRecord& p : presses) {
+    out << "<tr" << (p.success ? "" : " class=\"bad\"") << "><td>" << escape(p.acupoint) << "</td><td>"
+        << (p.success ? "done" : "failed") << "</td><td>" << format("%.1f", p.seconds) << "</td><td>"
+        << (p.measured ? format("%.1f", 1e3 * p.error()) : "-") << "</td><td>" << escape(p.message) << "</td></tr>\n";
+  }
+  out << "</table>\n<h2>Acupoint fix against the ground truth</h2>\n<table><tr><th>acupoint</th><th>mm</th></tr>\n";
+  for (const FixRecord& f : fix)
+    out << "<tr><td>" << escape(f.acupoint) << "</td><td>" << format("%.1f", 1e3 * f.error) << "</td></tr>\n";
+  out << "</table>\n<h2>Latency</h2>\n<table><tr><th>stage</th><th>p50 ms</th><th>p95 ms</th><th>samples</th></tr>\n";
+  for (const LatencyRecord& l : latencies) {
+    out << "<tr><td>" << escape(l.stage) << "</td><td>" << format("%.0f", 1e3 * l.quantile(0.5)) << "</td><td>"
+        << format("%.0f", 1e3 * l.quantile(0.95)) << "</td><td>" << l.samples.size() << "</td></tr>\n";
+  }
+  out << "</table>\n<h2>Pictures</h2>\n";
+  for (const auto& [file, caption] : pictures) {
+    out << "<figure style=\"display:inline-block;max-width:48%\"><img style=\"max-width:100%\" src=\"" << escape(file)
+        << "\"><figcaption>" << escape(caption) << "</figcaption></figure>\n";
+  }
+  out << "</body></html>\n";
+  if (!out) throw std::runtime_error("cannot write " + path);
+}
+
+namespace {
+
+cv::Mat bgr(const cv::Mat& image) {
+  cv::Mat out;
+  if (image.channels() == 1) {
+    cv::cvtColor(image, out, cv::COLOR_GRAY2BGR);
+  } else {
+    out = image.clone();
+  }
+  return out;
+}
+
+}  // namespace
+
+cv::Mat drawAcupoints(const cv::Mat& image, const std::vector<MarkedPixel>& estimates,
+                      const std::vector<MarkedPixel>& truth) {
+  cv::Mat out = bgr(image);
+  const int r = std::max(2, out.cols / 160);
+  for (const MarkedPixel& t : truth) cv::drawMarker(out, t.pixel, {0, 200, 0}, cv::MARKER_CROSS, 3 * r, 1);
+  for (const MarkedPixel& e : estimates) {
+    cv::circle(out, e.pixel, r, {0, 0, 255}, cv::FILLED, cv::LINE_AA);
+    cv::putText(out, e.label, e.pixel + cv::Point2d(r + 2, -r), cv::FONT_HERSHEY_SIMPLEX, 0.3 * r / 2.0 + 0.2,
+                {0, 255, 255}, 1, cv::LINE_AA);
+  }
+  return out;
+}
+
+cv::Mat drawTrajectory(const cv::Mat& image, const std::vector<cv::Point2d>& path) {
+  cv::Mat out = bgr(image);
+  for (std::size_t i = 1; i < path.size(); ++i) {
+    const double a = static_cast<double>(i) / path.size();
+    cv::line(out, path[i - 1], path[i], cv::Scalar(255 * a, 80, 255 * (1 - a)), 1, cv::LINE_AA);
+  }
+  return out;
+}
+
+cv::Mat colourDisparity(const cv::Mat& disparity) {
+  cv::Mat d;
+  disparity.convertTo(d, CV_32F);
+  const cv::Mat valid = (d > 0.0f) & (d == d);
+  double lo = 0.0, hi = 1.0;
+  if (cv::countNonZero(valid) > 0) cv::minMaxLoc(d, &lo, &hi, nullptr, nullptr, valid);
+  cv::Mat grey;
+  d.convertTo(grey, CV_8U, 255.0 / std::max(hi - lo, 1e-6), -lo * 255.0 / std::max(hi - lo, 1e-6));
+  cv::Mat out;
+  cv::applyColorMap(grey, out, cv::COLORMAP_TURBO);
+  out.setTo(cv::Scalar::all(0), ~valid);
+  return out;
 }
 
 }  // namespace massage_cell::arm

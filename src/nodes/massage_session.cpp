@@ -7,26 +7,38 @@
 //
 // Subscribes (in its namespace, e.g. /stereo): acupoints
 //   (massage_cell/AcupointArray), ground_truth/acupoints (the session
-//   player's truth, optional); <arm>/state (massage_cell/ArmState).
+//   player's truth, optional), left/image_raw, left/camera_info, disparity
+//   (for the report's pictures and latencies); <arm>/state
+//   (massage_cell/ArmState); /tf (the acupoint frames' latency).
 // Calls: <arm>/home, <arm>/massage.
 // Parameters: ~session (YAML path, required), ~arm ("/arm"), ~base_frame
 //   ("arm_base_link"), ~tolerance (0.005 m: the report counts the presses
 //   within it of the truth), ~max_error (0.02 m: a press further from the
 //   truth, about an acupoint's own size, fails the session), ~service_timeout
-//   (30 s).
+//   (30 s), ~report (a folder: index.html and pictures are written there;
+//   empty: none).
 // Exit status: 0 every press done (and, with ground truth, within
 //   ~max_error); 1 a press failed or missed, no stable fix, or the arm was
 //   not there; 2 a bad session file.
+#include <cv_bridge/cv_bridge.h>
 #include <geometry_msgs/PointStamped.h>
 #include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
 #include <std_srvs/Trigger.h>
+#include <stereo_msgs/DisparityImage.h>
 #include <tf2_geometry_msgs/tf2_geometry_msgs.h>
+#include <tf2_msgs/TFMessage.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 
 #include <cstdio>
+#include <deque>
+#include <filesystem>
 #include <map>
 #include <mutex>
+
+#include <opencv2/imgcodecs.hpp>
 
 #include "massage_cell/AcupointArray.h"
 #include "massage_cell/ArmState.h"
@@ -46,6 +58,15 @@ class Session {
     pnh.param("tolerance", tolerance_, tolerance_);
     pnh.param("max_error", max_error_, max_error_);
     pnh.param("service_timeout", service_timeout_, service_timeout_);
+    pnh.param("report", report_dir_, report_dir_);
+    report_.latencies = {{"camera stamp -> acupoints (cect)", {}},
+                         {"camera stamp -> acupoint tf", {}},
+                         {"camera stamp -> disparity (hbds)", {}},
+                         {"acupoint tf stamp -> press start", {}}};
+    image_sub_ = nh.subscribe("left/image_raw", 5, &Session::onImage, this);
+    info_sub_ = nh.subscribe("left/camera_info", 5, &Session::onInfo, this);
+    disparity_sub_ = nh.subscribe("disparity", 2, &Session::onDisparity, this);
+    tf_sub_ = ros::NodeHandle().subscribe("/tf", 100, &Session::onTf, this);
     acupoints_sub_ = nh.subscribe("acupoints", 5, &Session::onAcupoints, this);
     truth_sub_ = nh.subscribe("ground_truth/acupoints", 5, &Session::onTruth, this);
     state_sub_ = nh.subscribe(arm_ns_ + "/state", 20, &Session::onState, this);
@@ -122,6 +143,7 @@ class Session {
       holding_ = {};
       truth_holding_ = {};
       current_ = name;
+      descending_ = false;
     }
     ROS_INFO("massage_session: pressing %s", name.c_str());
     const ros::WallTime t0 = ros::WallTime::now();
@@ -142,6 +164,8 @@ class Session {
   }
 
   int finish() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (!report_dir_.empty()) writeReport();
     std::printf("%s", report_.summary(tolerance_).c_str());
     std::fflush(stdout);
     bool ok = report_.faults.empty() && report_.presses.size() == config_.acupoints.size();
@@ -153,6 +177,117 @@ class Session {
     }
     std::printf("%s\n", ok ? "the session went well" : "the session FAILED (see above)");
     return ok ? 0 : 1;
+  }
+
+  enum Stage { kCect = 0, kTf = 1, kDisparity = 2, kPressStart = 3 };
+  std::vector<double>& latency(Stage s) { return report_.latencies[static_cast<std::size_t>(s)].samples; }
+
+  /// index.html and its pictures in ~report (called with the mutex held).
+  void writeReport() {
+    std::vector<std::pair<std::string, std::string>> pictures;
+    try {
+      std::filesystem::create_directories(report_dir_);
+      const auto write = [&](const std::string& file, const cv::Mat& image, const std::string& caption) {
+        if (image.empty() || !cv::imwrite(report_dir_ + "/" + file, image)) return;
+        pictures.emplace_back(file, caption);
+      };
+      const cv::Mat left = leftImageOf(latest_acupoints_ ? latest_acupoints_->header.stamp : ros::Time());
+      if (!left.empty() && latest_acupoints_) {
+        std::vector<arm::MarkedPixel> estimates, truth;
+        for (const auto& a : latest_acupoints_->acupoints) {
+          if (a.valid && std::isfinite(a.u) && std::isfinite(a.v)) estimates.push_back({a.name, {a.u, a.v}});
+        }
+        for (const auto& [name, X] : truth_) {
+          cv::Point2d p;
+          if (projectCamera(X, &p)) truth.push_back({name, p});
+        }
+        write("acupoints.png", arm::drawAcupoints(left, estimates, truth),
+              "the left image with the acupoints as CECT placed them (red) and their ground truth (green crosses)");
+        std::vector<cv::Point2d> path;
+        for (const Eigen::Vector3d& X : trajectory_) {
+          cv::Point2d p;
+          if (projectBase(X, &p)) path.push_back(p);
+        }
+        write("trajectory.png", arm::drawTrajectory(left, path),
+              "the tool tip's path over the back during the session (blue: early, red: late), seen by the left camera");
+      }
+      if (!disparity_.empty())
+        write("disparity.png", arm::colourDisparity(disparity_), "the HBDS node's disparity of the last pair");
+      report_.writeHtml(report_dir_, tolerance_, pictures);
+      std::printf("report: %s/index.html\n", report_dir_.c_str());
+    } catch (const std::exception& e) {
+      report_.faults.push_back(std::string("the report could not be written: ") + e.what());
+    }
+  }
+
+  cv::Mat leftImageOf(const ros::Time& stamp) const {
+    for (const auto& [t, image] : images_) {
+      if (t == stamp) return image;
+    }
+    return images_.empty() ? cv::Mat() : images_.back().second;
+  }
+
+  /// A point of the left optical frame in the left image (rectified: its P).
+  bool projectCamera(const Eigen::Vector3d& X, cv::Point2d* p) const {
+    if (!info_ || !(X.z() > 0.0)) return false;
+    const auto& P = info_->P;
+    *p = {(P[0] * X.x() + P[2] * X.z()) / X.z(), (P[5] * X.y() + P[6] * X.z()) / X.z()};
+    return true;
+  }
+
+  bool projectBase(const Eigen::Vector3d& X, cv::Point2d* p) const {
+    if (!info_) return false;
+    geometry_msgs::PointStamped in, out;
+    in.header.frame_id = base_frame_;
+    in.point.x = X.x();
+    in.point.y = X.y();
+    in.point.z = X.z();
+    try {
+      tf_.transform(in, out, info_->header.frame_id, ros::Duration(0.0));
+    } catch (const tf2::TransformException&) {
+      return false;
+    }
+    return projectCamera({out.point.x, out.point.y, out.point.z}, p);
+  }
+
+  void onImage(const sensor_msgs::ImageConstPtr& msg) {
+    cv::Mat image;
+    try {
+      image = cv_bridge::toCvCopy(msg, "bgr8")->image;
+    } catch (const cv_bridge::Exception&) {
+      return;  // the report's picture only: another encoding is not worth a fault
+    }
+    const std::lock_guard<std::mutex> lock(mutex_);
+    images_.emplace_back(msg->header.stamp, image);
+    if (images_.size() > 20) images_.pop_front();
+  }
+
+  void onInfo(const sensor_msgs::CameraInfoConstPtr& msg) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    info_ = msg;
+  }
+
+  void onDisparity(const stereo_msgs::DisparityImageConstPtr& msg) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    latency(kDisparity).push_back((ros::Time::now() - msg->header.stamp).toSec());
+    try {
+      disparity_ = cv_bridge::toCvCopy(msg->image)->image;
+    } catch (const cv_bridge::Exception&) {
+    }
+  }
+
+  /// The acupoint frames' latency: once per stamp, the first of them to arrive.
+  void onTf(const tf2_msgs::TFMessageConstPtr& msg) {
+    const ros::Time now = ros::Time::now();
+    const std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& t : msg->transforms) {
+      if (t.child_frame_id.rfind(config_.frame_prefix, 0) != 0) continue;
+      tf_stamps_[t.child_frame_id] = t.header.stamp;
+      if (t.header.stamp != last_tf_stamp_) {
+        last_tf_stamp_ = t.header.stamp;
+        latency(kTf).push_back((now - t.header.stamp).toSec());
+      }
+    }
   }
 
   void fault(const std::string& what) {
@@ -171,6 +306,8 @@ class Session {
     const std::lock_guard<std::mutex> lock(mutex_);
     ++report_.pairs;
     latest_stamp_ = msg->header.stamp.toSec();
+    latency(kCect).push_back((ros::Time::now() - msg->header.stamp).toSec());
+    latest_acupoints_ = msg;
     for (const auto& a : msg->acupoints)
       fix_.add(a.name, latest_stamp_, Eigen::Vector3d(a.position.x, a.position.y, a.position.z), a.valid);
   }
@@ -184,6 +321,12 @@ class Session {
   /// While the current acupoint is held at depth: the tool tip, and the truth in the arm base frame.
   void onState(const massage_cell::ArmStateConstPtr& msg) {
     const std::lock_guard<std::mutex> lock(mutex_);
+    if (msg->homed) trajectory_.emplace_back(msg->tool.x, msg->tool.y, msg->tool.z);
+    if (!current_.empty() && !descending_ && msg->activity.find(current_ + ": descend") != std::string::npos) {
+      descending_ = true;
+      const auto tf = tf_stamps_.find(config_.frame_prefix + current_);
+      if (tf != tf_stamps_.end()) latency(kPressStart).push_back((ros::Time::now() - tf->second).toSec());
+    }
     if (current_.empty() || msg->activity.find(current_ + ": hold") == std::string::npos) return;
     holding_.emplace_back(msg->tool.x, msg->tool.y, msg->tool.z);
     const auto t = truth_.find(current_);
@@ -209,7 +352,16 @@ class Session {
   tf2_ros::TransformListener listener_;
   std::string arm_ns_ = "/arm", base_frame_ = "arm_base_link";
   double tolerance_ = 0.005, max_error_ = 0.02, service_timeout_ = 30.0;
-  ros::Subscriber acupoints_sub_, truth_sub_, state_sub_;
+  ros::Subscriber acupoints_sub_, truth_sub_, state_sub_, image_sub_, info_sub_, disparity_sub_, tf_sub_;
+  std::string report_dir_;
+  std::deque<std::pair<ros::Time, cv::Mat>> images_;
+  sensor_msgs::CameraInfoConstPtr info_;
+  massage_cell::AcupointArrayConstPtr latest_acupoints_;
+  cv::Mat disparity_;
+  std::map<std::string, ros::Time> tf_stamps_;
+  ros::Time last_tf_stamp_;
+  std::vector<Eigen::Vector3d> trajectory_;
+  bool descending_ = false;
   ros::ServiceClient home_, massage_;
   std::mutex mutex_;
   double latest_stamp_ = 0.0;

@@ -1,8 +1,10 @@
 // The massage session's routine file, the stable-fix test and the report.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 #include "massage_cell/arm/session.h"
@@ -85,6 +87,49 @@ TEST(SessionReport, CountsPressesWithinTheTolerance) {
   EXPECT_NE(s.find("press GV14: FAILED"), std::string::npos) << s;
   EXPECT_NE(s.find("is stale"), std::string::npos) << s;
   EXPECT_NE(s.find("result: 2 of 3 presses done, 1 within 5 mm"), std::string::npos) << s;
+}
+
+TEST(SessionReport, LatencyQuantilesAndTheHtmlPage) {
+  arm::LatencyRecord l{"camera stamp -> acupoint tf", {}};
+  EXPECT_TRUE(std::isnan(l.quantile(0.5)));
+  for (int i = 1; i <= 100; ++i) l.samples.push_back(0.001 * i);
+  EXPECT_DOUBLE_EQ(l.quantile(0.5), 0.050);
+  EXPECT_DOUBLE_EQ(l.quantile(0.95), 0.095);
+  EXPECT_DOUBLE_EQ(l.quantile(1.0), 0.100);
+  arm::SessionReport r;
+  r.latencies = {l};
+  arm::PressRecord p;
+  p.acupoint = "BL23_L";
+  p.message = "refused: <envelope> & more";
+  r.presses = {p};
+  EXPECT_NE(r.summary(0.005).find("latency camera stamp -> acupoint tf: p50 50 ms, p95 95 ms (100)"), std::string::npos)
+      << r.summary(0.005);
+  const std::string dir = ::testing::TempDir();
+  r.writeHtml(dir, 0.005, {{"acupoints.png", "the acupoints"}});
+  std::ifstream in(dir + "/index.html");
+  const std::string html((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(html.find("<td>BL23_L</td><td>failed</td>"), std::string::npos) << html;
+  EXPECT_NE(html.find("refused: &lt;envelope&gt; &amp; more"), std::string::npos) << "escaped";
+  EXPECT_NE(html.find("src=\"acupoints.png\""), std::string::npos);
+  EXPECT_NE(html.find("<td>95</td>"), std::string::npos) << "p95 in ms";
+  EXPECT_THROW(r.writeHtml("/nonexistent/dir", 0.005, {}), std::runtime_error);
+}
+
+TEST(SessionPictures, MarksLandWhereTheyAreSaid) {
+  const cv::Mat grey(100, 120, CV_8UC1, cv::Scalar(128));
+  const cv::Mat a = arm::drawAcupoints(grey, {{"GV14", {30, 40}}}, {{"GV14", {80, 60}}});
+  ASSERT_EQ(a.type(), CV_8UC3);
+  EXPECT_EQ(a.at<cv::Vec3b>(40, 30), cv::Vec3b(0, 0, 255)) << "the estimate, red";
+  EXPECT_EQ(a.at<cv::Vec3b>(60, 80), cv::Vec3b(0, 200, 0)) << "the truth, a green cross";
+  EXPECT_EQ(a.at<cv::Vec3b>(5, 5), cv::Vec3b(128, 128, 128));
+  const cv::Mat t = arm::drawTrajectory(grey, {{10, 50}, {110, 50}});
+  EXPECT_NE(t.at<cv::Vec3b>(50, 60), cv::Vec3b(128, 128, 128)) << "the path is drawn";
+  cv::Mat d(10, 10, CV_32F, cv::Scalar(0.0f));
+  d(cv::Rect(0, 0, 5, 10)).setTo(20.0f);
+  d.at<float>(0, 0) = 40.0f;
+  const cv::Mat c = arm::colourDisparity(d);
+  EXPECT_EQ(c.at<cv::Vec3b>(5, 8), cv::Vec3b(0, 0, 0)) << "invalid: black";
+  EXPECT_NE(c.at<cv::Vec3b>(5, 2), c.at<cv::Vec3b>(0, 0)) << "near and far differ";
 }
 
 int main(int argc, char** argv) {

@@ -349,7 +349,7 @@ TEST(ArmNode, RefusalsNameTheProblem) {
   r = F->massage(req);
   EXPECT_FALSE(r.success);
   EXPECT_TRUE(contains(r.message, "'acupoint/BL21_L' is stale: its transform is 2.") &&
-              contains(r.message, "limit 0.50 s"))
+              contains(r.message, "limit 1.00 s"))
       << r.message;
   // Nothing moved.
   EXPECT_LT((F->jointPositions() - before).norm(), 1e-6);

@@ -7,9 +7,11 @@
 
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
+#include <opencv2/core.hpp>
 
 namespace massage_cell::arm {
 
@@ -75,16 +77,44 @@ struct FixRecord {
   double error = 0.0;  ///< m, |estimate - truth| in the camera frame
 };
 
+/// Latencies of one stage of the pipeline, seconds.
+struct LatencyRecord {
+  std::string stage;  ///< e.g. "camera stamp -> acupoint tf"
+  std::vector<double> samples;
+  /// The q-quantile (0..1) of the samples, nearest rank; NaN when there are none.
+  double quantile(double q) const;
+};
+
 struct SessionReport {
   int pairs = 0;                ///< stereo pairs the CECT node reported on
   double seconds_to_fix = 0.0;  ///< from start to a stable fix
   std::vector<FixRecord> fix;
   std::vector<PressRecord> presses;
   std::vector<std::string> faults;  ///< what went wrong (empty: nothing)
+  std::vector<LatencyRecord> latencies;
   /// Presses done and within `tolerance` m of the truth.
   int within(double tolerance) const;
   /// Lines for the terminal: the fix, every press, the verdict.
   std::string summary(double tolerance) const;
+  /// Writes `dir`/index.html: the summary's facts as tables, and the
+  /// pictures named in `pictures` (file names in `dir`, with captions).
+  /// Throws std::runtime_error naming the file when it cannot be written.
+  void writeHtml(const std::string& dir, double tolerance,
+                 const std::vector<std::pair<std::string, std::string>>& pictures) const;
 };
+
+/// Pictures of the report. A marked pixel: its label and where it is.
+struct MarkedPixel {
+  std::string label;
+  cv::Point2d pixel;
+};
+/// The image (BGR or grey) with the estimates as filled circles and their
+/// names, and the true positions as crosses.
+cv::Mat drawAcupoints(const cv::Mat& image, const std::vector<MarkedPixel>& estimates,
+                      const std::vector<MarkedPixel>& truth);
+/// The image with the tool's path (pixels in order) as a line, darker at its start.
+cv::Mat drawTrajectory(const cv::Mat& image, const std::vector<cv::Point2d>& path);
+/// A float disparity image in colour (invalid: black), scaled over its valid range.
+cv::Mat colourDisparity(const cv::Mat& disparity);
 
 }  // namespace massage_cell::arm
