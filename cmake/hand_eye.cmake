@@ -31,6 +31,8 @@ if(CATKIN_ENABLE_TESTING)
     target_link_libraries(test_hand_eye massage_cell_calib_sim)
     target_compile_definitions(test_hand_eye PRIVATE MASSAGE_CELL_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
   endif()
+  # scripts/calibrated_urdf.py: the URDF's camera mount from a calibration (arm.launch camera_calibration:=FILE).
+  add_test(NAME calibrated_urdf COMMAND /usr/bin/python3 ${PROJECT_SOURCE_DIR}/test/calib/test_calibrated_urdf.py)
 endif()
 
 add_executable(hand_eye_calibrate src/tools/hand_eye_calibrate.cpp)
