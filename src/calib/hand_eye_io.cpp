@@ -6,6 +6,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "massage_cell/calib/hand_eye.h"
+#include "yaml_file.h"
 
 namespace massage_cell::calib {
 namespace {
@@ -66,14 +67,7 @@ void writeHandEyeYaml(const std::string& path, const HandEyeResult& r) {
 }
 
 HandEyeResult readHandEyeYaml(const std::string& path) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw std::runtime_error(path + ": cannot open");
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(path + ": not valid YAML: " + e.what());
-  }
+  const YAML::Node root = loadYamlFile(path);
   if (!root.IsMap()) throw std::runtime_error(path + ": expected a map at the top level");
   HandEyeResult r;
   try {

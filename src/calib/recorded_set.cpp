@@ -8,6 +8,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "massage_cell/camera/calibration_io.h"
+#include "yaml_file.h"
 
 namespace massage_cell::calib {
 namespace {
@@ -55,14 +56,7 @@ RecordedSet readRecordedSet(const std::string& dir) {
   set.left_info = camera::readCameraInfoYaml(dir + "/left.yaml");
   set.right_info = camera::readCameraInfoYaml(dir + "/right.yaml");
   const std::string path = dir + "/poses.yaml";
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw std::runtime_error(path + ": cannot open");
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(path + ": not valid YAML: " + e.what());
-  }
+  const YAML::Node root = loadYamlFile(path);
   if (!root.IsMap()) throw std::runtime_error(path + ": expected a map with 'poses'");
   if (root["marker_offset"]) set.marker_offset = vector3(root["marker_offset"], "marker_offset", path);
   const YAML::Node poses = root["poses"];
