@@ -21,9 +21,9 @@ void require(bool ok, const std::string& field, const std::string& want) {
   if (!ok) throw std::invalid_argument("session: " + field + ": " + want);
 }
 
-std::string format(const char* fmt, double a, double b = 0.0) {
+std::string format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
   char buf[128];
-  std::snprintf(buf, sizeof(buf), fmt, a, b);
+  std::snprintf(buf, sizeof(buf), fmt, a, b, c);
   return buf;
 }
 
@@ -145,7 +145,9 @@ std::string SessionReport::summary(double tolerance) const {
   out << "massage session: " << pairs << " stereo pairs; stable acupoint fix after " << format("%.1f s", seconds_to_fix)
       << "\n";
   for (const FixRecord& f : fix)
-    out << "  fix   " << f.acupoint << ": " << format("%.1f mm from the ground truth", 1e3 * f.error) << "\n";
+    out << "  fix   " << f.acupoint << ": " << format("%.1f mm from the ground truth", 1e3 * f.error)
+        << format(" (x %+.1f, y %+.1f, z %+.1f mm)", 1e3 * f.offset.x(), 1e3 * f.offset.y(), 1e3 * f.offset.z())
+        << "\n";
   for (const PressRecord& p : presses) {
     out << "  press " << p.acupoint << ": " << (p.success ? "done" : "FAILED") << format(" in %.1f s", p.seconds);
     if (p.measured) out << format(", tool at depth %.1f mm from the ground truth", 1e3 * p.error());
@@ -202,9 +204,11 @@ void SessionReport::writeHtml(const std::string& dir, double tolerance,
         << (p.success ? "done" : "failed") << "</td><td>" << format("%.1f", p.seconds) << "</td><td>"
         << (p.measured ? format("%.1f", 1e3 * p.error()) : "-") << "</td><td>" << escape(p.message) << "</td></tr>\n";
   }
-  out << "</table>\n<h2>Acupoint fix against the ground truth</h2>\n<table><tr><th>acupoint</th><th>mm</th></tr>\n";
+  out << "</table>\n<h2>Acupoint fix against the ground truth</h2>\n<table><tr><th>acupoint</th><th>mm</th><th>x, y, z "
+         "mm (camera: right, down, depth)</th></tr>\n";
   for (const FixRecord& f : fix)
-    out << "<tr><td>" << escape(f.acupoint) << "</td><td>" << format("%.1f", 1e3 * f.error) << "</td></tr>\n";
+    out << "<tr><td>" << escape(f.acupoint) << "</td><td>" << format("%.1f", 1e3 * f.error) << "</td><td>"
+        << format("%+.1f, %+.1f, %+.1f", 1e3 * f.offset.x(), 1e3 * f.offset.y(), 1e3 * f.offset.z()) << "</td></tr>\n";
   out << "</table>\n<h2>Latency</h2>\n<table><tr><th>stage</th><th>p50 ms</th><th>p95 ms</th><th>samples</th></tr>\n";
   for (const LatencyRecord& l : latencies) {
     out << "<tr><td>" << escape(l.stage) << "</td><td>" << format("%.0f", 1e3 * l.quantile(0.5)) << "</td><td>"

@@ -2,6 +2,10 @@
 
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include <opencv2/imgproc.hpp>
 
 namespace massage_cell::camera {
 
@@ -106,6 +110,61 @@ Eigen::Isometry3d rightCameraInLeft(const CameraCalibration& left, const CameraC
   pose.linear() = Rl.transpose() * Rr;
   pose.translation() = Rl.transpose() * Eigen::Vector3d(baseline(right), 0.0, 0.0);
   return pose;
+}
+
+Decimation Decimation::toWidth(cv::Size full, int max_width) {
+  if (max_width <= 0 || full.width <= max_width) return Decimation(full, 1);
+  return Decimation(full, (full.width + max_width - 1) / max_width);
+}
+
+Decimation::Decimation(cv::Size full, int factor) : full_(full), factor_(factor) {
+  if (factor < 1) throw std::invalid_argument("decimation factor " + std::to_string(factor) + " is below 1");
+  if (full.width < factor || full.height < factor) {
+    throw std::invalid_argument("cannot decimate a " + std::to_string(full.width) + "x" + std::to_string(full.height) +
+                                " image by " + std::to_string(factor));
+  }
+  size_ = cv::Size(full.width / factor, full.height / factor);
+  sx_ = static_cast<double>(size_.width) / full.width;
+  sy_ = static_cast<double>(size_.height) / full.height;
+}
+
+cv::Mat Decimation::apply(const cv::Mat& image) const {
+  if (image.size() != full_) {
+    throw std::invalid_argument("decimation: the image is " + std::to_string(image.cols) + "x" +
+                                std::to_string(image.rows) + ", expected " + std::to_string(full_.width) + "x" +
+                                std::to_string(full_.height));
+  }
+  if (identity()) return image;
+  cv::Mat out;
+  cv::resize(image, out, size_, 0, 0, cv::INTER_AREA);
+  return out;
+}
+
+CameraCalibration Decimation::apply(const CameraCalibration& c) const {
+  CameraCalibration out = c;
+  if (identity()) return out;
+  out.width = size_.width;
+  out.height = size_.height;
+  // Row 0 (x) scales by sx, row 1 (y) by sy; the principal point keeps its pixel centre.
+  auto scaleRows = [&](double* m, int cols) {
+    for (int j = 0; j < cols; ++j) {
+      m[j] *= sx_;
+      m[cols + j] *= sy_;
+    }
+    m[2] += 0.5 * (sx_ - 1.0) * m[2 * cols + 2];
+    m[cols + 2] += 0.5 * (sy_ - 1.0) * m[2 * cols + 2];
+  };
+  scaleRows(out.K.data(), 3);
+  scaleRows(out.P.data(), 4);
+  return out;
+}
+
+cv::Point2f Decimation::toDecimated(const cv::Point2f& p) const {
+  return {static_cast<float>((p.x + 0.5) * sx_ - 0.5), static_cast<float>((p.y + 0.5) * sy_ - 0.5)};
+}
+
+cv::Point2f Decimation::toFull(const cv::Point2f& p) const {
+  return {static_cast<float>((p.x + 0.5) / sx_ - 0.5), static_cast<float>((p.y + 0.5) / sy_ - 0.5)};
 }
 
 }  // namespace massage_cell::camera

@@ -151,6 +151,12 @@ void CectNodelet::onInit() {
   // The acupoint model: a configuration error ends the node (logged FATAL, rethrown).
   loadModel();
   pnh.param<std::string>("frame_prefix", frame_prefix_, frame_prefix_);
+  pnh.param("max_width", max_width_, max_width_);
+  if (max_width_ < 0) {
+    NODELET_ERROR_STREAM("parameter ~max_width must be >= 0 (0: full resolution), got " << max_width_
+                                                                                        << ": using full resolution");
+    max_width_ = 0;
+  }
   while (!frame_prefix_.empty() && frame_prefix_.front() == '/')
     frame_prefix_.erase(0, 1);  // tf2 ids have no leading '/'
 
@@ -291,7 +297,9 @@ void CectNodelet::updateGeometry(const CameraInfo& left, const CameraInfo& right
     geometry_.reset();
     geometry_error_.clear();
     try {
-      geometry_ = std::make_shared<const cect::StereoGeometry>(toCalibration(left), toCalibration(right));
+      decimation_ = camera::Decimation::toWidth(cv::Size(left.width, left.height), max_width_);
+      geometry_ = std::make_shared<const cect::StereoGeometry>(decimation_.apply(toCalibration(left)),
+                                                               decimation_.apply(toCalibration(right)));
     } catch (const std::invalid_argument& e) {  // uncalibrated, sizes differ, not a horizontal pair, ...
       geometry_error_ = std::string("unusable calibration: ") + e.what();
     }
@@ -299,6 +307,9 @@ void CectNodelet::updateGeometry(const CameraInfo& left, const CameraInfo& right
       std::ostringstream summary;
       summary << sizeText(left.width, left.height) << (geometry_->identity() ? ", rectified input" : ", rectified here")
               << ", f " << geometry_->fx() << " px, baseline " << geometry_->baseline() << " m";
+      if (!decimation_.identity())
+        summary << "; processed at " << sizeText(decimation_.size().width, decimation_.size().height) << " (~max_width "
+                << max_width_ << ")";
       NODELET_INFO_STREAM("calibration: " << summary.str());
       std::lock_guard<std::mutex> lock(status_mutex_);
       geometry_summary_ = summary.str();
@@ -309,6 +320,7 @@ void CectNodelet::updateGeometry(const CameraInfo& left, const CameraInfo& right
 
 void CectNodelet::process(const StereoPair& pair, const Config& config) {
   const auto start = Clock::now();
+  const double waited_ms = (ros::Time::now() - pair.left_image->header.stamp).toSec() * 1e3;
   const CameraInfo& li = *pair.left_info;
   const CameraInfo& ri = *pair.right_info;
 
@@ -316,8 +328,9 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
   checkImageSize(li, *pair.left_image, "left");
   checkImageSize(ri, *pair.right_image, "right");
   updateGeometry(li, ri);
-  const cv::Mat left = toBgr(pair.left_image, "left");
-  const cv::Mat right = toBgr(pair.right_image, "right");
+  const camera::Decimation decimation = decimation_;
+  const cv::Mat left = decimation.apply(toBgr(pair.left_image, "left"));
+  const cv::Mat right = decimation.apply(toBgr(pair.right_image, "right"));
   const cect::StereoGeometry& geometry = *geometry_;
 
   std_msgs::Header header;
@@ -345,7 +358,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
       std::make_shared<const cect::CectFrame>(cect::CectFrame::analyse(left, right, geometry, cectParams(config)));
   {
     std::lock_guard<std::mutex> lock(latest_mutex_);
-    latest_ = Analysed{frame, header};
+    latest_ = Analysed{frame, header, decimation};
   }
 
   // 3. The model's acupoints in the left view, each to 3D, into the filter.
@@ -364,7 +377,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
     PointResult& r = results[i];
     r.placed = p.placed;
     r.rectified = p.rectified;
-    r.raw = p.raw;
+    r.raw = decimation.toFull(p.raw);  // the camera's pixels
     r.reason = p.reason;
     if (!p.valid) continue;
     r.measured = true;
@@ -395,7 +408,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
     for (const auto& e : estimates_) valid += e.second.valid ? 1 : 0;
   }
   std::lock_guard<std::mutex> lock(status_mutex_);
-  stats_.processedOne(elapsed);
+  stats_.processedOne(elapsed, waited_ms);
   if (!frame_problem.empty()) ++unusable_;
   last_problem_ = frame_problem;
   last_valid_ = valid;
@@ -576,7 +589,8 @@ bool CectNodelet::localizePixels(massage_cell::LocalizePixels::Request& request,
     }
     cect::LocalizedPoint p;
     try {
-      p = frame.localize(cv::Point2f(static_cast<float>(pixel.x), static_cast<float>(pixel.y)));
+      p = frame.localize(
+          latest.decimation.toDecimated(cv::Point2f(static_cast<float>(pixel.x), static_cast<float>(pixel.y))));
     } catch (const std::exception& e) {
       response.reasons[i] = std::string("localisation failed: ") + e.what();
       continue;

@@ -51,6 +51,7 @@
 #include "massage_cell/CECTConfig.h"
 #include "massage_cell/GetAcupoint.h"
 #include "massage_cell/LocalizePixels.h"
+#include "massage_cell/camera/calibration.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
 #include "massage_cell/cect/stereo_geometry.h"
@@ -71,7 +72,8 @@ class CectNodelet : public nodelet::Nodelet {
   /// The latest analysed pair (valid or not), for ~localize_pixels.
   struct Analysed {
     std::shared_ptr<const cect::CectFrame> frame;
-    std_msgs::Header header;  ///< the left image's stamp, the left optical frame
+    std_msgs::Header header;        ///< the left image's stamp, the left optical frame
+    camera::Decimation decimation;  ///< the frame's pixels against the camera's
   };
 
   /// The last published estimate of one acupoint, for ~get_acupoint.
@@ -131,7 +133,9 @@ class CectNodelet : public nodelet::Nodelet {
 
   // Worker-thread state.
   std::vector<double> geometry_key_;  ///< the calibration geometry_ (or geometry_error_) is for
-  std::shared_ptr<const cect::StereoGeometry> geometry_;
+  std::shared_ptr<const cect::StereoGeometry> geometry_;  ///< of the decimated images
+  int max_width_ = 0;                                     ///< ~max_width: images wider are decimated (0: never)
+  camera::Decimation decimation_;                         ///< of the current calibration
   std::string geometry_error_;  ///< why the calibration of geometry_key_ is unusable
   cect::TemporalFilter filter_;
   ros::Time last_stamp_;

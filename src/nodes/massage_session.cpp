@@ -120,7 +120,7 @@ class Session {
       const auto t = truth_.find(name);
       if (t == truth_.end()) continue;
       const Eigen::Vector3d estimate = fix_.mean(name, latest_stamp_);
-      report_.fix.push_back({name, (estimate - t->second).norm()});
+      report_.fix.push_back({name, (estimate - t->second).norm(), estimate - t->second});
     }
   }
 

@@ -1,6 +1,7 @@
 #include "stereo_pair_input.h"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 namespace massage_cell::nodes {
@@ -133,8 +134,12 @@ bool ProblemThrottle::due(const std::string& problem) {
 
 // ------------------------------------------------------ diagnostics --
 
-void PairStats::processedOne(double ms) {
+void PairStats::processedOne(double ms, double waited_ms) {
   ++processed_;
+  if (std::isfinite(waited_ms)) {
+    ++waited_;
+    total_waited_ms_ += waited_ms;
+  }
   last_pair_bad_ = false;
   last_ms_ = ms;
   total_ms_ += ms;
@@ -173,6 +178,7 @@ void PairStats::addTimes(diagnostic_updater::DiagnosticStatusWrapper& status, co
   status.add("last processing time (ms)", last_ms_);
   status.add(stage_label, stage_ms);
   status.add("mean processing time (ms)", processed_ > 0 ? total_ms_ / processed_ : 0.0);
+  if (waited_ > 0) status.add("mean wait camera stamp -> processing (ms)", total_waited_ms_ / waited_);
 }
 
 }  // namespace massage_cell::nodes

@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -154,7 +155,9 @@ class PairStats {
  public:
   static constexpr double kRateWindow = 10.0;  ///< s of completions the rate is taken over; also "recent"
 
-  void processedOne(double ms);                          ///< a pair processed in `ms` (clears lastPairBad)
+  /// A pair processed in `ms` (clears lastPairBad), taken up `waited_ms` after its
+  /// camera stamp (NaN: not known; the input's transport and queue).
+  void processedOne(double ms, double waited_ms = std::numeric_limits<double>::quiet_NaN());
   std::uint64_t badOne(const std::string& problem);      ///< a pair skipped; returns the bad pairs so far
   std::uint64_t processed() const { return processed_; }
   std::uint64_t bad() const { return bad_; }
@@ -166,7 +169,8 @@ class PairStats {
   /// "pairs received", "pairs processed", "dropped pairs", "bad pairs".
   void addCounts(diagnostic_updater::DiagnosticStatusWrapper& status, const StereoPairInput::Counts& input) const;
   /// "processing rate (Hz)", "last processing time (ms)", then
-  /// `stage_label` = `stage_ms` (the library's own time), "mean processing time (ms)".
+  /// `stage_label` = `stage_ms` (the library's own time), "mean processing time (ms)",
+  /// and "mean wait camera stamp -> processing (ms)" when known.
   void addTimes(diagnostic_updater::DiagnosticStatusWrapper& status, const std::string& stage_label,
                 double stage_ms) const;
 
@@ -175,7 +179,8 @@ class PairStats {
   bool last_pair_bad_ = false;
   std::string last_error_;
   ros::WallTime last_error_time_;
-  double last_ms_ = 0.0, total_ms_ = 0.0;
+  double last_ms_ = 0.0, total_ms_ = 0.0, total_waited_ms_ = 0.0;
+  std::uint64_t waited_ = 0;
   std::deque<ros::WallTime> times_;  // recent completions, for the rate
 };
 

@@ -1,12 +1,13 @@
 // cect_locate: the acupoints of a back on a stereo pair (CECT's 3D points
 // with their uncertainty), or their layout in pixels on one image. See --help.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <iostream>
 #include <iomanip>
+#include <iostream>
 #include <limits>
 #include <map>
 #include <sstream>
@@ -37,7 +38,8 @@ using tools::UsageError;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-const char* const kUsage = R"(Usage: cect_locate --left L.png --right R.png --left-info LEFT.yaml --right-info RIGHT.yaml
+const char* const kUsage =
+    R"(Usage: cect_locate --left L.png --right R.png --left-info LEFT.yaml --right-info RIGHT.yaml
                    [--acupoints FILE] [--format yaml|csv] [--output FILE] [--overlay OUT.png]
                    [--min-depth M] [--max-depth M] [--param NAME=VALUE,...]
                    [--no-parallax-correction] [--no-3d-levels]
@@ -97,7 +99,8 @@ Stereo mode only:
   disparity_sigma          standard deviation of the disparity, pixels
                            (x .. disparity_sigma NaN / empty when not valid)
 YAML: a header, then the list `acupoints:`. The header: mode; the inputs;
-frame (CECT's status: valid, reason, view_scale, disparity_range searched; in
+frame (CECT's status: valid, reason, view_scale, disparity_range searched,
+timings_ms: CECT's stages and the layout + 3D step on this pair, 2 cores; in
 layout-only mode the segmentation's valid and reason); landmarks (valid, reason,
 body_angle_deg, shoulder_width_px, and c7, l4, shoulder_line, waist_line,
 iliac_line: points on the midline, raw left pixels [u, v]); valid / reason
@@ -161,6 +164,8 @@ struct Report {
   std::string frame_reason;
   double view_scale = kNaN;
   cv::Vec2d disparity_range{kNaN, kNaN};
+  cect::CectTimings timings;  ///< CECT's stages on this pair (stereo mode)
+  double locate_ms = kNaN;    ///< the model's layout and the acupoints to 3D
   LandmarkSummary landmarks;
   bool valid = false;  ///< the acupoints could be placed
   std::string reason;
@@ -298,6 +303,7 @@ Report stereoReport(const Options& o, const cect::CectFrame& frame, const cect::
   r.frame_reason = frame.reason();
   r.view_scale = frame.scale();
   r.disparity_range = frame.disparityRange();
+  r.timings = frame.timings();
   r.valid = located.valid;
   r.reason = located.reason;
   const ToRaw to_raw = [&geometry](const cv::Point2f& p) { return geometry.toRaw(p); };
@@ -316,7 +322,12 @@ Report locateStereo(const Options& o, const cect::AcupointModel& model) {
   cect::LocateOptions lo;
   lo.correct_parallax = o.parallax;
   lo.levels_in_3d = o.levels_3d;
-  return stereoReport(o, frame, cect::locateAcupoints(frame, model, lo));
+  const auto t0 = std::chrono::steady_clock::now();
+  const cect::LocatedAcupoints located = cect::locateAcupoints(frame, model, lo);
+  const double locate_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  Report r = stereoReport(o, frame, located);
+  r.locate_ms = locate_ms;
+  return r;
 }
 
 // ---------------------------------------------------------------------------
@@ -387,6 +398,16 @@ void emitHeader(YAML::Emitter& y, const Report& r) {
     y << YAML::Key << "view_scale" << YAML::Value << r.view_scale;
     y << YAML::Key << "disparity_range" << YAML::Value << YAML::Flow << YAML::BeginSeq << r.disparity_range[0]
       << r.disparity_range[1] << YAML::EndSeq;
+    const cect::CectTimings& t = r.timings;
+    y << YAML::Key << "timings_ms" << YAML::Value << YAML::Flow << YAML::BeginMap;
+    for (const auto& [key, ms] : {std::pair<const char*, double>{"rectify", t.rectify_ms},
+                                  {"segment", t.segment_ms},
+                                  {"foundational", t.foundational_ms},
+                                  {"interior", t.interior_ms},
+                                  {"cect_total", t.total_ms},
+                                  {"locate", r.locate_ms}})
+      y << YAML::Key << key << YAML::Value << std::round(10.0 * ms) / 10.0;
+    y << YAML::EndMap;
   }
   y << YAML::EndMap;
   const LandmarkSummary& l = r.landmarks;

@@ -80,11 +80,13 @@ TEST(SessionReport, CountsPressesWithinTheTolerance) {
   c.acupoint = "GV14";
   c.message = "'acupoint/GV14' is stale";
   r.presses = {a, b, c};
+  r.fix = {{"BL18_L", 0.005, Eigen::Vector3d(0.0, 0.004, -0.003)}};
   EXPECT_EQ(r.within(0.005), 1);
   const std::string s = r.summary(0.005);
   EXPECT_NE(s.find("press BL23_L: done"), std::string::npos) << s;
   EXPECT_NE(s.find("3.0 mm from the ground truth"), std::string::npos) << s;
   EXPECT_NE(s.find("press GV14: FAILED"), std::string::npos) << s;
+  EXPECT_NE(s.find("fix   BL18_L: 5.0 mm from the ground truth (x +0.0, y +4.0, z -3.0 mm)"), std::string::npos) << s;
   EXPECT_NE(s.find("is stale"), std::string::npos) << s;
   EXPECT_NE(s.find("result: 2 of 3 presses done, 1 within 5 mm"), std::string::npos) << s;
 }

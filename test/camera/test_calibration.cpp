@@ -16,6 +16,7 @@
 #include <vector>
 
 #include <Eigen/Geometry>
+#include <opencv2/imgproc.hpp>
 
 #include "massage_cell/camera/calibration.h"
 #include "massage_cell/camera/calibration_io.h"
@@ -433,6 +434,61 @@ TEST_F(CameraInfoYamlTest, NonNumericValue) {
   writeText("text_p.yaml", cameraInfoText("projection_matrix:\n  rows: 3\n  cols: 4\n"
                                           "  data: [500, 0, 320, abc, 0, 500, 240, 0, 0, 0, 1, 0]\n"));
   EXPECT_NE(readError(path("text_p.yaml")).find(path("text_p.yaml")), std::string::npos);
+}
+
+// ------------------------------------------------------------------- Decimation --
+
+TEST(DecimationTest, FactorFromTheWidthBudget) {
+  EXPECT_EQ(Decimation::toWidth({640, 480}, 480).factor(), 2);
+  EXPECT_EQ(Decimation::toWidth({640, 480}, 320).factor(), 2);
+  EXPECT_EQ(Decimation::toWidth({1280, 960}, 480).factor(), 3);
+  EXPECT_TRUE(Decimation::toWidth({320, 240}, 480).identity());
+  EXPECT_TRUE(Decimation::toWidth({1280, 960}, 0).identity()) << "0: full resolution";
+  const Decimation d = Decimation::toWidth({641, 481}, 480);
+  EXPECT_EQ(d.size(), cv::Size(320, 240));
+  EXPECT_THROW(Decimation({640, 480}, 0), std::invalid_argument);
+  EXPECT_THROW(Decimation({0, 0}, 2), std::invalid_argument);
+}
+
+TEST(DecimationTest, CalibrationAndPixelsAgreeWithTheProjection) {
+  const Decimation d({640, 480}, 2);
+  const CameraCalibration full = makeRight();
+  const CameraCalibration half = d.apply(full);
+  EXPECT_EQ(half.width, 320);
+  EXPECT_EQ(half.height, 240);
+  EXPECT_EQ(half.D, full.D);
+  EXPECT_NEAR(baseline(half), kBaseline, 1e-12) << "metres do not change";
+  EXPECT_TRUE(checkCalibration(half, d.size(), "half").empty()) << joined(checkCalibration(half, d.size(), "half"));
+  // A point projected with each P lands on pixels that toDecimated / toFull map onto each other.
+  const Eigen::Vector4d X(0.13, -0.07, 0.9, 1.0);
+  auto project = [&](const CameraCalibration& c) {
+    const Eigen::Map<const Eigen::Matrix<double, 3, 4, Eigen::RowMajor>> P(c.P.data());
+    const Eigen::Vector3d x = P * X;
+    return cv::Point2f(static_cast<float>(x.x() / x.z()), static_cast<float>(x.y() / x.z()));
+  };
+  const cv::Point2f p_full = project(full), p_half = project(half);
+  EXPECT_NEAR(d.toDecimated(p_full).x, p_half.x, 1e-3);
+  EXPECT_NEAR(d.toDecimated(p_full).y, p_half.y, 1e-3);
+  EXPECT_NEAR(d.toFull(p_half).x, p_full.x, 1e-3);
+  EXPECT_NEAR(d.toFull(p_half).y, p_full.y, 1e-3);
+  EXPECT_NEAR(half.K[2], (full.K[2] + 0.5) / 2 - 0.5, 1e-12) << "the principal point keeps its pixel centre";
+}
+
+TEST(DecimationTest, ImagesShrinkByAreaAndKeepTheirContentInPlace) {
+  cv::Mat image(480, 640, CV_8UC3, cv::Scalar(0, 0, 0));
+  image(cv::Rect(100, 200, 40, 20)).setTo(cv::Scalar(255, 255, 255));
+  const Decimation d({640, 480}, 2);
+  const cv::Mat small = d.apply(image);
+  ASSERT_EQ(small.size(), cv::Size(320, 240));
+  cv::Mat grey;
+  cv::cvtColor(small, grey, cv::COLOR_BGR2GRAY);
+  const cv::Moments m = cv::moments(grey);
+  const cv::Point2f centre_full(119.5f, 209.5f);  // the square's centre, full-size pixels
+  const cv::Point2f centre = d.toDecimated(centre_full);
+  EXPECT_NEAR(m.m10 / m.m00, centre.x, 1e-3);
+  EXPECT_NEAR(m.m01 / m.m00, centre.y, 1e-3);
+  EXPECT_EQ(Decimation({640, 480}, 1).apply(image).data, image.data) << "factor 1: the same image";
+  EXPECT_THROW(d.apply(cv::Mat(100, 100, CV_8UC1)), std::invalid_argument);
 }
 
 }  // namespace

@@ -27,12 +27,13 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
 #include <geometry_msgs/Point.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
+#include <Eigen/Core>
+#include <opencv2/imgproc.hpp>
 
 #include "massage_cell/AcupointArray.h"
 #include "massage_cell/GetAcupoint.h"
@@ -303,6 +304,34 @@ TEST_F(CectNode, BagOutputs) {
 
 // ------------------------------------------------------------ bad input --
 
+/// The pair as a camera of twice the resolution would see it: images scaled up,
+/// K and P with them (pixel centres kept: c' = 2 c + 0.5).
+void doubleResolution(StereoPair* pair) {
+  for (sensor_msgs::Image* image : {&pair->left, &pair->right}) {
+    const int channels = static_cast<int>(image->step / image->width);
+    const cv::Mat in(static_cast<int>(image->height), static_cast<int>(image->width), CV_8UC(channels),
+                     image->data.data(), image->step);
+    cv::Mat out;
+    cv::resize(in, out, cv::Size(), 2.0, 2.0, cv::INTER_LINEAR);
+    image->width *= 2;
+    image->height *= 2;
+    image->step *= 2;
+    image->data.assign(out.data, out.data + out.total() * out.elemSize());
+  }
+  for (sensor_msgs::CameraInfo* info : {&pair->left_info, &pair->right_info}) {
+    info->width *= 2;
+    info->height *= 2;
+    for (int row = 0; row < 2; ++row) {
+      for (int j = 0; j < 3; ++j) info->K[3 * row + j] *= 2.0;
+      for (int j = 0; j < 4; ++j) info->P[4 * row + j] *= 2.0;
+    }
+    info->K[2] += 0.5;
+    info->K[5] += 0.5;
+    info->P[2] += 0.5;
+    info->P[6] += 0.5;
+  }
+}
+
 TEST_F(CectNode, BadInputIsSkipped) {
   // A good pair from the bag, to be altered.
   StereoPair good;
@@ -391,6 +420,25 @@ TEST_F(CectNode, BadInputIsSkipped) {
   EXPECT_GT(countValid(*outputFor(stamp)), static_cast<int>(names_.size()) / 2) << "the filter starts afresh";
   EXPECT_EQ(status.count("bad pairs"), 4);
   EXPECT_TRUE(ros::service::exists("/bad_input/cect/get_acupoint", false)) << "the node is gone";
+
+  // The same pair at twice the resolution: processed decimated (~max_width), its
+  // acupoints' pixels in the camera's own (doubled) pixels.
+  const AcupointArrayConstPtr normal = outputFor(stamp);
+  p = good;
+  doubleResolution(&p);
+  stamp = input.publish(p);
+  ASSERT_TRUE(spinUntil([&] { return outputFor(stamp) != nullptr; }, 15.0)) << "no acupoints for the doubled pair";
+  const AcupointArrayConstPtr doubled = outputFor(stamp);
+  int compared = 0;
+  for (std::size_t i = 0; i < doubled->acupoints.size() && i < normal->acupoints.size(); ++i) {
+    const auto &a = normal->acupoints[i], &b = doubled->acupoints[i];
+    if (!std::isfinite(a.u) || !std::isfinite(b.u)) continue;
+    ++compared;
+    EXPECT_NEAR(b.u, 2.0 * a.u + 0.5, 2.0) << a.name;
+    EXPECT_NEAR(b.v, 2.0 * a.v + 0.5, 2.0) << a.name;
+  }
+  EXPECT_GT(compared, static_cast<int>(names_.size()) / 2);
+  EXPECT_GT(countValid(*doubled), static_cast<int>(names_.size()) / 2);
 }
 
 }  // namespace

@@ -74,7 +74,8 @@ struct PressRecord {
 /// The acupoint fix against the truth at the moment the session started.
 struct FixRecord {
   std::string acupoint;
-  double error = 0.0;  ///< m, |estimate - truth| in the camera frame
+  double error = 0.0;               ///< m, |estimate - truth|
+  Eigen::Vector3d offset{0, 0, 0};  ///< m, estimate - truth in the camera's optical frame (x right, y down, z depth)
 };
 
 /// Latencies of one stage of the pipeline, seconds.

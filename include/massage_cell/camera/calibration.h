@@ -50,4 +50,36 @@ double baseline(const CameraCalibration& right);
 /// rotation R_l^T R_r and translation R_l^T (B, 0, 0).
 Eigen::Isometry3d rightCameraInLeft(const CameraCalibration& left, const CameraCalibration& right);
 
+/// Processing a camera's images at a lower resolution (as image_proc's
+/// crop_decimate, without the crop): the images are shrunk by area averaging,
+/// the calibration's K and P rows are scaled by the same factors (pixel
+/// centres kept: c' = (c + 0.5) s - 0.5), D and R stay. Pixels map between
+/// the two sizes exactly; 3D results are unchanged in metres.
+class Decimation {
+ public:
+  Decimation() = default;
+  /// The smallest integer factor that brings `full.width` to at most
+  /// `max_width` (max_width <= 0 or a narrower image: factor 1, nothing done).
+  static Decimation toWidth(cv::Size full, int max_width);
+  /// Throws std::invalid_argument when factor < 1 or the size is empty.
+  Decimation(cv::Size full, int factor);
+
+  int factor() const { return factor_; }
+  bool identity() const { return factor_ == 1; }
+  cv::Size fullSize() const { return full_; }
+  cv::Size size() const { return size_; }  ///< the decimated images' size
+  /// The image shrunk to size() (INTER_AREA); the same Mat when identity().
+  /// Throws std::invalid_argument when its size is not fullSize().
+  cv::Mat apply(const cv::Mat& image) const;
+  /// The calibration of the decimated images (a copy when identity()).
+  CameraCalibration apply(const CameraCalibration& calib) const;
+  cv::Point2f toDecimated(const cv::Point2f& full_pixel) const;
+  cv::Point2f toFull(const cv::Point2f& decimated_pixel) const;
+
+ private:
+  cv::Size full_{0, 0}, size_{0, 0};
+  int factor_ = 1;
+  double sx_ = 1.0, sy_ = 1.0;  ///< decimated / full, per axis
+};
+
 }  // namespace massage_cell::camera
