@@ -151,6 +151,7 @@ std::string SessionReport::summary(double tolerance) const {
   for (const PressRecord& p : presses) {
     out << "  press " << p.acupoint << ": " << (p.success ? "done" : "FAILED") << format(" in %.1f s", p.seconds);
     if (p.measured) out << format(", tool at depth %.1f mm from the ground truth", 1e3 * p.error());
+    if (p.targeted) out << format(" (%.1f mm from CECT's acupoint)", 1e3 * p.placement());
     if (!p.success) out << " (" << p.message << ")";
     out << "\n";
   }
@@ -198,11 +199,13 @@ void SessionReport::writeHtml(const std::string& dir, double tolerance,
       << "td,th{border:1px solid #aaa;padding:4px 10px;text-align:left}.bad{color:#b00}img{max-width:48%;margin:4px}"
       << "</style></head><body>\n<h1>Massage session</h1>\n<pre>" << escape(summary(tolerance)) << "</pre>\n";
   out << "<h2>Presses</h2>\n<table><tr><th>acupoint</th><th>result</th><th>s</th><th>tool at depth vs truth (mm)</th>"
-      << "<th>arm's answer</th></tr>\n";
+      << "<th>vs CECT's acupoint (mm)</th><th>arm's answer</th></tr>\n";
   for (const PressRecord& p : presses) {
     out << "<tr" << (p.success ? "" : " class=\"bad\"") << "><td>" << escape(p.acupoint) << "</td><td>"
         << (p.success ? "done" : "failed") << "</td><td>" << format("%.1f", p.seconds) << "</td><td>"
-        << (p.measured ? format("%.1f", 1e3 * p.error()) : "-") << "</td><td>" << escape(p.message) << "</td></tr>\n";
+        << (p.measured ? format("%.1f", 1e3 * p.error()) : "-") << "</td><td>"
+        << (p.targeted ? format("%.1f", 1e3 * p.placement()) : "-") << "</td><td>" << escape(p.message)
+        << "</td></tr>\n";
   }
   out << "</table>\n<h2>Acupoint fix against the ground truth</h2>\n<table><tr><th>acupoint</th><th>mm</th><th>x, y, z "
          "mm (camera: right, down, depth)</th></tr>\n";

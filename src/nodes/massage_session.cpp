@@ -142,6 +142,7 @@ class Session {
       const std::lock_guard<std::mutex> lock(mutex_);
       holding_ = {};
       truth_holding_ = {};
+      target_holding_ = {};
       current_ = name;
       descending_ = false;
     }
@@ -158,6 +159,10 @@ class Session {
       record.measured = true;
       record.tool_at_depth = average(holding_);
       record.truth_at_depth = average(truth_holding_) - config_.depth * Eigen::Vector3d::UnitZ();
+    }
+    if (!holding_.empty() && !target_holding_.empty()) {
+      record.targeted = true;
+      record.target_at_depth = average(target_holding_) - config_.depth * Eigen::Vector3d::UnitZ();
     }
     ROS_INFO("massage_session: %s %s (%.1f s)", name.c_str(), record.success ? "done" : "FAILED", record.seconds);
     report_.presses.push_back(record);
@@ -329,6 +334,11 @@ class Session {
     }
     if (current_.empty() || msg->activity.find(current_ + ": hold") == std::string::npos) return;
     holding_.emplace_back(msg->tool.x, msg->tool.y, msg->tool.z);
+    try {  // where the arm was sent: the acupoint's frame now
+      const auto target = tf_.lookupTransform(base_frame_, config_.frame_prefix + current_, ros::Time(0)).transform;
+      target_holding_.emplace_back(target.translation.x, target.translation.y, target.translation.z);
+    } catch (const tf2::TransformException&) {
+    }
     const auto t = truth_.find(current_);
     if (t == truth_.end()) return;
     geometry_msgs::PointStamped in, out;
@@ -368,7 +378,7 @@ class Session {
   std::map<std::string, Eigen::Vector3d> truth_;
   std_msgs::Header truth_header_;
   std::string current_;
-  std::vector<Eigen::Vector3d> holding_, truth_holding_;
+  std::vector<Eigen::Vector3d> holding_, truth_holding_, target_holding_;
 };
 
 }  // namespace

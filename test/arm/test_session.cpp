@@ -73,6 +73,8 @@ TEST(SessionReport, CountsPressesWithinTheTolerance) {
   a.success = a.measured = true;
   a.tool_at_depth = Eigen::Vector3d(0.1, 0.2, 0.05);
   a.truth_at_depth = Eigen::Vector3d(0.1, 0.203, 0.05);
+  a.targeted = true;
+  a.target_at_depth = Eigen::Vector3d(0.1, 0.2, 0.051);
   arm::PressRecord b = a;
   b.acupoint = "BL23_R";
   b.truth_at_depth.y() = 0.21;
@@ -84,7 +86,7 @@ TEST(SessionReport, CountsPressesWithinTheTolerance) {
   EXPECT_EQ(r.within(0.005), 1);
   const std::string s = r.summary(0.005);
   EXPECT_NE(s.find("press BL23_L: done"), std::string::npos) << s;
-  EXPECT_NE(s.find("3.0 mm from the ground truth"), std::string::npos) << s;
+  EXPECT_NE(s.find("3.0 mm from the ground truth (1.0 mm from CECT's acupoint)"), std::string::npos) << s;
   EXPECT_NE(s.find("press GV14: FAILED"), std::string::npos) << s;
   EXPECT_NE(s.find("fix   BL18_L: 5.0 mm from the ground truth (x +0.0, y +4.0, z -3.0 mm)"), std::string::npos) << s;
   EXPECT_NE(s.find("is stale"), std::string::npos) << s;
