@@ -211,9 +211,10 @@ ArmConfig parseArmConfig(const std::string& yaml_text, const std::string& source
   c.position_tolerance = r.number(root["position_tolerance"], "position_tolerance", c.position_tolerance);
 
   if (const YAML::Node p = root["press"]) {
-    r.checkKeys(p, "press",
-                {"approach_height", "travel_height", "speed", "max_speed", "acceleration", "retract_speed", "hold",
-                 "max_hold", "max_repeats", "max_normal_tilt_deg", "knead_radius", "knead_period", "knead_segments"});
+    r.checkKeys(
+        p, "press",
+        {"approach_height", "travel_height", "speed", "max_speed", "acceleration", "retract_speed", "hold", "max_hold",
+         "max_repeats", "max_targets", "max_normal_tilt_deg", "knead_radius", "knead_period", "knead_segments"});
     PressConfig& pc = c.press;
     pc.approach_height = r.number(p["approach_height"], "press.approach_height", pc.approach_height);
     pc.travel_height = r.number(p["travel_height"], "press.travel_height", pc.travel_height);
@@ -224,6 +225,7 @@ ArmConfig parseArmConfig(const std::string& yaml_text, const std::string& source
     pc.hold = r.number(p["hold"], "press.hold", pc.hold);
     pc.max_hold = r.number(p["max_hold"], "press.max_hold", pc.max_hold);
     pc.max_repeats = r.integer(p["max_repeats"], "press.max_repeats", pc.max_repeats);
+    pc.max_targets = r.integer(p["max_targets"], "press.max_targets", pc.max_targets);
     pc.max_normal_tilt =
         r.number(p["max_normal_tilt_deg"], "press.max_normal_tilt_deg", pc.max_normal_tilt * 180.0 / M_PI) * M_PI /
         180.0;
@@ -305,6 +307,7 @@ void validate(const ArmConfig& c) {
   if (!(p.retract_speed > 0.0)) fail("press.retract_speed", "must be > 0");
   if (!(p.hold >= 0.0) || !(p.max_hold >= p.hold)) fail("press.hold", "must be >= 0 and <= press.max_hold");
   if (p.max_repeats < 1) fail("press.max_repeats", "must be >= 1");
+  if (p.max_targets < 1) fail("press.max_targets", "must be >= 1");
   if (!(p.max_normal_tilt >= 0.0) || p.max_normal_tilt > M_PI / 2) fail("press.max_normal_tilt_deg", "must be in [0, 90]");
   if (!(p.knead_radius >= 0.0) || !(p.knead_period > 0.0) || p.knead_segments < 3) {
     fail("press", "knead_radius >= 0, knead_period > 0 and knead_segments >= 3 required");

@@ -519,6 +519,10 @@ Accepted Controller::moveTo(const Eigen::Vector3d& tool, double speed) {
   if (std::string why = refusal(true); !why.empty()) return refuse("move refused: " + why);
   if (std::string bad = checkTool(config_, tool); !bad.empty()) return refuse("move refused: the target " + bad);
   if (!std::isfinite(speed) || speed < 0.0) return refuse("move refused: speed must be >= 0 m/s (0: the joint limits)");
+  if (const double fastest = maxLineSpeed(config_); speed > fastest) {
+    return refuse("move refused: speed " + fmt("%g", speed) + " m/s is beyond what the joints allow (" +
+                  fmt("%.3f", fastest) + " m/s; 0: as fast as they allow)");
+  }
   Action enable{Action::Kind::kEnableAll};
   Action move{Action::Kind::kStep};
   move.step.tool = tool;

@@ -34,6 +34,12 @@ void tangentBasis(const Eigen::Vector3d& n, Eigen::Vector3d* u, Eigen::Vector3d*
 
 const char* toString(Technique t) { return t == Technique::kKnead ? "knead" : "press"; }
 
+double maxLineSpeed(const ArmConfig& c) {
+  double sum = 0.0;
+  for (const JointLimits& j : c.joints) sum += j.max_velocity * j.max_velocity;
+  return std::sqrt(sum);
+}
+
 std::string formatPoint(const Eigen::Vector3d& p) {
   return "(" + m3(p.x()) + ", " + m3(p.y()) + ", " + m3(p.z()) + ") m";
 }
@@ -86,6 +92,10 @@ std::string planMassage(const ArmConfig& c, const Eigen::Vector3d& from, const P
   steps->clear();
   const PressConfig& pc = c.press;
   if (req.targets.empty()) return "no target given";
+  if (req.targets.size() > static_cast<std::size_t>(pc.max_targets)) {
+    return std::to_string(req.targets.size()) + " targets: at most " + std::to_string(pc.max_targets) +
+           " in one request (press.max_targets)";
+  }
   const double hold = req.hold < 0.0 ? pc.hold : req.hold;
   if (!std::isfinite(hold) || hold > pc.max_hold) {
     return "hold " + m3(hold) + " s is beyond the limit " + m3(pc.max_hold) + " s";

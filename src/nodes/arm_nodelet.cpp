@@ -408,6 +408,11 @@ bool ArmNodelet::massage(massage_cell::Massage::Request& req, massage_cell::Mass
   };
   const std::size_t n = req.frames.size() + req.points.size();
   if (n == 0) return refuse("no target (frames or points) given");
+  if (n > static_cast<std::size_t>(config_.press.max_targets)) {  // before looking up thousands of frames
+    return refuse(std::to_string(n) + " targets: at most " + std::to_string(config_.press.max_targets) +
+                  " in one request (press.max_targets)");
+  }
+  if (!std::isfinite(req.hold)) return refuse("hold must be a finite number of seconds (0: the default; < 0: none)");
   if (!req.regions.empty() && req.regions.size() != n) {
     return refuse("regions has " + std::to_string(req.regions.size()) + " entries for " + std::to_string(n) + " targets");
   }

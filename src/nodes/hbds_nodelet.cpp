@@ -56,6 +56,15 @@ void checkInfo(const sensor_msgs::CameraInfo& info, const sensor_msgs::Image& im
     throw BadInput(which + " camera_info has no valid focal length (K[0], K[4], P[0], P[5] > 0 and P[10] = 1 needed)");
   }
   checkImageSize(info, image, which);
+  auto finite = [&](const auto& values, const char* name) {
+    if (!std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); })) {
+      throw BadInput(which + " camera_info " + name + " holds a non-finite value");
+    }
+  };
+  finite(info.K, "K");
+  finite(info.D, "D");
+  finite(info.R, "R");
+  finite(info.P, "P");
   const cv::Matx33d R(info.R.data());
   if (std::abs(cv::determinant(R) - 1.0) > 1e-3) throw BadInput(which + " camera_info R is not a rotation");
 }
@@ -166,6 +175,11 @@ void HbdsNodelet::onInit() {
 
   // Synchronised inputs, as stereo_image_proc: exact stamps by default.
   pnh.param("rectify", rectify_, rectify_);
+  pnh.param("max_pixels", max_pixels_, max_pixels_);
+  if (max_pixels_ < 0) {
+    NODELET_ERROR_STREAM("parameter ~max_pixels must be >= 0 (0: no limit), got " << max_pixels_ << ": no limit");
+    max_pixels_ = 0;
+  }
   const SyncOptions sync = SyncOptions::fromParameters(pnh);
   if (!sync.problem.empty()) NODELET_ERROR_STREAM(sync.problem);
   input_ = std::make_unique<StereoPairInput>(nh, pnh, sync, [this](const StereoPair& pair) { onPair(pair); });
@@ -333,6 +347,13 @@ void HbdsNodelet::process(const StereoPair& pair, const Config& config, const Ou
   const double eps = 1e-6 * li.P[0];
   if (std::abs(li.P[0] - ri.P[0]) > eps || std::abs(li.P[5] - ri.P[5]) > eps || std::abs(li.P[6] - ri.P[6]) > eps) {
     throw BadInput("left and right P differ in fx, fy or cy: the calibration is not of a rectified stereo pair");
+  }
+  const long processed_pixels =
+      static_cast<long>(li.width / config.downsample) * static_cast<long>(li.height / config.downsample);
+  if (max_pixels_ > 0 && processed_pixels > max_pixels_) {  // before minutes of work and gigabytes of cost volume
+    throw BadInput("images of " + sizeText(li.width, li.height) + " at downsample " +
+                   std::to_string(config.downsample) + " are " + std::to_string(processed_pixels) +
+                   " pixels, above ~max_pixels " + std::to_string(max_pixels_) + ": raise downsample or max_pixels");
   }
   cv::Mat views[2] = {toMat(pair.left_image, "left"), toMat(pair.right_image, "right")};
   if (views[0].channels() != views[1].channels()) {  // mixed mono / colour: match in grey

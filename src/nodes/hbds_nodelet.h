@@ -67,6 +67,7 @@ class HbdsNodelet : public nodelet::Nodelet {
   // Inputs (subscribed only while an output has subscribers) and the worker
   // thread (stopped first in the destructor).
   std::unique_ptr<StereoPairInput> input_;
+  int max_pixels_ = 1200000;  ///< ~max_pixels: larger processed pairs are refused (0: no limit)
   bool rectify_ = true;  ///< ~rectify: false when the images are rectified already whatever camera_info says
 
   // Outputs.

@@ -254,6 +254,12 @@ TEST(Controller, SoftLimitsHoldWhateverTheCommand) {
   EXPECT_GT(refused, 3);
   EXPECT_LE(worst, 0.0);
   EXPECT_FALSE(r.controller->moveTo({0.4, 0.2, 0.25}, -1.0));
+  const Accepted fast = r.controller->moveTo({0.4, 0.2, 0.25}, 1e9);
+  EXPECT_FALSE(fast);
+  EXPECT_TRUE(contains(r.message(fast), "speed 1e+09 m/s is beyond what the joints allow")) << r.message(fast);
+  const Accepted within = r.controller->moveTo({0.4, 0.2, 0.25}, 0.9 * maxLineSpeed(r.controller->config()));
+  ASSERT_TRUE(within) << "a speed within the limits is accepted: " << r.message(within);
+  EXPECT_TRUE(r.finish(within)) << r.message(within);
 }
 
 // --- presses -------------------------------------------------------------------------------------------

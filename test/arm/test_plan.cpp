@@ -165,6 +165,19 @@ TEST(Plan, RequestLimits) {
   for (const Step& s : steps) presses += s.press_done;
   EXPECT_EQ(presses, 3);
   EXPECT_NE(planMassage(c, {0.9, 0.2, 0.2}, r, &steps).find("the tool's current position"), std::string::npos);
+  r.targets.assign(c.press.max_targets + 1, r.targets.front());
+  EXPECT_NE(planMassage(c, kHome, r, &steps).find("51 targets: at most 50 in one request"), std::string::npos);
+  r.targets.resize(c.press.max_targets);
+  r.repeats = 1;
+  EXPECT_EQ(planMassage(c, kHome, r, &steps), "") << "the limit itself is accepted";
+}
+
+TEST(Plan, MaxLineSpeedIsTheJointLimitsNorm) {
+  ArmConfig c = config();
+  c.joints[0].max_velocity = 0.3;
+  c.joints[1].max_velocity = 0.4;
+  c.joints[2].max_velocity = 0.0;
+  EXPECT_NEAR(maxLineSpeed(c), 0.5, 1e-12);
 }
 
 TEST(Plan, KneadCirclesAtDepthInTheTangentPlane) {

@@ -11,6 +11,7 @@
 
 #include <atomic>
 #include <future>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -351,6 +352,21 @@ TEST(ArmNode, RefusalsNameTheProblem) {
   EXPECT_TRUE(contains(r.message, "'acupoint/BL21_L' is stale: its transform is 2.") &&
               contains(r.message, "limit 1.00 s"))
       << r.message;
+  // Request fields out of range: a NaN hold, ten thousand frames, a speed no joint can reach.
+  req = {};
+  req.frames = {"acupoint/BL23_L"};
+  req.hold = std::numeric_limits<double>::quiet_NaN();
+  r = F->massage(req);
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "hold must be a finite number of seconds")) << r.message;
+  req.hold = 0.0;
+  req.frames.assign(10000, "acupoint/BL23_L");
+  r = F->massage(req);
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "10000 targets: at most 50 in one request")) << r.message;
+  m = F->moveTo(kBase, {0.3, 0.3, 0.25}, 1e9);
+  EXPECT_FALSE(m.success);
+  EXPECT_TRUE(contains(m.message, "speed 1e+09 m/s is beyond what the joints allow")) << m.message;
   // Nothing moved.
   EXPECT_LT((F->jointPositions() - before).norm(), 1e-6);
   EXPECT_EQ(F->latest().mode, "idle");

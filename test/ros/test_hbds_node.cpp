@@ -20,6 +20,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <set>
 #include <string>
@@ -300,11 +301,32 @@ TEST_F(HbdsNode, BadInputIsSkipped) {
   }
   expectSkipped("range wider than the image", p, "wider than the image");
 
+  p = good;  // 1600x1200 at downsample 1: above max_pixels (1.2 MP by default)
+  for (auto* image : {&p.left, &p.right}) {
+    image->width = 1600;
+    image->height = 1200;
+    image->step = 1600 * 3;
+    image->data.assign(image->step * image->height, 0x80);
+  }
+  for (auto* info : {&p.left_info, &p.right_info}) {
+    const double k = 1600.0 / info->width;
+    info->width = 1600;
+    info->height = 1200;
+    for (int i : {0, 2, 4, 5}) info->K[i] *= k;
+    for (int i : {0, 2, 3, 5, 6}) info->P[i] *= k;
+  }
+  expectSkipped("too many pixels", p, "above ~max_pixels 1200000");
+
+  p = good;  // a NaN distortion coefficient (it would rectify into garbage)
+  p.left_info.distortion_model = "plumb_bob";
+  p.left_info.D = {std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0, 0.0, 0.0};
+  expectSkipped("NaN in D", p, "left camera_info D holds a non-finite value");
+
   // The node is alive and still processes a good pair.
   const ros::Time stamp = input.publish(good);
   EXPECT_TRUE(spinUntil([&] { return outputFor(stamp); }, 15.0)) << "no disparity for the good pair after the bad ones";
   EXPECT_TRUE(spinUntil([&] { return status.count("pairs processed") == 1; }, 3.0)) << "diagnostics: processed pairs";
-  EXPECT_EQ(status.count("bad pairs"), 5);
+  EXPECT_EQ(status.count("bad pairs"), 7);
   EXPECT_TRUE(ros::service::exists("/bad_input/hbds/set_parameters", false)) << "the node is gone";
 }
 

@@ -54,6 +54,7 @@ struct PressConfig {
   double hold = 2.0;               ///< s, default hold time at depth
   double max_hold = 30.0;          ///< s
   int max_repeats = 10;            ///< presses per target
+  int max_targets = 50;            ///< targets in one request
   double max_normal_tilt = 0.7854; ///< rad between the outward normal and +z (config: degrees)
   double knead_radius = 0.004;     ///< m, circle in the tangent plane while kneading
   double knead_period = 1.0;       ///< s per circle

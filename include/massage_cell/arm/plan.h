@@ -70,6 +70,10 @@ std::string planMassage(const ArmConfig& config, const Eigen::Vector3d& from, co
 /// its retreat point, then up to the travel height.
 std::vector<Step> retractSteps(const ArmConfig& config, const Step& from_step);
 
+/// The fastest a straight line of the tool can go within the joints'
+/// velocity limits (all three at their limits: their norm), m/s.
+double maxLineSpeed(const ArmConfig& config);
+
 /// Formats a point "(x, y, z) m" with mm resolution.
 std::string formatPoint(const Eigen::Vector3d& p);
 
