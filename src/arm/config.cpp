@@ -64,6 +64,15 @@ class Reader {
     }
   }
 
+  bool boolean(const YAML::Node& node, const std::string& path, bool fallback) const {
+    if (!node) return fallback;
+    try {
+      return node.as<bool>();  // true/false, yes/no, on/off; anything else throws
+    } catch (const YAML::Exception&) {
+      fail(path, "expected true or false, got '" + scalarText(node) + "'");
+    }
+  }
+
   std::string text(const YAML::Node& node, const std::string& path, const std::string& fallback,
                    bool required = false) const {
     if (!node) {
@@ -211,10 +220,10 @@ ArmConfig parseArmConfig(const std::string& yaml_text, const std::string& source
   c.position_tolerance = r.number(root["position_tolerance"], "position_tolerance", c.position_tolerance);
 
   if (const YAML::Node p = root["press"]) {
-    r.checkKeys(
-        p, "press",
-        {"approach_height", "travel_height", "speed", "max_speed", "acceleration", "retract_speed", "hold", "max_hold",
-         "max_repeats", "max_targets", "max_normal_tilt_deg", "knead_radius", "knead_period", "knead_segments"});
+    r.checkKeys(p, "press",
+                {"approach_height", "travel_height", "speed", "max_speed", "acceleration", "retract_speed", "hold",
+                 "max_hold", "max_repeats", "max_targets", "estop_release", "max_normal_tilt_deg", "knead_radius",
+                 "knead_period", "knead_segments"});
     PressConfig& pc = c.press;
     pc.approach_height = r.number(p["approach_height"], "press.approach_height", pc.approach_height);
     pc.travel_height = r.number(p["travel_height"], "press.travel_height", pc.travel_height);
@@ -226,6 +235,7 @@ ArmConfig parseArmConfig(const std::string& yaml_text, const std::string& source
     pc.max_hold = r.number(p["max_hold"], "press.max_hold", pc.max_hold);
     pc.max_repeats = r.integer(p["max_repeats"], "press.max_repeats", pc.max_repeats);
     pc.max_targets = r.integer(p["max_targets"], "press.max_targets", pc.max_targets);
+    pc.estop_release = r.boolean(p["estop_release"], "press.estop_release", pc.estop_release);
     pc.max_normal_tilt =
         r.number(p["max_normal_tilt_deg"], "press.max_normal_tilt_deg", pc.max_normal_tilt * 180.0 / M_PI) * M_PI /
         180.0;

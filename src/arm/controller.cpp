@@ -38,6 +38,8 @@ const char* toString(Mode mode) {
     case Mode::kResetting: return "resetting";
     case Mode::kFault: return "fault";
     case Mode::kEstop: return "e-stop";
+    case Mode::kReleasing:
+      return "e-stop (releasing the pressure)";
   }
   return "?";
 }
@@ -293,6 +295,13 @@ void Controller::runQueue(can::TimePoint now) {
           finish(ok, message);
         }
         aborting_ = false;
+        if (mode_ == Mode::kReleasing) {  // backed off: stopped and latched, as any e-stop
+          quickStopAll();
+          mode_ = Mode::kEstop;
+          log("E-STOP: pressure released, tool at " + formatPoint(config_.toolOf(joints())) +
+              "; latched until reset_fault");
+          return;
+        }
         mode_ = allHomed() ? Mode::kIdle : Mode::kReady;
         return;
       }
@@ -325,6 +334,11 @@ bool Controller::startAction(Action& a, can::TimePoint) {
           axes_[i]->quickStop();
           started_axes_ |= 1u << i;
         }
+      }
+      return true;
+    case Action::Kind::kWaitStopped:  // the operations running (an e-stop's quick stops) to end
+      for (int i = 0; i < 3; ++i) {
+        if (axes_[i]->busy()) started_axes_ |= 1u << i;
       }
       return true;
     case Action::Kind::kFaultResetAll:
@@ -369,6 +383,8 @@ bool Controller::tickAction(Action& a, can::TimePoint now) {
   switch (a.kind) {
     case Action::Kind::kEnableAll: return waitOps("enable");
     case Action::Kind::kQuickStopAll: return waitOps("quick stop");
+    case Action::Kind::kWaitStopped:
+      return waitOps("quick stop");
     case Action::Kind::kFaultResetAll: return waitOps("fault reset");
     case Action::Kind::kHome: return waitOps("homing");
     case Action::Kind::kStep: break;
@@ -455,6 +471,8 @@ std::string Controller::refusal(bool needs_homed) const {
   switch (mode_) {
     case Mode::kStarting: return "the drives are not up yet (bringing up the CAN nodes)";
     case Mode::kEstop: return "the e-stop is latched: release it and call reset_fault";
+    case Mode::kReleasing:
+      return "the e-stop is latched (the tool is backing off the body): release it and call reset_fault";
     case Mode::kFault: {
       std::string f;
       for (const auto& s : faults_) f += (f.empty() ? "" : "; ") + s;
@@ -591,6 +609,7 @@ Accepted Controller::stop(const std::string& why) {
 Accepted Controller::resetFault() {
   Lock lock(master_->mutex());
   if (estop_input_) return refuse("reset refused: the e-stop is still pressed: release it first");
+  if (mode_ == Mode::kReleasing) return refuse("reset refused: the tool is still backing off the body; retry after");
   if (mode_ != Mode::kFault && mode_ != Mode::kEstop) {
     const Accepted a{next_id_++, ""};
     setResult(a.id, true, std::string("nothing to reset (") + toString(mode_) + ")");
@@ -627,6 +646,12 @@ void Controller::setEstop(bool pressed) {
   }
   if (estop_latched_) return;
   estop_latched_ = true;
+  // A press in contact: the step to back off from, before the queue is cleared.
+  std::optional<Step> release_from;
+  if (config_.press.estop_release && mode_ == Mode::kMassaging && current_ && current_->kind == Action::Kind::kStep &&
+      current_->step.contact) {
+    release_from = current_->step;
+  }
   // The quick-stop controlword leaves at once (RPDO1 with the last target);
   // the axes keep sending it with every SYNC.
   for (int i = 0; i < 3; ++i) {
@@ -641,13 +666,28 @@ void Controller::setEstop(bool pressed) {
     }
     axes_[i]->quickStop();
   }
-  finish(false, "e-stop pressed");
+  finish(false, release_from ? "e-stop pressed: the tool backs off to the approach point" : "e-stop pressed");
   queue_.clear();
   current_.reset();
   aborting_ = false;
   last_error_ = "e-stop pressed";
   mode_ = Mode::kEstop;
   log("E-STOP: quick stop sent to every drive; latched until reset_fault");
+  if (release_from) startRelease(*release_from);
+}
+
+void Controller::startRelease(const Step& from) {
+  // Once the quick stops have completed: the drives enabled again, one slow
+  // straight move back to the press's approach point (its retreat), then
+  // stopped and latched (runQueue). A fault on the way stops everything.
+  Step back = retractSteps(config_, from).front();
+  back.label = "e-stop: releasing the pressure";
+  queue_ = {Action{Action::Kind::kWaitStopped}, Action{Action::Kind::kEnableAll}};
+  Action a{Action::Kind::kStep};
+  a.step = back;
+  queue_.push_back(a);
+  mode_ = Mode::kReleasing;
+  log("E-STOP during a press: backing off to " + formatPoint(back.tool) + " at " + fmt("%.3f", back.speed) + " m/s");
 }
 
 void Controller::keepAlive() {

@@ -498,8 +498,9 @@ void ArmNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
     std::string f;
     for (const auto& x : s.faults) f += (f.empty() ? "" : "; ") + x;
     status.summary(DiagnosticStatus::ERROR, "fault: " + f);
-  } else if (s.mode == arm::Mode::kEstop) {
-    status.summary(DiagnosticStatus::ERROR, "e-stop latched");
+  } else if (s.mode == arm::Mode::kEstop || s.mode == arm::Mode::kReleasing) {
+    status.summary(DiagnosticStatus::ERROR,
+                   s.mode == arm::Mode::kEstop ? "e-stop latched" : "e-stop latched, releasing the pressure");
   } else if (!s.homed || s.mode == arm::Mode::kStarting) {
     status.summary(DiagnosticStatus::WARN, std::string(arm::toString(s.mode)) + ": not homed");
   } else {

@@ -92,6 +92,10 @@ TEST(ArmConfig, MistakesAreNamed) {
             std::string::npos);
   EXPECT_NE(errorOf(edited("travel_height: 0.28", "travel_height: 0.5")).find("press.travel_height"),
             std::string::npos);
+  EXPECT_NE(errorOf(edited("estop_release: true", "estop_release: maybe"))
+                .find("press.estop_release: expected true or false, got 'maybe'"),
+            std::string::npos);
+  EXPECT_NE(errorOf(edited("max_targets: 50", "max_targets: 0")).find("press.max_targets"), std::string::npos);
   EXPECT_NE(errorOf("joints: [").find("not valid YAML"), std::string::npos);
   EXPECT_THROW(loadArmConfig("/nonexistent/arm.yaml"), ArmConfigError);
 }

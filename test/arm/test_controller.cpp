@@ -450,6 +450,87 @@ TEST(Controller, EstopQuickStopsAtOnceAndLatches) {
   EXPECT_TRUE(r.finish(r.controller->moveTo({0.6, 0.4, 0.2})));
 }
 
+/// Presses BL23_L 6 mm deep and holds: the tool in contact when it returns.
+Accepted pressAndHold(Rig& r, PressRequest* req) {
+  req->targets = {target("BL23_L", "lower_back", {0.55, 0.18, 0.18})};
+  req->depth = 0.006;
+  req->hold = 10.0;
+  const Accepted m = r.controller->massage(*req);
+  EXPECT_TRUE(m) << m.error;
+  EXPECT_TRUE(r.runUntil([&] { return contains(r.controller->status().activity, "hold"); }, 60s)) << r.log;
+  r.run(300ms);
+  return m;
+}
+
+TEST(Controller, EstopDuringAPressReleasesThePressure) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  PressRequest req;
+  const Accepted m = pressAndHold(r, &req);
+  ASSERT_NEAR(r.tool().z(), 0.18 - 0.006, 1e-6) << "at depth";
+  double highest_speed = 0.0;
+  Eigen::Vector3d last = r.tool();
+  r.observer = [&] {
+    const Eigen::Vector3d now = r.tool();
+    highest_speed = std::max(highest_speed, (now - last).norm() / 0.001);
+    last = now;
+  };
+  r.controller->setEstop(true);
+  EXPECT_TRUE(r.controller->result(m.id).done);
+  EXPECT_FALSE(r.controller->result(m.id).success);
+  EXPECT_TRUE(contains(r.controller->result(m.id).message, "e-stop pressed: the tool backs off"))
+      << r.controller->result(m.id).message;
+  EXPECT_EQ(r.controller->mode(), Mode::kReleasing);
+  EXPECT_TRUE(contains(r.controller->moveTo({0.3, 0.3, 0.25}).error, "e-stop is latched")) << "refused meanwhile";
+  ASSERT_TRUE(r.runUntil([&] { return r.controller->mode() == Mode::kEstop; }, 10s)) << r.log;
+  // Backed off along the (vertical) press line to the approach point, at most at the retract speed.
+  EXPECT_NEAR(r.tool().z(), 0.18 + r.config.press.approach_height, 1e-6);
+  EXPECT_NEAR(r.tool().x(), 0.55, 1e-6);
+  EXPECT_NEAR(r.tool().y(), 0.18, 1e-6);
+  EXPECT_LE(highest_speed, r.config.press.retract_speed * 1.05);
+  r.run(300ms);
+  EXPECT_TRUE(r.allStill());
+  EXPECT_TRUE(contains(r.log, "pressure released"));
+  // Latched as any e-stop: refused until released and reset.
+  EXPECT_TRUE(contains(r.controller->home().error, "e-stop is latched"));
+  r.controller->setEstop(false);
+  ASSERT_TRUE(r.finish(r.controller->resetFault())) << r.log;
+  EXPECT_EQ(r.controller->mode(), Mode::kIdle);
+}
+
+TEST(Controller, EstopDuringAPressHoldsWhenConfigured) {
+  ArmConfig c = exampleConfig();
+  c.press.estop_release = false;
+  Rig r(c);
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  PressRequest req;
+  const Accepted m = pressAndHold(r, &req);
+  r.controller->setEstop(true);
+  EXPECT_EQ(r.controller->mode(), Mode::kEstop);
+  EXPECT_EQ(r.controller->result(m.id).message, "e-stop pressed");
+  r.run(2s);
+  EXPECT_NEAR(r.tool().z(), 0.18 - 0.006, 1e-5) << "stays where it stopped";
+}
+
+TEST(Controller, DriveFaultWhileReleasingStopsEverything) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  PressRequest req;
+  pressAndHold(r, &req);
+  r.controller->setEstop(true);
+  ASSERT_TRUE(r.runUntil([&] { return r.tool().z() > 0.18 - 0.003; }, 5s)) << "backing off\n" << r.log;
+  r.drives[2]->injectFault(0x2310);
+  ASSERT_TRUE(r.runUntil([&] { return r.controller->mode() == Mode::kFault; }, 1s)) << r.log;
+  r.run(500ms);
+  EXPECT_TRUE(r.allStill());
+  EXPECT_LT(r.tool().z(), 0.18 + r.config.press.approach_height - 0.005) << "stopped short of the approach point";
+  EXPECT_TRUE(contains(r.controller->status().faults.front(), "EMCY 0x2310")) << r.controller->status().faults.front();
+  EXPECT_TRUE(r.controller->status().estop_latched);
+}
+
 TEST(Controller, EstopTimingIsIndependentOfTheCyclePhase) {
   // Whatever the phase within the SYNC period, the frame leaves in the same
   // poll and the drive is stopping by the next SYNC.

@@ -292,6 +292,36 @@ TEST(ArmNode, MassageOverTwoAcupointFrames) {
   EXPECT_NEAR(F->latest().tool.z, F->config.press.travel_height, 1e-4);
 }
 
+TEST(ArmNode, EstopDuringAPressBacksOffTheBody) {
+  F->addFrame("acupoint/BL23_L", {0.5, 0.18, 0.18});
+  ASSERT_TRUE(F->buffer.canTransform(kBase, "acupoint/BL23_L", ros::Time(0), ros::Duration(5.0)));
+  auto press = std::async(std::launch::async, [] {
+    massage_cell::Massage::Request req;
+    req.frames = {"acupoint/BL23_L"};
+    req.hold = 5.0;
+    req.speed = 0.03;
+    return F->massage(req);
+  });
+  ASSERT_TRUE(F->waitFor([] { return contains(F->latest().activity, "hold"); }, 30.0)) << F->latest().activity;
+  std_msgs::Bool on;
+  on.data = true;
+  F->estop_pub.publish(on);
+  const auto r = press.get();
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "e-stop pressed: the tool backs off to the approach point")) << r.message;
+  // Released along the press line to the approach point (3 cm above the skin), then latched.
+  ASSERT_TRUE(F->waitFor([] { return F->latest().mode == "e-stop"; }, 10.0)) << F->latest().mode;
+  EXPECT_NEAR(F->latest().tool.z, 0.18 + F->config.press.approach_height, 1e-3);
+  EXPECT_TRUE(F->latest().estop_latched);
+  std_msgs::Bool off;
+  off.data = false;
+  F->estop_pub.publish(off);
+  ASSERT_TRUE(F->waitFor([] { return !F->latest().estop_active; }, 2.0));
+  const auto reset = F->trigger("/arm/reset_fault");
+  ASSERT_TRUE(reset.success) << reset.message;
+  ASSERT_TRUE(F->waitFor([] { return F->latest().mode == "idle"; }, 5.0)) << F->latest().mode;
+}
+
 TEST(ArmNode, RefusalsNameTheProblem) {
   // The previous test's last retraction may still be settling (tens of
   // micrometres): start from an arm that stands still.

@@ -55,6 +55,9 @@ struct PressConfig {
   double max_hold = 30.0;          ///< s
   int max_repeats = 10;            ///< presses per target
   int max_targets = 50;            ///< targets in one request
+  /// After an e-stop with the tool in contact: back off along the press line to
+  /// the approach point at retract_speed, then stay stopped (false: stop in place).
+  bool estop_release = true;
   double max_normal_tilt = 0.7854; ///< rad between the outward normal and +z (config: degrees)
   double knead_radius = 0.004;     ///< m, circle in the tangent plane while kneading
   double knead_period = 1.0;       ///< s per circle

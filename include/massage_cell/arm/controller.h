@@ -59,16 +59,17 @@
 namespace massage_cell::arm {
 
 enum class Mode {
-  kStarting,   ///< bringing the CANopen nodes up
-  kReady,      ///< nodes up, not homed (drives not enabled)
+  kStarting,  ///< bringing the CANopen nodes up
+  kReady,     ///< nodes up, not homed (drives not enabled)
   kHoming,
-  kIdle,       ///< homed, standing, enabled
+  kIdle,  ///< homed, standing, enabled
   kMoving,
   kMassaging,
   kStopping,   ///< quick stop, then re-enable
   kResetting,  ///< fault reset, then enable
   kFault,      ///< stopped; refuses commands until resetFault()
   kEstop,      ///< e-stop latched; refuses commands until resetFault()
+  kReleasing,  ///< e-stop latched during a press: the tool backs off to the approach point, then kEstop
 };
 const char* toString(Mode mode);
 
@@ -192,7 +193,7 @@ class Controller {
 
  private:
   struct Action {
-    enum class Kind { kEnableAll, kQuickStopAll, kFaultResetAll, kHome, kStep };
+    enum class Kind { kEnableAll, kQuickStopAll, kWaitStopped, kFaultResetAll, kHome, kStep };
     explicit Action(Kind k = Kind::kStep, unsigned m = 0b111) : kind(k), mask(m) {}
     Kind kind = Kind::kStep;
     unsigned mask = 0b111;  ///< axes (kHome)
@@ -218,6 +219,7 @@ class Controller {
   void quickStopAll();
   void stopAndReenable(const std::string& why);
   void retract(const std::string& why);
+  void startRelease(const Step& from);  ///< e-stop in contact: back off (config press.estop_release)
   Eigen::Vector3d joints() const;
   bool allHomed() const;
   void log(const std::string& text);
