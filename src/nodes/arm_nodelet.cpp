@@ -13,6 +13,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "massage_cell/ArmState.h"
+#include "typed_param.h"
 
 namespace massage_cell::nodes {
 
@@ -39,7 +40,7 @@ ArmNodelet::~ArmNodelet() {
 void ArmNodelet::readParameters() {
   ros::NodeHandle& pnh = getPrivateNodeHandle();
   config_path_ = ros::package::getPath("massage_cell") + "/config/arm.yaml";
-  pnh.param<std::string>("config", config_path_, config_path_);
+  readParam(pnh, "config", &config_path_);
   // Defaults from the file's node: section, then the private parameters.
   try {
     const YAML::Node node = YAML::LoadFile(config_path_)["node"];
@@ -57,15 +58,15 @@ void ArmNodelet::readParameters() {
   } catch (const YAML::Exception& e) {
     throw arm::ArmConfigError(config_path_ + ": node: " + e.what());
   }
-  pnh.param("can_interface", can_interface_, can_interface_);
-  pnh.param("base_frame", base_frame_, base_frame_);
-  pnh.param("publish_rate", publish_rate_, publish_rate_);
-  pnh.param("max_target_age", max_target_age_, max_target_age_);
-  pnh.param("tf_timeout", tf_timeout_, tf_timeout_);
-  pnh.param("acupoint_prefix", acupoint_prefix_, acupoint_prefix_);
-  pnh.param("command_timeout", command_timeout_, command_timeout_);
-  pnh.param("realtime_priority", realtime_options_.priority, realtime_options_.priority);
-  pnh.param("lock_memory", realtime_options_.lock_memory, realtime_options_.lock_memory);
+  readParam(pnh, "can_interface", &can_interface_);
+  readParam(pnh, "base_frame", &base_frame_);
+  readParam(pnh, "publish_rate", &publish_rate_);
+  readParam(pnh, "max_target_age", &max_target_age_);
+  readParam(pnh, "tf_timeout", &tf_timeout_);
+  readParam(pnh, "acupoint_prefix", &acupoint_prefix_);
+  readParam(pnh, "command_timeout", &command_timeout_);
+  readParam(pnh, "realtime_priority", &realtime_options_.priority);
+  readParam(pnh, "lock_memory", &realtime_options_.lock_memory);
   if (!(publish_rate_ > 0.0)) throw arm::ArmConfigError("publish_rate must be > 0, got " + fmt("%g", publish_rate_));
   if (!(max_target_age_ > 0.0)) throw arm::ArmConfigError("max_target_age must be > 0, got " + fmt("%g", max_target_age_));
   if (!(tf_timeout_ >= 0.0)) throw arm::ArmConfigError("tf_timeout must be >= 0");

@@ -12,6 +12,7 @@
 #include <tf2_eigen/tf2_eigen.h>
 
 #include "calibration_msg.h"
+#include "typed_param.h"
 
 namespace massage_cell::nodes {
 
@@ -20,44 +21,6 @@ using camera::ConfigError;
 namespace {
 
 // ------------------------------------------------------------ parameters --
-
-std::string typeName(const XmlRpc::XmlRpcValue& v) {
-  switch (v.getType()) {
-    case XmlRpc::XmlRpcValue::TypeBoolean: return "a boolean";
-    case XmlRpc::XmlRpcValue::TypeInt: return "an integer";
-    case XmlRpc::XmlRpcValue::TypeDouble: return "a number";
-    case XmlRpc::XmlRpcValue::TypeString: return "a string";
-    case XmlRpc::XmlRpcValue::TypeArray: return "a list";
-    case XmlRpc::XmlRpcValue::TypeStruct: return "a dictionary";
-    default: return "an unknown type";
-  }
-}
-
-/// A private parameter of the expected type, or `fallback` when unset.
-/// Throws ConfigError when the parameter is set with another type (a plain
-/// getParam() would silently ignore it).
-template <typename T>
-T param(const ros::NodeHandle& pnh, const std::string& name, const T& fallback) {
-  XmlRpc::XmlRpcValue value;
-  if (!pnh.getParam(name, value)) return fallback;
-  const auto type = value.getType();
-  const std::string where = "parameter ~" + name + " ";
-  if constexpr (std::is_same_v<T, bool>) {
-    if (type == XmlRpc::XmlRpcValue::TypeBoolean) return static_cast<bool>(value);
-    throw ConfigError(where + "must be true or false, got " + typeName(value));
-  } else if constexpr (std::is_same_v<T, int>) {
-    if (type == XmlRpc::XmlRpcValue::TypeInt) return static_cast<int>(value);
-    throw ConfigError(where + "must be an integer, got " + typeName(value));
-  } else if constexpr (std::is_same_v<T, double>) {
-    if (type == XmlRpc::XmlRpcValue::TypeDouble) return static_cast<double>(value);
-    if (type == XmlRpc::XmlRpcValue::TypeInt) return static_cast<int>(value);
-    throw ConfigError(where + "must be a number, got " + typeName(value));
-  } else {
-    if (type == XmlRpc::XmlRpcValue::TypeString) return static_cast<std::string>(value);
-    if (type == XmlRpc::XmlRpcValue::TypeInt) return std::to_string(static_cast<int>(value));  // device: 0
-    throw ConfigError(where + "must be a string, got " + typeName(value));
-  }
-}
 
 void replaceAll(std::string& text, const std::string& from, const std::string& to) {
   for (std::size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size())) {
@@ -114,22 +77,23 @@ CameraDriver::~CameraDriver() {
 
 void CameraDriver::readParameters() {
   const bool stereo = view_count_ == 2;
-  config_.type = camera::parseSourceType(param<std::string>(pnh_, "source", "v4l2"));
-  config_.layout = stereo ? camera::parseLayout(param<std::string>(pnh_, "layout", "pair")) : camera::Layout::kMono;
+  config_.type = camera::parseSourceType(typedParam<std::string>(pnh_, "source", "v4l2"));
+  config_.layout =
+      stereo ? camera::parseLayout(typedParam<std::string>(pnh_, "layout", "pair")) : camera::Layout::kMono;
   if (config_.layout == camera::Layout::kMono && stereo) {
     throw ConfigError("parameter ~layout: the stereo driver needs 'pair' or 'side_by_side'");
   }
   const bool pair = config_.layout == camera::Layout::kPair;
   switch (config_.type) {
     case camera::SourceType::kV4l2:
-      config_.locations = pair ? std::vector<std::string>{param<std::string>(pnh_, "left/device", "/dev/video0"),
-                                                          param<std::string>(pnh_, "right/device", "/dev/video1")}
-                               : std::vector<std::string>{param<std::string>(pnh_, "device", "/dev/video0")};
+      config_.locations = pair ? std::vector<std::string>{typedParam<std::string>(pnh_, "left/device", "/dev/video0"),
+                                                          typedParam<std::string>(pnh_, "right/device", "/dev/video1")}
+                               : std::vector<std::string>{typedParam<std::string>(pnh_, "device", "/dev/video0")};
       break;
     case camera::SourceType::kVideo:
-      config_.locations = pair ? std::vector<std::string>{param<std::string>(pnh_, "left/file", ""),
-                                                          param<std::string>(pnh_, "right/file", "")}
-                               : std::vector<std::string>{param<std::string>(pnh_, "file", "")};
+      config_.locations = pair ? std::vector<std::string>{typedParam<std::string>(pnh_, "left/file", ""),
+                                                          typedParam<std::string>(pnh_, "right/file", "")}
+                               : std::vector<std::string>{typedParam<std::string>(pnh_, "file", "")};
       for (std::size_t i = 0; i < config_.locations.size(); ++i) {
         if (config_.locations[i].empty()) {
           throw ConfigError(std::string("video source: parameter ~") +
@@ -138,34 +102,35 @@ void CameraDriver::readParameters() {
       }
       break;
     case camera::SourceType::kFolder:
-      config_.folder = param<std::string>(pnh_, "folder", "");
+      config_.folder = typedParam<std::string>(pnh_, "folder", "");
       if (config_.folder.empty()) throw ConfigError("folder source: parameter ~folder is not set");
-      config_.patterns = pair ? std::vector<std::string>{param<std::string>(pnh_, "left/pattern", "left*"),
-                                                         param<std::string>(pnh_, "right/pattern", "right*")}
-                              : std::vector<std::string>{param<std::string>(pnh_, "pattern", "*")};
+      config_.patterns = pair ? std::vector<std::string>{typedParam<std::string>(pnh_, "left/pattern", "left*"),
+                                                         typedParam<std::string>(pnh_, "right/pattern", "right*")}
+                              : std::vector<std::string>{typedParam<std::string>(pnh_, "pattern", "*")};
       break;
   }
-  config_.width = param<int>(pnh_, "width", 0);
-  config_.height = param<int>(pnh_, "height", 0);
-  config_.fps = param<double>(pnh_, "fps", 0.0);
-  config_.pixel_format = param<std::string>(pnh_, "pixel_format", "");
-  config_.buffer_size = param<int>(pnh_, "buffer_queue_size", 1);
-  config_.rate = param<double>(pnh_, "rate", 0.0);
-  config_.loop = param<bool>(pnh_, "loop", false);
+  config_.width = typedParam<int>(pnh_, "width", 0);
+  config_.height = typedParam<int>(pnh_, "height", 0);
+  config_.fps = typedParam<double>(pnh_, "fps", 0.0);
+  config_.pixel_format = typedParam<std::string>(pnh_, "pixel_format", "");
+  config_.buffer_size = typedParam<int>(pnh_, "buffer_queue_size", 1);
+  config_.rate = typedParam<double>(pnh_, "rate", 0.0);
+  config_.loop = typedParam<bool>(pnh_, "loop", false);
   camera::validate(config_);
 
-  const std::string camera_name = param<std::string>(pnh_, "camera_name", stereo ? "stereo" : "camera");
+  const std::string camera_name = typedParam<std::string>(pnh_, "camera_name", stereo ? "stereo" : "camera");
   static const std::regex valid_name("[A-Za-z0-9_]+");
   if (!std::regex_match(camera_name, valid_name)) {
     throw ConfigError("parameter ~camera_name '" + camera_name + "' may hold only letters, digits and '_'");
   }
-  frame_id_ = param<std::string>(pnh_, "frame_id", camera_name + (stereo ? "_left_optical_frame" : "_optical_frame"));
-  right_frame_id_ = param<std::string>(pnh_, "right_frame_id", camera_name + "_right_optical_frame");
+  frame_id_ =
+      typedParam<std::string>(pnh_, "frame_id", camera_name + (stereo ? "_left_optical_frame" : "_optical_frame"));
+  right_frame_id_ = typedParam<std::string>(pnh_, "right_frame_id", camera_name + "_right_optical_frame");
   if (frame_id_.empty()) throw ConfigError("parameter ~frame_id is empty");
-  publish_tf_ = param<bool>(pnh_, "publish_tf", true);
-  rectified_ = param<bool>(pnh_, "rectified", false);
-  capture_delay_ = param<double>(pnh_, "capture_delay", 0.0);
-  start_delay_ = param<double>(pnh_, "start_delay", 0.0);
+  publish_tf_ = typedParam<bool>(pnh_, "publish_tf", true);
+  rectified_ = typedParam<bool>(pnh_, "rectified", false);
+  capture_delay_ = typedParam<double>(pnh_, "capture_delay", 0.0);
+  start_delay_ = typedParam<double>(pnh_, "start_delay", 0.0);
   if (!std::isfinite(start_delay_) || start_delay_ < 0.0 || start_delay_ > 3600.0) {
     throw ConfigError("parameter ~start_delay must be in [0, 3600] seconds");
   }
@@ -179,12 +144,13 @@ void CameraDriver::readParameters() {
     View v;
     v.label = label;
     const std::string prefix = label.empty() ? "" : label + "/";
-    v.camera_name = param<std::string>(pnh_, prefix + "camera_name", label.empty() ? camera_name : camera_name + "_" + label);
+    v.camera_name =
+        typedParam<std::string>(pnh_, prefix + "camera_name", label.empty() ? camera_name : camera_name + "_" + label);
     if (!std::regex_match(v.camera_name, valid_name)) {
       throw ConfigError("parameter ~" + prefix + "camera_name '" + v.camera_name +
                         "' may hold only letters, digits and '_'");
     }
-    v.info_url = param<std::string>(pnh_, prefix + "camera_info_url", "");
+    v.info_url = typedParam<std::string>(pnh_, prefix + "camera_info_url", "");
     v.nh = label.empty() ? nh_ : ros::NodeHandle(nh_, label);
     views_.push_back(std::move(v));
   }

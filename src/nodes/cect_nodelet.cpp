@@ -20,6 +20,7 @@
 #include "massage_cell/AcupointArray.h"
 #include "massage_cell/cect/locate.h"
 #include "start_parameters.h"
+#include "typed_param.h"
 
 namespace massage_cell::nodes {
 
@@ -145,13 +146,22 @@ CectNodelet::~CectNodelet() {
 }
 
 void CectNodelet::onInit() {
+  try {
+    init();
+  } catch (const ParamError& e) {
+    NODELET_FATAL_STREAM(e.what());
+    throw;
+  }
+}
+
+void CectNodelet::init() {
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& pnh = getPrivateNodeHandle();
 
   // The acupoint model: a configuration error ends the node (logged FATAL, rethrown).
   loadModel();
-  pnh.param<std::string>("frame_prefix", frame_prefix_, frame_prefix_);
-  pnh.param("max_width", max_width_, max_width_);
+  readParam(pnh, "frame_prefix", &frame_prefix_);
+  readParam(pnh, "max_width", &max_width_);
   if (max_width_ < 0) {
     NODELET_ERROR_STREAM("parameter ~max_width must be >= 0 (0: full resolution), got " << max_width_
                                                                                         << ": using full resolution");
@@ -205,7 +215,7 @@ void CectNodelet::onInit() {
 
 void CectNodelet::loadModel() {
   ros::NodeHandle& pnh = getPrivateNodeHandle();
-  pnh.param<std::string>("acupoints_file", model_path_, "");
+  model_path_ = typedParam<std::string>(pnh, "acupoints_file", "");
   if (model_path_.empty()) {
     const std::string root = ros::package::getPath("massage_cell");
     if (root.empty()) {

@@ -95,7 +95,8 @@ class CectNodelet : public nodelet::Nodelet {
     std::string reason;     ///< why not measured / not accepted
   };
 
-  void onInit() override;
+  void onInit() override;  ///< init(); a parameter of the wrong type: FATAL, the node exits 1
+  void init();
   void loadModel();
   void configCb(Config& config, uint32_t level);
   void onPair(const StereoPair& pair);  // the input's worker thread

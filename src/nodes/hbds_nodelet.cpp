@@ -18,6 +18,7 @@
 
 #include "massage_cell/stereo/pipeline.h"
 #include "start_parameters.h"
+#include "typed_param.h"
 
 namespace massage_cell::nodes {
 
@@ -169,13 +170,22 @@ HbdsNodelet::~HbdsNodelet() {
 }
 
 void HbdsNodelet::onInit() {
+  try {
+    init();
+  } catch (const ParamError& e) {
+    NODELET_FATAL_STREAM(e.what());
+    throw;
+  }
+}
+
+void HbdsNodelet::init() {
   stereo::retainFreedMemory();  // every pair allocates and frees its cost volume and graphs
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& pnh = getPrivateNodeHandle();
 
   // Synchronised inputs, as stereo_image_proc: exact stamps by default.
-  pnh.param("rectify", rectify_, rectify_);
-  pnh.param("max_pixels", max_pixels_, max_pixels_);
+  readParam(pnh, "rectify", &rectify_);
+  readParam(pnh, "max_pixels", &max_pixels_);
   if (max_pixels_ < 0) {
     NODELET_ERROR_STREAM("parameter ~max_pixels must be >= 0 (0: no limit), got " << max_pixels_ << ": no limit");
     max_pixels_ = 0;

@@ -54,7 +54,8 @@ class HbdsNodelet : public nodelet::Nodelet {
     cv::Mat map1[2], map2[2];
   };
 
-  void onInit() override;
+  void onInit() override;  ///< init(); a parameter of the wrong type: FATAL, the node exits 1
+  void init();
   void connectCb();
   void configCb(Config& config, uint32_t level);
   Outputs wantedOutputs();

@@ -36,6 +36,7 @@
 #include <deque>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <mutex>
 
 #include <opencv2/imgcodecs.hpp>
@@ -44,8 +45,11 @@
 #include "massage_cell/ArmState.h"
 #include "massage_cell/Massage.h"
 #include "massage_cell/arm/session.h"
+#include "typed_param.h"
 
 namespace {
+
+using massage_cell::nodes::readParam;
 
 namespace arm = massage_cell::arm;
 
@@ -53,12 +57,12 @@ class Session {
  public:
   Session(ros::NodeHandle& nh, ros::NodeHandle& pnh, const arm::SessionConfig& config)
       : config_(config), fix_(config.fix_window, config.fix_samples, config.fix_tolerance), listener_(tf_) {
-    pnh.param("arm", arm_ns_, arm_ns_);
-    pnh.param("base_frame", base_frame_, base_frame_);
-    pnh.param("tolerance", tolerance_, tolerance_);
-    pnh.param("max_error", max_error_, max_error_);
-    pnh.param("service_timeout", service_timeout_, service_timeout_);
-    pnh.param("report", report_dir_, report_dir_);
+    readParam(pnh, "arm", &arm_ns_);
+    readParam(pnh, "base_frame", &base_frame_);
+    readParam(pnh, "tolerance", &tolerance_);
+    readParam(pnh, "max_error", &max_error_);
+    readParam(pnh, "service_timeout", &service_timeout_);
+    readParam(pnh, "report", &report_dir_);
     report_.latencies = {{"camera stamp -> acupoints (cect)", {}},
                          {"camera stamp -> acupoint tf", {}},
                          {"camera stamp -> disparity (hbds)", {}},
@@ -387,19 +391,25 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "massage_session");
   ros::NodeHandle nh, pnh("~");
   std::string path;
-  pnh.param("session", path, path);
   arm::SessionConfig config;
   try {
+    readParam(pnh, "session", &path);
     if (path.empty()) throw std::runtime_error("~session (the routine's YAML file) is not set");
     config = arm::SessionConfig::load(path);
   } catch (const std::exception& e) {
     ROS_FATAL("massage_session: %s", e.what());
     return 2;
   }
+  std::unique_ptr<Session> session;
+  try {
+    session = std::make_unique<Session>(nh, pnh, config);
+  } catch (const massage_cell::nodes::ParamError& e) {
+    ROS_FATAL("massage_session: %s", e.what());
+    return 2;
+  }
   ros::AsyncSpinner spinner(3);
   spinner.start();
-  Session session(nh, pnh, config);
-  const int status = session.run();
+  const int status = session->run();
   spinner.stop();
   return status;
 }

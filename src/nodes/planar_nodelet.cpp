@@ -11,6 +11,7 @@
 #include "massage_cell/planar/camera_views.h"
 #include "massage_cell/planar/model.h"
 #include "start_parameters.h"
+#include "typed_param.h"
 
 namespace massage_cell::nodes {
 
@@ -117,10 +118,19 @@ PlanarNodelet::~PlanarNodelet() {
 }
 
 void PlanarNodelet::onInit() {
+  try {
+    init();
+  } catch (const ParamError& e) {
+    NODELET_FATAL_STREAM(e.what());
+    throw;
+  }
+}
+
+void PlanarNodelet::init() {
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& pnh = getPrivateNodeHandle();
-  pnh.param<std::string>("views_frame", views_frame_, "planar_views");
-  pnh.param<std::string>("output_prefix", output_prefix_, "");
+  views_frame_ = typedParam<std::string>(pnh, "views_frame", "planar_views");
+  output_prefix_ = typedParam<std::string>(pnh, "output_prefix", "");
   config_ = Config::__getDefault__();
   for (const std::string& problem : startParameterProblems<Config>(pnh)) NODELET_ERROR_STREAM(problem);
   reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<Config>>(config_mutex_, pnh);

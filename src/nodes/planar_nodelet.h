@@ -36,7 +36,8 @@ class PlanarNodelet : public nodelet::Nodelet {
  private:
   using Config = massage_cell::PlanarConfig;
 
-  void onInit() override;
+  void onInit() override;  ///< init(); a parameter of the wrong type: FATAL, the node exits 1
+  void init();
   void configCb(Config& config, uint32_t level);
   void onPair(const StereoPair& pair);  // the input's worker thread
   bool reconstructCb(massage_cell::Reconstruct::Request& req, massage_cell::Reconstruct::Response& res);

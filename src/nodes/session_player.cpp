@@ -29,8 +29,11 @@
 #include <vector>
 
 #include "massage_cell/AcupointArray.h"
+#include "typed_param.h"
 
 namespace {
+
+using massage_cell::nodes::readParam;
 
 struct Frame {
   sensor_msgs::Image left, right;
@@ -116,12 +119,17 @@ int main(int argc, char** argv) {
   std::string bag_path, truth_path, prefix = "/stereo";
   double rate = 1.0, delay = 1.0;
   bool loop = true;
-  pnh.param("bag", bag_path, bag_path);
-  pnh.param("ground_truth", truth_path, truth_path);
-  pnh.param("rate", rate, rate);
-  pnh.param("loop", loop, loop);
-  pnh.param("delay", delay, delay);
-  pnh.param("topic_prefix", prefix, prefix);
+  try {
+    readParam(pnh, "bag", &bag_path);
+    readParam(pnh, "ground_truth", &truth_path);
+    readParam(pnh, "rate", &rate);
+    readParam(pnh, "loop", &loop);
+    readParam(pnh, "delay", &delay);
+    readParam(pnh, "topic_prefix", &prefix);
+  } catch (const massage_cell::nodes::ParamError& e) {
+    ROS_FATAL("session_player: %s", e.what());
+    return 1;
+  }
   if (!(rate > 0.0) || rate > 100.0) {
     ROS_FATAL("session_player: ~rate %.3f is out of range (0 < rate <= 100; 1 = the recording's pace)", rate);
     return 1;

@@ -9,30 +9,43 @@
 #include <boost/any.hpp>
 #include <ros/ros.h>
 
+#include "typed_param.h"
+
 namespace massage_cell::nodes {
 
-/// dynamic_reconfigure reads the int and double parameters of `Config` (a
-/// generated config class) from the parameter server and clamps a value
-/// outside the .cfg's range, or ignores one of the wrong type, without a
-/// word: one message per such parameter of `pnh`, in the .cfg's order, for
-/// the nodelet to log as an ERROR.
+/// dynamic_reconfigure reads the parameters of `Config` (a generated config
+/// class) from the parameter server and ignores one of the wrong type, or
+/// clamps a number outside the .cfg's range, without a word. A parameter of
+/// the wrong type throws ParamError naming it (the nodelet stops at start-up,
+/// as for its other parameters); the clamped ones are returned, one message
+/// each in the .cfg's order, for the nodelet to log as an ERROR.
 template <class Config>
 std::vector<std::string> startParameterProblems(const ros::NodeHandle& pnh) {
   std::vector<std::string> problems;
   const Config min = Config::__getMin__(), max = Config::__getMax__();
   for (const auto& description : Config::__getParamDescriptions__()) {
-    const bool integer = description->type == "int";
-    if (!integer && description->type != "double") continue;
     XmlRpc::XmlRpcValue v;
     if (!pnh.getParam(description->name, v)) continue;
     const auto type = v.getType();
+    if (description->type == "bool") {
+      if (type != XmlRpc::XmlRpcValue::TypeBoolean) {
+        throw ParamError("parameter ~" + description->name + " must be true or false, got " + xmlRpcTypeName(v));
+      }
+      continue;
+    }
+    if (description->type == "str") {
+      if (type != XmlRpc::XmlRpcValue::TypeString) {
+        throw ParamError("parameter ~" + description->name + " must be a string, got " + xmlRpcTypeName(v));
+      }
+      continue;
+    }
+    const bool integer = description->type == "int";
+    if (!integer && description->type != "double") continue;
     const bool is_int = type == XmlRpc::XmlRpcValue::TypeInt;
     std::ostringstream problem;
     if (!is_int && (integer || type != XmlRpc::XmlRpcValue::TypeDouble)) {
-      problem << "parameter ~" << description->name << " must be " << (integer ? "an integer" : "a number")
-              << ": ignored, using the default";
-      problems.push_back(problem.str());
-      continue;
+      throw ParamError("parameter ~" + description->name + " must be " + (integer ? "an integer" : "a number") +
+                       ", got " + xmlRpcTypeName(v));
     }
     boost::any lo_any, hi_any;
     description->getValue(min, lo_any);

@@ -11,8 +11,10 @@
 //             `disparity` and `points2` and report the median depth of points2;
 //             ~products_from ("stereo_image_proc"): who publishes them (the
 //             summary's label; "hbds" for this package's dense-stereo node).
-// Exit code: 0 when pairs arrived and every check held, 1 otherwise.
+// Exit code: 0 when pairs arrived and every check held, 1 otherwise, 2 a
+// parameter of the wrong type.
 #include <cstdio>
+#include <memory>
 
 #include <message_filters/subscriber.h>
 #include <message_filters/sync_policies/exact_time.h>
@@ -26,8 +28,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include "typed_param.h"
 
 namespace {
+
+using massage_cell::nodes::readParam;
 
 using sensor_msgs::CameraInfo;
 using sensor_msgs::CameraInfoConstPtr;
@@ -42,14 +47,14 @@ class Monitor {
         left_info_(nh, "left/camera_info", 5),
         right_info_(nh, "right/camera_info", 5),
         sync_(Policy(20), left_, right_, left_info_, right_info_) {
-    pnh.param("idle_timeout", idle_timeout_, idle_timeout_);
-    pnh.param("start_timeout", start_timeout_, start_timeout_);
-    pnh.param("max_pairs", max_pairs_, max_pairs_);
-    pnh.param("print_every", print_every_, print_every_);
+    readParam(pnh, "idle_timeout", &idle_timeout_);
+    readParam(pnh, "start_timeout", &start_timeout_);
+    readParam(pnh, "max_pairs", &max_pairs_);
+    readParam(pnh, "print_every", &print_every_);
     if (print_every_ < 1) print_every_ = 1;
     bool products = false;
-    pnh.param("stereo_products", products, products);
-    pnh.param("products_from", products_from_, products_from_);
+    readParam(pnh, "stereo_products", &products);
+    readParam(pnh, "products_from", &products_from_);
     if (products) {
       disparity_sub_ = nh.subscribe<stereo_msgs::DisparityImage>(
           "disparity", 5, [this](const stereo_msgs::DisparityImageConstPtr&) { ++disparities_; });
@@ -166,7 +171,14 @@ class Monitor {
 int main(int argc, char** argv) {
   ros::init(argc, argv, "stereo_monitor");
   ros::NodeHandle nh, pnh("~");
-  Monitor monitor(nh, pnh);
+  std::unique_ptr<Monitor> owned;
+  try {
+    owned = std::make_unique<Monitor>(nh, pnh);
+  } catch (const massage_cell::nodes::ParamError& e) {
+    ROS_FATAL("stereo_monitor: %s", e.what());
+    return 2;
+  }
+  Monitor& monitor = *owned;
   std::printf("stereo_monitor: listening on %s and %s\n", ros::names::resolve("left/image_raw").c_str(),
               ros::names::resolve("right/image_raw").c_str());
   std::fflush(stdout);

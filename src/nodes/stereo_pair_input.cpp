@@ -4,14 +4,16 @@
 #include <cmath>
 #include <utility>
 
+#include "typed_param.h"
+
 namespace massage_cell::nodes {
 
 // ------------------------------------------------------------ input --
 
 SyncOptions SyncOptions::fromParameters(const ros::NodeHandle& pnh) {
   SyncOptions o;
-  pnh.param("queue_size", o.queue_size, o.queue_size);
-  pnh.param("approximate_sync", o.approximate, o.approximate);
+  readParam(pnh, "queue_size", &o.queue_size);
+  readParam(pnh, "approximate_sync", &o.approximate);
   if (o.queue_size < 1) {
     o.problem = "parameter ~queue_size must be >= 1 (got " + std::to_string(o.queue_size) + "): using 5";
     o.queue_size = 5;
