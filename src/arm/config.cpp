@@ -175,7 +175,7 @@ ArmConfig parseArmConfig(const std::string& yaml_text, const std::string& source
   }
   r.checkKeys(root, "",
               {"can_config", "axes", "joint_names", "joints", "tool_offset", "workspace", "watchdog_timeout",
-               "bringup_timeout", "position_tolerance", "press", "regions", "default_region", "acupoints",
+               "bringup_timeout", "position_tolerance", "press", "body", "regions", "default_region", "acupoints",
                "node"});  // node: the ROS node's settings (read by the node)
   ArmConfig c;
   c.source = source;
@@ -242,6 +242,11 @@ ArmConfig parseArmConfig(const std::string& yaml_text, const std::string& source
     pc.knead_radius = r.number(p["knead_radius"], "press.knead_radius", pc.knead_radius);
     pc.knead_period = r.number(p["knead_period"], "press.knead_period", pc.knead_period);
     pc.knead_segments = r.integer(p["knead_segments"], "press.knead_segments", pc.knead_segments);
+  }
+  if (const YAML::Node b = root["body"]) {
+    r.checkKeys(b, "body", {"safe_height", "radius"});
+    c.body.safe_height = r.number(b["safe_height"], "body.safe_height", c.body.safe_height);
+    c.body.radius = r.number(b["radius"], "body.radius", c.body.radius);
   }
   const YAML::Node regions = root["regions"];
   if (!regions || !regions.IsMap() || regions.size() == 0) r.fail("regions", "missing or empty (region: {max_depth, default_depth})");
@@ -318,6 +323,10 @@ void validate(const ArmConfig& c) {
   if (!(p.hold >= 0.0) || !(p.max_hold >= p.hold)) fail("press.hold", "must be >= 0 and <= press.max_hold");
   if (p.max_repeats < 1) fail("press.max_repeats", "must be >= 1");
   if (p.max_targets < 1) fail("press.max_targets", "must be >= 1");
+  if (!(c.body.safe_height >= c.workspace_min.z()) || c.body.safe_height > c.workspace_max.z()) {
+    fail("body.safe_height", num(c.body.safe_height) + " m is outside the workspace's z range");
+  }
+  if (!(c.body.radius > 0.0)) fail("body.radius", "must be > 0");
   if (!(p.max_normal_tilt >= 0.0) || p.max_normal_tilt > M_PI / 2) fail("press.max_normal_tilt_deg", "must be in [0, 90]");
   if (!(p.knead_radius >= 0.0) || !(p.knead_period > 0.0) || p.knead_segments < 3) {
     fail("press", "knead_radius >= 0, knead_period > 0 and knead_segments >= 3 required");

@@ -34,6 +34,45 @@ void tangentBasis(const Eigen::Vector3d& n, Eigen::Vector3d* u, Eigen::Vector3d*
 
 const char* toString(Technique t) { return t == Technique::kKnead ? "knead" : "press"; }
 
+std::optional<double> BodySurface::heightAt(double x, double y, double radius) const {
+  std::optional<double> z;
+  double best = radius * radius;
+  for (const Eigen::Vector3d& p : points) {
+    const double d2 = (p.x() - x) * (p.x() - x) + (p.y() - y) * (p.y() - y);
+    if (d2 <= best) {
+      best = d2;
+      z = p.z();
+    }
+  }
+  return z;
+}
+
+std::string checkBodyClearance(const ArmConfig& c, const BodySurface& body, const Eigen::Vector3d& from,
+                               const Eigen::Vector3d& to, double max_depth) {
+  const double length = (to - from).norm();
+  const int n = std::max(1, static_cast<int>(std::ceil(length / 0.005)));  // samples every 5 mm
+  const double floor_unknown = std::min(c.body.safe_height, from.z());
+  for (int k = 0; k < n; ++k) {
+    const int i = k == 0 ? n : k;  // the target first: its depth is what a refusal should name
+    const Eigen::Vector3d p = from + (to - from) * (static_cast<double>(i) / n);
+    const std::string what = i == n ? "the target " + formatPoint(p) : "the path at " + formatPoint(p);
+    if (const auto skin = body.heightAt(p.x(), p.y(), c.body.radius)) {
+      if (p.z() < *skin - max_depth - 1e-9) {
+        char buf[96];
+        std::snprintf(buf, sizeof buf, " is %.1f mm below the body's surface (limit %.1f mm)", 1e3 * (*skin - p.z()),
+                      1e3 * max_depth);
+        return what + buf;
+      }
+    } else if (p.z() < floor_unknown - 1e-9) {
+      char buf[128];
+      std::snprintf(buf, sizeof buf, " is below the safe height %.3f m, and no body surface is known there",
+                    c.body.safe_height);
+      return what + buf;
+    }
+  }
+  return "";
+}
+
 double maxLineSpeed(const ArmConfig& c) {
   double sum = 0.0;
   for (const JointLimits& j : c.joints) sum += j.max_velocity * j.max_velocity;

@@ -294,6 +294,23 @@ bool ArmNodelet::lookup(const std::string& frame, const ros::Time& stamp, geomet
   return true;
 }
 
+arm::BodySurface ArmNodelet::bodySurface() const {
+  arm::BodySurface body;
+  std::vector<std::string> frames;
+  tf_buffer_->_getFrameStrings(frames);
+  const ros::Time now = ros::Time::now();
+  for (const std::string& frame : frames) {
+    if (frame.rfind(acupoint_prefix_, 0) != 0) continue;
+    try {
+      const auto t = tf_buffer_->lookupTransform(base_frame_, frame, ros::Time(0));
+      if (!t.header.stamp.isZero() && (now - t.header.stamp).toSec() > max_target_age_) continue;  // gone
+      body.points.emplace_back(t.transform.translation.x, t.transform.translation.y, t.transform.translation.z);
+    } catch (const tf2::TransformException&) {
+    }
+  }
+  return body;
+}
+
 // --------------------------------------------------------------- inputs --
 
 void ArmNodelet::estopCb(const std_msgs::BoolConstPtr& msg) {
@@ -394,7 +411,18 @@ bool ArmNodelet::moveTo(massage_cell::MoveTo::Request& req, massage_cell::MoveTo
   }
   geometry_msgs::Point p;
   tf2::doTransform(req.target.point, p, t);
-  res.success = wait(c->moveTo(toEigen(p), req.speed), &res.message);
+  const Eigen::Vector3d goal = toEigen(p);
+  if (arm::checkTool(config_, goal).empty()) {  // (outside the envelope: the controller says so)
+    const std::string why = arm::checkBodyClearance(config_, bodySurface(), c->status().tool, goal,
+                                                    config_.limitsOf(config_.default_region).max_depth);
+    if (!why.empty()) {
+      res.success = false;
+      res.message = "move refused: " + why;
+      NODELET_WARN_STREAM("arm: " << res.message);
+      return true;
+    }
+  }
+  res.success = wait(c->moveTo(goal, req.speed), &res.message);
   return true;
 }
 
@@ -433,6 +461,7 @@ bool ArmNodelet::massage(massage_cell::Massage::Request& req, massage_cell::Mass
   press.speed = req.speed;
   press.repeats = req.repeats == 0 ? 1 : req.repeats;
   std::vector<FrameTarget> frames;
+  const arm::BodySurface body = bodySurface();
   for (std::size_t i = 0; i < n; ++i) {
     arm::PressTarget target;
     geometry_msgs::TransformStamped t;
@@ -456,6 +485,11 @@ bool ArmNodelet::massage(massage_cell::Massage::Request& req, massage_cell::Mass
       target.point = toEigen(p);
     }
     if (!req.regions.empty() && !req.regions[i].empty()) target.region = req.regions[i];
+    // A surface point under the skin the arm knows would press deeper than the region allows.
+    const double limit = config_.limitsOf(target.region.empty() ? config_.default_region : target.region).max_depth;
+    if (std::string why = arm::checkBodyClearance(config_, body, target.point, target.point, limit); !why.empty()) {
+      return refuse(target.name + ": " + why);
+    }
     if (!req.normals.empty()) {
       const geometry_msgs::Vector3Stamped& ns = req.normals[i];
       if (!lookup(ns.header.frame_id.empty() ? base_frame_ : ns.header.frame_id, ros::Time(0), &t, &error)) {

@@ -92,6 +92,8 @@ class ArmNodelet : public nodelet::Nodelet {
   /// Waits for the command: its success, and its message in `message`.
   bool wait(const arm::Accepted& accepted, std::string* message);
   /// The transform base_frame <- frame at `stamp` (0: latest); the problem in `error` when unusable.
+  /// The skin as the arm knows it: every current acupoint frame, in base_frame.
+  arm::BodySurface bodySurface() const;
   bool lookup(const std::string& frame, const ros::Time& stamp, geometry_msgs::TransformStamped* out,
               std::string* error);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);

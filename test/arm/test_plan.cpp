@@ -172,6 +172,42 @@ TEST(Plan, RequestLimits) {
   EXPECT_EQ(planMassage(c, kHome, r, &steps), "") << "the limit itself is accepted";
 }
 
+TEST(Plan, BodySurfaceIsTheNearestPointWithinTheRadius) {
+  BodySurface body;
+  body.points = {{0.5, 0.2, 0.17}, {0.55, 0.2, 0.18}};
+  EXPECT_DOUBLE_EQ(*body.heightAt(0.51, 0.2, 0.05), 0.17);
+  EXPECT_DOUBLE_EQ(*body.heightAt(0.54, 0.21, 0.05), 0.18);
+  EXPECT_FALSE(body.heightAt(0.7, 0.2, 0.05)) << "no point within 5 cm";
+  EXPECT_FALSE(BodySurface{}.heightAt(0.5, 0.2, 0.05));
+}
+
+TEST(Plan, BodyClearance) {
+  const ArmConfig c = config();
+  BodySurface body;
+  body.points = {{0.563, 0.211, 0.167}};
+  const Eigen::Vector3d above(0.563, 0.211, 0.28);
+  // 5 cm under the skin (the move): refused, naming the depth.
+  const std::string deep = checkBodyClearance(c, body, above, {0.563, 0.211, 0.118}, 0.002);
+  EXPECT_NE(deep.find("the target (0.563, 0.211, 0.118) m is 49.0 mm below the body's surface (limit 2.0 mm)"),
+            std::string::npos)
+      << deep;
+  EXPECT_EQ(checkBodyClearance(c, body, above, {0.563, 0.211, 0.166}, 0.002), "") << "1 mm in: within the limit";
+  // Where no surface is known: not below the safe height...
+  const std::string blind = checkBodyClearance(c, body, above, {0.2, 0.3, 0.2}, 0.002);
+  EXPECT_NE(blind.find("below the safe height 0.250 m, and no body surface is known there"), std::string::npos)
+      << blind;
+  EXPECT_EQ(checkBodyClearance(c, BodySurface{}, above, {0.2, 0.3, 0.25}, 0.002), "");
+  // ... unless the tool is already lower: at its height or up is allowed, further down is not.
+  const Eigen::Vector3d low(0.2, 0.3, 0.2);
+  EXPECT_EQ(checkBodyClearance(c, BodySurface{}, low, {0.3, 0.3, 0.2}, 0.002), "");
+  EXPECT_EQ(checkBodyClearance(c, BodySurface{}, low, {0.2, 0.3, 0.27}, 0.002), "");
+  EXPECT_NE(checkBodyClearance(c, BodySurface{}, low, {0.2, 0.3, 0.19}, 0.002), "");
+  // A path that dips into the body between two safe ends: the line is sampled.
+  body.points = {{0.4, 0.2, 0.2}, {0.5, 0.2, 0.14}};  // a ridge between two low ends
+  const std::string dip = checkBodyClearance(c, body, {0.3, 0.2, 0.21}, {0.5, 0.2, 0.15}, 0.002);
+  EXPECT_NE(dip.find("the path at"), std::string::npos) << dip;
+}
+
 TEST(Plan, MaxLineSpeedIsTheJointLimitsNorm) {
   ArmConfig c = config();
   c.joints[0].max_velocity = 0.3;

@@ -382,6 +382,25 @@ TEST(ArmNode, RefusalsNameTheProblem) {
   EXPECT_TRUE(contains(r.message, "'acupoint/BL21_L' is stale: its transform is 2.") &&
               contains(r.message, "limit 1.00 s"))
       << r.message;
+  // Into the body: the acupoint frames are its skin (BL23_L at z 0.18 m).
+  m = F->moveTo(kBase, {0.5, 0.18, 0.13});
+  EXPECT_FALSE(m.success);
+  EXPECT_TRUE(contains(m.message, "the target (0.500, 0.180, 0.130) m is 50.0 mm below the body's surface"))
+      << m.message;
+  m = F->moveTo(kBase, {0.1, 0.05, 0.2});  // no skin known there: not below the safe height
+  EXPECT_FALSE(m.success);
+  EXPECT_TRUE(contains(m.message, "below the safe height 0.250 m")) << m.message;
+  req = {};
+  geometry_msgs::PointStamped under;
+  under.header.frame_id = kBase;
+  under.point.x = 0.5;
+  under.point.y = 0.18;
+  under.point.z = 0.13;
+  req.points = {under};
+  r = F->massage(req);
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "point 1: the target (0.500, 0.180, 0.130) m is 50.0 mm below the body's surface"))
+      << r.message;
   // Request fields out of range: a NaN hold, ten thousand frames, a speed no joint can reach.
   req = {};
   req.frames = {"acupoint/BL23_L"};

@@ -64,6 +64,12 @@ struct PressConfig {
   int knead_segments = 8;          ///< straight segments per circle
 };
 
+/// Keeping out of the body (see checkBodyClearance in plan.h).
+struct BodyConfig {
+  double safe_height = 0.25;  ///< m, tool z: where no body surface is known, motion stays above this
+  double radius = 0.05;       ///< m: a surface point speaks for the skin this far around it (in x, y)
+};
+
 struct ArmConfig {
   std::string source;                   ///< file it came from (for messages)
   std::string can_config_path;          ///< resolved path of the CAN configuration
@@ -78,6 +84,7 @@ struct ArmConfig {
   double bringup_timeout = 5.0;         ///< s for every node to become operational
   double position_tolerance = 1e-4;     ///< m: a move that ends farther from its goal is a fault
   PressConfig press;
+  BodyConfig body;
   std::map<std::string, RegionLimits> regions;
   std::string default_region = "midline";  ///< for targets of no known region (the most conservative)
   std::string acupoints_path;              ///< resolved path of the acupoint model (name -> region); may be empty

@@ -11,6 +11,7 @@
 // refused with a message naming the target and the problem.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -69,6 +70,24 @@ std::string planMassage(const ArmConfig& config, const Eigen::Vector3d& from, co
 /// The steps that take the tool out of contact from a contact step: back to
 /// its retreat point, then up to the travel height.
 std::vector<Step> retractSteps(const ArmConfig& config, const Step& from_step);
+
+/// What the arm knows of the body's surface: points of the skin in the arm
+/// base frame (the arm node: the acupoints' tf frames). The surface at (x, y)
+/// is the z of the nearest point within BodyConfig::radius; elsewhere unknown.
+struct BodySurface {
+  std::vector<Eigen::Vector3d> points;
+  /// The skin's z under (x, y), or nullopt when no point lies within `radius`.
+  std::optional<double> heightAt(double x, double y, double radius) const;
+};
+
+/// Empty when the straight line from `from` to `to` keeps out of the body:
+/// wherever the surface is known the tool stays at most `max_depth` below it;
+/// where it is not, no lower than BodyConfig::safe_height (or than `from`, when
+/// the tool is already lower: it may move at its height or up). Otherwise why
+/// not ("the target (0.563, 0.211, 0.118) m is 49.0 mm below the body's surface
+/// (limit 2.0 mm)").
+std::string checkBodyClearance(const ArmConfig& config, const BodySurface& body, const Eigen::Vector3d& from,
+                               const Eigen::Vector3d& to, double max_depth);
 
 /// The fastest a straight line of the tool can go within the joints'
 /// velocity limits (all three at their limits: their norm), m/s.
