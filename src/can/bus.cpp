@@ -41,7 +41,7 @@ can_frame makeFrame(canid_t id, const std::vector<std::uint8_t>& data) {
   f.can_id = eff ? ((id & CAN_EFF_MASK) | CAN_EFF_FLAG) : (id & CAN_SFF_MASK);
   f.can_id |= id & CAN_RTR_FLAG;
   f.len = static_cast<std::uint8_t>(data.size());
-  std::memcpy(f.data, data.data(), data.size());
+  if (!data.empty()) std::memcpy(f.data, data.data(), data.size());  // data() may be null when empty
   return f;
 }
 

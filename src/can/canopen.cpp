@@ -64,7 +64,7 @@ can_frame segmentFrame(canid_t id, std::uint8_t cs_bits, bool toggle, const std:
   f.len = 8;
   const std::uint8_t n = static_cast<std::uint8_t>(7 - data.size());
   f.data[0] = static_cast<std::uint8_t>(cs_bits | (toggle ? 0x10 : 0) | (n << 1) | (last ? 1 : 0));
-  std::memcpy(f.data + 1, data.data(), data.size());
+  if (!data.empty()) std::memcpy(f.data + 1, data.data(), data.size());  // data() may be null when empty
   return f;
 }
 
