@@ -146,12 +146,7 @@ CectNodelet::~CectNodelet() {
 }
 
 void CectNodelet::onInit() {
-  try {
-    init();
-  } catch (const ParamError& e) {
-    NODELET_FATAL_STREAM(e.what());
-    throw;
-  }
+  initOrStop(getName(), [this] { init(); });
 }
 
 void CectNodelet::init() {

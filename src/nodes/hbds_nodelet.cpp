@@ -170,12 +170,7 @@ HbdsNodelet::~HbdsNodelet() {
 }
 
 void HbdsNodelet::onInit() {
-  try {
-    init();
-  } catch (const ParamError& e) {
-    NODELET_FATAL_STREAM(e.what());
-    throw;
-  }
+  initOrStop(getName(), [this] { init(); });
 }
 
 void HbdsNodelet::init() {

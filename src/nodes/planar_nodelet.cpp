@@ -118,12 +118,7 @@ PlanarNodelet::~PlanarNodelet() {
 }
 
 void PlanarNodelet::onInit() {
-  try {
-    init();
-  } catch (const ParamError& e) {
-    NODELET_FATAL_STREAM(e.what());
-    throw;
-  }
+  initOrStop(getName(), [this] { init(); });
 }
 
 void PlanarNodelet::init() {

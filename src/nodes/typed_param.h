@@ -64,6 +64,19 @@ T typedParam(const ros::NodeHandle& pnh, const std::string& name, const T& fallb
   }
 }
 
+/// A nodelet's onInit(): runs `init`; a ParamError is logged FATAL under the
+/// nodelet's `name` and rethrown, so that the node exits 1 (runNodelet) or the
+/// nodelet manager reports the failed load.
+template <class Init>
+void initOrStop(const std::string& name, Init&& init) {
+  try {
+    init();
+  } catch (const ParamError& e) {
+    ROS_FATAL_STREAM("[" << name << "] " << e.what());
+    throw;
+  }
+}
+
 /// typedParam() into `*value`, keeping it as the fallback.
 template <typename T>
 void readParam(const ros::NodeHandle& pnh, const std::string& name, T* value) {
