@@ -144,7 +144,9 @@ std::string ArmConfig::regionOf(const std::string& acupoint) const {
   return it == acupoint_regions.end() ? std::string() : it->second;
 }
 
-std::map<std::string, std::string> loadAcupointRegions(const std::string& path) {
+namespace {
+
+std::map<std::string, std::string> acupointRegions(const std::string& path) {
   const std::string text = readFile(path, "acupoint model");
   YAML::Node root;
   try {
@@ -165,7 +167,31 @@ std::map<std::string, std::string> loadAcupointRegions(const std::string& path) 
   return out;
 }
 
+ArmConfig armConfig(const std::string& yaml_text, const std::string& source, const std::string& base_dir);
+
+}  // namespace
+
+// The public loaders: a yaml-cpp error the field readers did not name (a
+// list where a name belongs, ...) still names the file and its line.
+std::map<std::string, std::string> loadAcupointRegions(const std::string& path) {
+  try {
+    return acupointRegions(path);
+  } catch (const YAML::Exception& e) {
+    throw ArmConfigError(path + ": " + e.what());
+  }
+}
+
 ArmConfig parseArmConfig(const std::string& yaml_text, const std::string& source, const std::string& base_dir) {
+  try {
+    return armConfig(yaml_text, source, base_dir);
+  } catch (const YAML::Exception& e) {
+    throw ArmConfigError(source + ": " + e.what());
+  }
+}
+
+namespace {
+
+ArmConfig armConfig(const std::string& yaml_text, const std::string& source, const std::string& base_dir) {
   Reader r(source);
   YAML::Node root;
   try {
@@ -272,6 +298,8 @@ ArmConfig parseArmConfig(const std::string& yaml_text, const std::string& source
   validate(c);
   return c;
 }
+
+}  // namespace
 
 ArmConfig loadArmConfig(const std::string& path) {
   return parseArmConfig(readFile(path, "arm configuration"), path, dirOf(path));

@@ -746,6 +746,7 @@ ArmStatus Controller::status() const {
       case Action::Kind::kFaultResetAll: s.activity = "fault reset"; break;
       case Action::Kind::kHome: s.activity = current_->mask == 0b100 ? "homing Z" : "homing X, Y"; break;
       case Action::Kind::kStep: s.activity = current_->step.label; break;
+      case Action::Kind::kWaitStopped: s.activity = "waiting for the axes to stop"; break;
     }
     if (current_->kind == Action::Kind::kStep) s.target = current_->step.target;
   }

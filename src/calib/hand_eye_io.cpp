@@ -66,7 +66,9 @@ void writeHandEyeYaml(const std::string& path, const HandEyeResult& r) {
   if (!f) throw std::runtime_error(path + ": write failed");
 }
 
-HandEyeResult readHandEyeYaml(const std::string& path) {
+namespace {
+
+HandEyeResult handEye(const std::string& path) {
   const YAML::Node root = loadYamlFile(path);
   if (!root.IsMap()) throw std::runtime_error(path + ": expected a map at the top level");
   HandEyeResult r;
@@ -104,6 +106,17 @@ HandEyeResult readHandEyeYaml(const std::string& path) {
     for (const auto& s : w) r.warnings.push_back(s.as<std::string>());
   }
   return r;
+}
+
+}  // namespace
+
+// A yaml-cpp error the field readers did not name still names the file and its line.
+HandEyeResult readHandEyeYaml(const std::string& path) {
+  try {
+    return handEye(path);
+  } catch (const YAML::Exception& e) {
+    throw std::runtime_error(path + ": " + e.what());
+  }
 }
 
 }  // namespace massage_cell::calib

@@ -221,7 +221,9 @@ void validate(const CanConfig& c, const std::string& source) {
   }
 }
 
-CanConfig parseCanConfig(const std::string& text, const std::string& source) {
+namespace {
+
+CanConfig canConfig(const std::string& text, const std::string& source) {
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -251,6 +253,17 @@ CanConfig parseCanConfig(const std::string& text, const std::string& source) {
   top.rejectUnknown();
   validate(c, source);
   return c;
+}
+
+}  // namespace
+
+// A yaml-cpp error the field readers did not name still names the file and its line.
+CanConfig parseCanConfig(const std::string& text, const std::string& source) {
+  try {
+    return canConfig(text, source);
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(source + ": " + e.what());
+  }
 }
 
 CanConfig loadCanConfig(const std::string& path) {

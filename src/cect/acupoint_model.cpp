@@ -1035,7 +1035,9 @@ void AcupointModel::validate() const {
   }
 }
 
-AcupointModel loadAcupointModel(const std::string& path) {
+namespace {
+
+AcupointModel acupointModel(const std::string& path) {
   const std::string where = "acupoint model '" + path + "'";
   YAML::Node root;
   try {
@@ -1106,6 +1108,17 @@ AcupointModel loadAcupointModel(const std::string& path) {
     throw std::runtime_error(where + ": " + what);
   }
   return m;
+}
+
+}  // namespace
+
+// A yaml-cpp error the field readers did not name still names the file and its line.
+AcupointModel loadAcupointModel(const std::string& path) {
+  try {
+    return acupointModel(path);
+  } catch (const YAML::Exception& e) {
+    throw std::runtime_error("acupoint model '" + path + "': " + e.what());
+  }
 }
 
 // ---------------------------------------------------------------------------

@@ -23,7 +23,9 @@ SyncOptions SyncOptions::fromParameters(const ros::NodeHandle& pnh) {
 
 StereoPairInput::StereoPairInput(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, const SyncOptions& sync,
                                  Handler handler)
-    : nh_(nh), pnh_(pnh), handler_(std::move(handler)), it_(nh_) {
+    : nh_(nh), pnh_(pnh), handler_(std::move(handler)), it_(nh_), worker_([this](StereoPair& pair) {
+        handler_(pair);
+      }) {
   if (sync.approximate) {
     approximate_sync_ = std::make_unique<message_filters::Synchronizer<ApproximatePolicy>>(
         ApproximatePolicy(sync.queue_size), left_image_sub_, left_info_sub_, right_image_sub_, right_info_sub_);
@@ -33,7 +35,6 @@ StereoPairInput::StereoPairInput(const ros::NodeHandle& nh, const ros::NodeHandl
         ExactPolicy(sync.queue_size), left_image_sub_, left_info_sub_, right_image_sub_, right_info_sub_);
     exact_sync_->registerCallback(&StereoPairInput::pairCb, this);
   }
-  worker_ = std::thread([this] { workLoop(); });
 }
 
 StereoPairInput::~StereoPairInput() { stop(); }
@@ -54,45 +55,15 @@ void StereoPairInput::unsubscribe() {
   right_info_sub_.unsubscribe();
 }
 
-void StereoPairInput::stop() {
-  {
-    std::lock_guard<std::mutex> lock(slot_mutex_);
-    stopping_ = true;
-  }
-  slot_cv_.notify_all();
-  if (worker_.joinable()) worker_.join();
-}
+void StereoPairInput::stop() { worker_.stop(); }
 
-StereoPairInput::Counts StereoPairInput::counts() const {
-  std::lock_guard<std::mutex> lock(slot_mutex_);
-  return counts_;
-}
+StereoPairInput::Counts StereoPairInput::counts() const { return worker_.counts(); }
 
 void StereoPairInput::pairCb(const sensor_msgs::ImageConstPtr& left_image,
                              const sensor_msgs::CameraInfoConstPtr& left_info,
                              const sensor_msgs::ImageConstPtr& right_image,
                              const sensor_msgs::CameraInfoConstPtr& right_info) {
-  {
-    std::lock_guard<std::mutex> lock(slot_mutex_);
-    ++counts_.received;
-    if (slot_) ++counts_.dropped;  // the worker is busy and never took the previous pair
-    slot_ = StereoPair{left_image, right_image, left_info, right_info};
-  }
-  slot_cv_.notify_one();
-}
-
-void StereoPairInput::workLoop() {
-  while (true) {
-    StereoPair pair;
-    {
-      std::unique_lock<std::mutex> lock(slot_mutex_);
-      slot_cv_.wait(lock, [this] { return stopping_ || slot_.has_value(); });
-      if (stopping_) return;
-      pair = std::move(*slot_);
-      slot_.reset();
-    }
-    handler_(pair);
-  }
+  worker_.put(StereoPair{left_image, right_image, left_info, right_info});
 }
 
 // ------------------------------------------------- per-pair checks --

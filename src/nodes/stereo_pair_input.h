@@ -4,10 +4,11 @@
 // synchronised by message_filters with exact stamps, or approximately with
 // ~approximate_sync; ~queue_size is the synchroniser's queue.
 //
-// Threading: the synchroniser callback only drops the pair into a one-pair
-// slot (replacing, and counting as dropped, a pair the worker has not taken
-// yet); a worker thread hands the newest pair to the nodelet's handler, so
-// subscriber callbacks are never blocked by the processing.
+// Threading (camera::LatestWorker): the synchroniser callback only drops the
+// pair into a one-pair slot (replacing, and counting as dropped, a pair the
+// worker has not taken yet); a worker thread hands the newest pair to the
+// nodelet's handler, so subscriber callbacks are never blocked by the
+// processing.
 //
 // Also here: what the nodelets' per-pair checks and diagnostics have in
 // common (BadInput, the camera_info / image size check, the calibration key,
@@ -16,18 +17,14 @@
 #pragma once
 
 #include <chrono>
-#include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <functional>
 #include <limits>
 #include <map>
 #include <memory>
-#include <mutex>
-#include <optional>
 #include <stdexcept>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <diagnostic_updater/DiagnosticStatusWrapper.h>
@@ -40,6 +37,8 @@
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+
+#include "massage_cell/camera/latest_worker.h"
 
 namespace massage_cell::nodes {
 
@@ -64,10 +63,8 @@ struct SyncOptions {
 class StereoPairInput {
  public:
   using Handler = std::function<void(const StereoPair&)>;
-  struct Counts {
-    std::uint64_t received = 0;  ///< pairs from the synchroniser
-    std::uint64_t dropped = 0;   ///< replaced in the slot before the worker took them
-  };
+  /// Pairs from the synchroniser; pairs replaced in the slot before the worker took them.
+  using Counts = camera::LatestWorker<StereoPair>::Counts;
 
   /// Starts the worker, which calls `handler` (which must not throw) with
   /// each pair it takes. Topics are resolved in `nh`; the image transport
@@ -94,7 +91,6 @@ class StereoPairInput {
 
   void pairCb(const sensor_msgs::ImageConstPtr& left_image, const sensor_msgs::CameraInfoConstPtr& left_info,
               const sensor_msgs::ImageConstPtr& right_image, const sensor_msgs::CameraInfoConstPtr& right_info);
-  void workLoop();
 
   ros::NodeHandle nh_, pnh_;
   Handler handler_;
@@ -103,14 +99,7 @@ class StereoPairInput {
   message_filters::Subscriber<CameraInfo> left_info_sub_, right_info_sub_;
   std::unique_ptr<message_filters::Synchronizer<ExactPolicy>> exact_sync_;
   std::unique_ptr<message_filters::Synchronizer<ApproximatePolicy>> approximate_sync_;
-
-  // The latest-pair slot between the synchroniser and the worker.
-  mutable std::mutex slot_mutex_;
-  std::condition_variable slot_cv_;
-  std::optional<StereoPair> slot_;
-  bool stopping_ = false;
-  Counts counts_;
-  std::thread worker_;
+  camera::LatestWorker<StereoPair> worker_;  ///< the latest-pair slot between the synchroniser and the worker
 };
 
 // ------------------------------------------------- per-pair checks --

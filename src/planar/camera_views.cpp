@@ -107,7 +107,7 @@ std::string text(const YAML::Node& node, const std::string& key, const std::stri
   return node[key].as<std::string>();
 }
 
-std::vector<View> loadViewYaml(const std::filesystem::path& file) {
+std::vector<View> viewYaml(const std::filesystem::path& file) {
   YAML::Node root;
   try {
     root = YAML::LoadFile(file.string());
@@ -142,6 +142,15 @@ std::vector<View> loadViewYaml(const std::filesystem::path& file) {
     }
   }
   return views;
+}
+
+// A yaml-cpp error the field readers did not name still names the file and its line.
+std::vector<View> loadViewYaml(const std::filesystem::path& file) {
+  try {
+    return viewYaml(file);
+  } catch (const YAML::Exception& e) {
+    throw std::runtime_error(file.string() + ": " + e.what());
+  }
 }
 
 }  // namespace

@@ -48,12 +48,15 @@ cv::Mat sgbm(const cv::Mat& left, const cv::Mat& right, const CostParams& cost) 
   const int num = ((levels + 15) / 16) * 16;
   const int block = 5;
   const int cn = left.channels();
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  // No column can be matched (OpenCV 4.6's 3-way SGBM then asserts in a
+  // destructor and terminates the process): every pixel is invalid.
+  if (std::max(cost.dmin + num, 0) >= left.cols + std::min(cost.dmin, 0)) return cv::Mat(left.size(), CV_32F, nan);
   auto matcher = cv::StereoSGBM::create(cost.dmin, num, block, 8 * cn * block * block, 32 * cn * block * block, 1, 63,
                                         10, 100, 2, cv::StereoSGBM::MODE_SGBM_3WAY);
   cv::Mat raw;
   matcher->compute(left, right, raw);
   cv::Mat disparity(raw.size(), CV_32F);
-  const float nan = std::numeric_limits<float>::quiet_NaN();
   for (int y = 0; y < raw.rows; ++y) {
     const short* r = raw.ptr<short>(y);
     float* d = disparity.ptr<float>(y);

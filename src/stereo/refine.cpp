@@ -165,15 +165,24 @@ cv::Mat detectFattening(const cv::Mat& left, const cv::Mat& disparity, const Ref
   cv::Mat seg_input;
   if (left.channels() == 3) cv::cvtColor(left, seg_input, cv::COLOR_BGR2Lab);
   else seg_input = left;
+  // OpenCV's SEEDS and SLIC read out of bounds or loop forever when a
+  // superpixel is too large for the image (found by fuzz_stereo_match):
+  // superpixels of at most a third (SEEDS) / half (SLIC) of the smaller
+  // side, and one segment for images too small for that.
+  const int side = std::min(W, H);
+  const bool use_seeds = params.superpixels == Superpixels::kSeeds;
+  const int region_size = std::min(params.region_size, side / (use_seeds ? 3 : 2));
   cv::Mat labels;
-  if (params.superpixels == Superpixels::kSeeds) {
-    const int n = std::max(1, (W * H) / (params.region_size * params.region_size));
+  if (region_size < 2) {
+    labels = cv::Mat::zeros(H, W, CV_32S);
+  } else if (use_seeds) {
+    const int n = std::max(1, (W * H) / (region_size * region_size));
     auto seeds = cv::ximgproc::createSuperpixelSEEDS(W, H, seg_input.channels(), n, 4, 2, 5, false);
     seeds->iterate(seg_input, params.slic_iterations);
     seeds->getLabels(labels);
   } else {
     const int algorithm = params.superpixels == Superpixels::kSlico ? cv::ximgproc::SLICO : cv::ximgproc::SLIC;
-    auto slic = cv::ximgproc::createSuperpixelSLIC(seg_input, algorithm, params.region_size, params.ruler);
+    auto slic = cv::ximgproc::createSuperpixelSLIC(seg_input, algorithm, region_size, params.ruler);
     slic->iterate(params.slic_iterations);
     slic->enforceLabelConnectivity(25);
     slic->getLabels(labels);

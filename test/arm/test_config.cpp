@@ -1,6 +1,7 @@
 // config/arm.yaml loads; every kind of mistake is an ArmConfigError naming the field.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <fstream>
 #include <regex>
 
@@ -98,6 +99,22 @@ TEST(ArmConfig, MistakesAreNamed) {
   EXPECT_NE(errorOf(edited("max_targets: 50", "max_targets: 0")).find("press.max_targets"), std::string::npos);
   EXPECT_NE(errorOf("joints: [").find("not valid YAML"), std::string::npos);
   EXPECT_THROW(loadArmConfig("/nonexistent/arm.yaml"), ArmConfigError);
+}
+
+// A list where a name belongs made yaml-cpp's own exception escape, naming
+// no file (found by fuzz_yaml_loaders).
+TEST(ArmConfig, AcupointFileOfTheWrongShapeIsNamed) {
+  const std::string path = ::testing::TempDir() + "/acupoints_wrong_shape.yaml";
+  std::ofstream(path) << "points:\n  - {name: [BL23_L, BL23_R], region: lower_back}\n";
+  try {
+    loadAcupointRegions(path);
+    ADD_FAILURE() << "no error";
+  } catch (const ArmConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+  std::ofstream(path) << "points: 3\n";
+  EXPECT_THROW(loadAcupointRegions(path), ArmConfigError);
+  std::remove(path.c_str());
 }
 
 }  // namespace

@@ -174,6 +174,9 @@ TEST(HandEyeYaml, MalformedFilesNameTheProblem) {
   expectReadError(frames + "translation: {x: 0, y: 0, z: 0}\nrotation: {x: 0, y: 0, z: 0, w: 2}\n", "norm");
   expectReadError(frames + "translation: {x: 0, y: oops, z: 0}\nrotation: {x: 0, y: 0, z: 0, w: 1}\n", "'y'");
   expectReadError("child_frame: b\n", "parent_frame");
+  // A map where a warning's text belongs (found by fuzz_yaml_loaders: yaml-cpp's exception escaped).
+  expectReadError(frames + "translation: {x: 0, y: 0, z: 0}\nrotation: {x: 0, y: 0, z: 0, w: 1}\nwarnings: [{a: 1}]\n",
+                  "hand_eye_bad.yaml");
   try {
     mc::readHandEyeYaml(tempPath("does_not_exist.yaml"));
     ADD_FAILURE() << "no exception for a missing file";

@@ -115,6 +115,26 @@ TEST(DetectFattening, GreyImageAndSeedsWork) {
   EXPECT_GE(cv::countNonZero(seeds & band), 0.5 * cv::countNonZero(band));
 }
 
+// OpenCV's SLIC / SLICO read out of bounds and SEEDS crashes or loops forever
+// when a superpixel is too large for the image (found by fuzz_stereo_match).
+TEST(DetectFattening, ImagesSmallerThanASuperpixelGetAMask) {
+  for (const cv::Size size :
+       {cv::Size(1, 1), cv::Size(4, 4), cv::Size(5, 5), cv::Size(6, 24), cv::Size(2, 7), cv::Size(40, 3)}) {
+    for (const auto kind : {ms::Superpixels::kSlic, ms::Superpixels::kSlico, ms::Superpixels::kSeeds}) {
+      cv::Mat left(size, CV_8UC3), disparity(size, CV_32F);
+      cv::randu(left, 0, 256);
+      cv::randu(disparity, 0.0f, 4.0f);
+      ms::RefineParams p;
+      p.superpixels = kind;
+      p.region_size = 16;
+      p.slic_iterations = 3;
+      const cv::Mat mask = ms::detectFattening(left, disparity, p);
+      EXPECT_EQ(mask.size(), size);
+      EXPECT_EQ(mask.type(), CV_8U);
+    }
+  }
+}
+
 TEST(DetectFattening, NanPixelsAreNeverFattening) {
   cv::Mat d = fattenedDisparity();
   d(cv::Rect(0, 0, 20, kH)).setTo(std::numeric_limits<float>::quiet_NaN());

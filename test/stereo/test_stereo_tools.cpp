@@ -73,6 +73,26 @@ TEST(StereoMatch, BadInputFailsWithAMessage) {
   expectFailure(kMatch + " " + l + " " + r + " --dmax 8", 2, "-o OUT is required");
 }
 
+// OpenCV 4.6's 3-way SGBM terminates the process (an assertion in a
+// destructor) when no column can be matched (found by fuzz_stereo_match).
+TEST(Match, SgbmWithNoColumnToMatchIsAllInvalid) {
+  namespace ms = massage_cell::stereo;
+  ms::StereoParams p;
+  p.cost.dmin = 3;
+  p.cost.dmax = 8;
+  cv::Mat left(16, 11, CV_8UC3), right(16, 11, CV_8UC3);
+  cv::randu(left, 0, 256);
+  cv::randu(right, 0, 256);
+  const ms::MatchResult narrow = ms::match(left, right, ms::Method::kSgbm, p);
+  ASSERT_EQ(narrow.disparity.size(), left.size());
+  EXPECT_EQ(cv::countNonZero(narrow.disparity == narrow.disparity), 0) << "a pixel got a disparity";
+  cv::Mat wide(16, 64, CV_8UC3);
+  cv::randu(wide, 0, 256);
+  const ms::MatchResult ok =
+      ms::match(wide(cv::Rect(5, 0, 40, 16)), wide(cv::Rect(0, 0, 40, 16)), ms::Method::kSgbm, p);
+  EXPECT_GT(cv::countNonZero(ok.disparity == ok.disparity), 0);
+}
+
 TEST(StereoEval, MissingDataFailsWithAMessage) {
   expectFailure(kEval + " --data /nonexistent/middlebury --scenes teddy --methods wta", 1,
                 "missing Middlebury scene folder '/nonexistent/middlebury/teddy'");
