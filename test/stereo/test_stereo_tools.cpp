@@ -8,6 +8,7 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "../ros/test_util.h"
 #include "massage_cell/stereo/pipeline.h"
@@ -86,11 +87,15 @@ TEST(Match, SgbmWithNoColumnToMatchIsAllInvalid) {
   const ms::MatchResult narrow = ms::match(left, right, ms::Method::kSgbm, p);
   ASSERT_EQ(narrow.disparity.size(), left.size());
   EXPECT_EQ(cv::countNonZero(narrow.disparity == narrow.disparity), 0) << "a pixel got a disparity";
-  cv::Mat wide(16, 64, CV_8UC3);
-  cv::randu(wide, 0, 256);
+  // The guard does not refuse a pair with matchable columns: blocky texture
+  // shifted by 5 px (left(x) = right(x - 5)) is matched at 5 there.
+  cv::Mat blocks(8, 20, CV_8UC3), wide;
+  cv::randu(blocks, 0, 256);
+  cv::resize(blocks, wide, cv::Size(), 4, 4, cv::INTER_NEAREST);
   const ms::MatchResult ok =
-      ms::match(wide(cv::Rect(5, 0, 40, 16)), wide(cv::Rect(0, 0, 40, 16)), ms::Method::kSgbm, p);
-  EXPECT_GT(cv::countNonZero(ok.disparity == ok.disparity), 0);
+      ms::match(wide(cv::Rect(0, 0, 64, 32)), wide(cv::Rect(5, 0, 64, 32)), ms::Method::kSgbm, p);
+  const cv::Mat matchable = ok.disparity(cv::Rect(24, 4, 36, 24));
+  EXPECT_GT(cv::countNonZero(cv::abs(matchable - 5.0f) <= 1.0f), matchable.total() / 2);
 }
 
 TEST(StereoEval, MissingDataFailsWithAMessage) {
