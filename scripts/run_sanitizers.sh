@@ -1,25 +1,25 @@
 #!/usr/bin/env bash
 # The core libraries' gtests and the fuzz targets under AddressSanitizer +
 # UndefinedBehaviorSanitizer: builds the package with
-# -DMASSAGE_CELL_SANITIZE=ON (-O1 -g1) into its own folder (only these
+# -DMASSAGE_CELL_SANITIZE=ON (-O0 -g1) into its own folder (only these
 # executables), runs the gtests, then each fuzz target for a short run
 # (scripts/run_fuzz.sh). Any sanitizer report, test failure or fuzz finding
 # fails the run.
 #
-# Default (ctest's `sanitizers`, ~8 min on 2 cores): the CAN stack, the arm,
+# Default (ctest's `sanitizers`, ~6 min on 2 cores): the CAN stack, the arm,
 # the camera and the stereo library, and the CAN and stereo fuzz targets.
 # --all adds the CECT library's gtests and the YAML-loader and CECT fuzz
 # targets (~22 min on 2 cores: the CECT sources alone take minutes to compile
 # instrumented), run by hand before a release (docs/safety.md).
 #
 #   scripts/run_sanitizers.sh [--all] [build-folder] [fuzz-inputs-per-target]
-#     defaults: _build_sanitize, 2000
+#     defaults: _build_sanitize, 1000
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 all=0
 if [ "${1:-}" = "--all" ]; then all=1; shift; fi
 build=${1:-"$root/_build_sanitize"}
-fuzz_runs=${2:-2000}
+fuzz_runs=${2:-1000}
 export PYENV_VERSION=system
 tests=(test_can_bus test_can_canopen test_can_config test_can_master test_can_cia402 test_can_sim_drive test_can_drive
        test_arm_config test_arm_profile test_arm_plan test_arm_controller test_arm_session
@@ -35,9 +35,9 @@ fi
 # (Re)configure every time: cheap when nothing changed, and a folder from an
 # older checkout learns the test targets added since.
 mkdir -p "$build"
-# -O1 -g1: line tables for the reports at half the compile time of -O2 -g.
+# -O0 -g1: line tables for the reports; -O1 triples the compile time of a test.
 targets="${tests[*]} ${fuzzers[*]}"
-cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O1 -g1" -DMASSAGE_CELL_SANITIZE=ON \
+cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O0 -g1" -DMASSAGE_CELL_SANITIZE=ON \
       -DMASSAGE_CELL_SANITIZE_TARGETS="${targets// /;}" \
       -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 >"$build/configure.log" 2>&1 ||
   { cat "$build/configure.log"; exit 1; }
