@@ -234,6 +234,10 @@ void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
     reject("refine '" + config.refine + "' (none, mdc or ffd_mdc): keeping '" + config_.refine + "'");
     config.refine = config_.refine;
   }
+  if (config.subpixel != "none" && config.subpixel != "parabola" && config.subpixel != "equiangular") {
+    reject("subpixel '" + config.subpixel + "' (none, parabola or equiangular): keeping '" + config_.subpixel + "'");
+    config.subpixel = config_.subpixel;
+  }
   if (config.refine_window % 2 == 0) {
     reject("refine_window = " + std::to_string(config.refine_window) + ": it must be odd; keeping " +
            std::to_string(config_.refine_window));
@@ -258,12 +262,13 @@ void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
     config.downsample = config_.downsample;
   }
   config_ = config;
-  NODELET_INFO_STREAM("method " << config.method << ", disparities " << config.min_disparity << ".."
-                                << config.min_disparity + config.disparity_range - 1 << ", eta " << config.eta
-                                << ", ncc_window " << config.ncc_window << ", gradient_saturation "
-                                << config.gradient_saturation << ", tau " << config.tau << ", u " << config.u_min
-                                << ".." << config.u_max << ", overlap " << config.overlap << ", polish_window " << config.polish_window << ", refine " << config.refine << ", threads " << config.threads << ", downsample "
-                                << config.downsample);
+  NODELET_INFO_STREAM(
+      "method " << config.method << ", disparities " << config.min_disparity << ".."
+                << config.min_disparity + config.disparity_range - 1 << ", eta " << config.eta << ", ncc_window "
+                << config.ncc_window << ", gradient_saturation " << config.gradient_saturation << ", tau " << config.tau
+                << ", u " << config.u_min << ".." << config.u_max << ", overlap " << config.overlap
+                << ", polish_window " << config.polish_window << ", refine " << config.refine << ", subpixel "
+                << config.subpixel << ", threads " << config.threads << ", downsample " << config.downsample);
 }
 
 // ------------------------------------------------------ subscriptions --
@@ -424,6 +429,8 @@ void HbdsNodelet::process(const StereoPair& pair, const Config& config, const Ou
   params.refine = stereo::parseRefinement(config.refine == "ffd_mdc" ? "ffd-mdc" : config.refine);
   params.refine_params.window = config.refine_window;
   params.refine_params.threads = config.threads;
+  params.subpixel = config.subpixel != "none";
+  if (params.subpixel) params.subpixel_params.fit = stereo::parseSubpixelFit(config.subpixel);
   const stereo::Method method = stereo::parseMethod(config.method);
   const stereo::MatchResult result = stereo::match(views[0], views[1], method, params);
 
@@ -446,7 +453,7 @@ void HbdsNodelet::process(const StereoPair& pair, const Config& config, const Ou
   disparity_msg->T = static_cast<float>(g.baseline);
   disparity_msg->min_disparity = min_disparity;
   disparity_msg->max_disparity = max_disparity;
-  disparity_msg->delta_d = method == stereo::Method::kSgbm ? 1.0f / 16.0f : 1.0f;
+  disparity_msg->delta_d = method == stereo::Method::kSgbm || params.subpixel ? 1.0f / 16.0f : 1.0f;
   disparity_msg->valid_window.x_offset = valid_x0;
   disparity_msg->valid_window.y_offset = 0;
   disparity_msg->valid_window.width = g.width - valid_x0;

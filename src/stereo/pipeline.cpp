@@ -170,6 +170,11 @@ MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, cons
     result.disparity = refineDisparity(left, result.disparity, rp, &result.fattening);
     result.refine_ms = msSince(start);
   }
+  if (params.subpixel && method != Method::kSgbm) {
+    start = Clock::now();
+    result.disparity = subpixelDisparity(volume, result.disparity, params.subpixel_params);
+    result.subpixel_ms = msSince(start);
+  }
   result.energy = labellingEnergy(volume, weights, toLabelling(result.disparity, volume.dmin(), volume.dmax()),
                                   params.smooth.truncation);
   return result;

@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
+#include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -38,8 +40,9 @@ Part 3 (--frame): the cell's own scenes rendered by the simulator at
 --frame-size (the mean subject's back on the massage table, and stacked
 boxes; camera 0.95 m above the table, baseline 10 cm, fx = 500 px at 640
 wide), searched over --frame-levels disparities centred on the scene's
-range: time per method (the 640x480 x 64-level speed target) and the bad
-pixels > 1 px against the exact ground truth (pixels seen by both cameras);
+range: time per method (the 640x480 x 64-level speed target), the bad
+pixels > 1 and > 0.5 px and the median |error| (px) against the exact
+ground truth (pixels seen by both cameras);
 times are the median of --repeat runs (default 3: a stream's steady state,
 not the first run's page faults).
   --plot FILE.png    draw time vs levels of the sweep
@@ -168,14 +171,29 @@ void drawPlot(const std::string& path, const std::vector<Row>& rows, const std::
   if (!cv::imwrite(path, plot)) throw std::runtime_error("cannot write '" + path + "'");
 }
 
+/// Median |disparity - truth| over the mask's pixels with a finite truth (NaN
+/// disparities count as infinitely wrong).
+double medianAbsError(const cv::Mat& disparity, const cv::Mat& truth, const cv::Mat& mask) {
+  std::vector<float> errors;
+  for (int y = 0; y < truth.rows; ++y)
+    for (int x = 0; x < truth.cols; ++x) {
+      const float t = truth.at<float>(y, x), d = disparity.at<float>(y, x);
+      if (mask.at<uchar>(y, x) == 0 || !std::isfinite(t)) continue;
+      errors.push_back(std::isfinite(d) ? std::abs(d - t) : std::numeric_limits<float>::infinity());
+    }
+  if (errors.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+  return errors[errors.size() / 2];
+}
+
 /// Part 3: the cell's own scenes at the given frame size.
 void runFrames(const Options& o) {
   char title[160];
   std::snprintf(title, sizeof title, "Cell scenes (simulator) at %dx%d, %d levels: time, energy and bad pixels > 1 px",
                 o.frame_width, o.frame_height, o.frame_levels);
   if (!o.csv) {
-    std::printf("\n%s\n%-22s %-10s %6s %10s %10s %10s %14s %7s %9s\n", title, "scene", "method", "levels", "cost ms",
-                "optim ms", "total ms", "energy", "cuts", "bad>1px");
+    std::printf("\n%s\n%-22s %-10s %6s %10s %10s %10s %14s %7s %9s %9s %10s\n", title, "scene", "method", "levels",
+                "cost ms", "optim ms", "total ms", "energy", "cuts", "bad>1px", "bad>.5px", "med|err|");
   }
   sim::RigParameters rig;
   rig.width = o.frame_width;
@@ -204,13 +222,16 @@ void runFrames(const Options& o) {
       std::sort(runs.begin(), runs.end(), [](const auto& a, const auto& b) { return a.total_ms() < b.total_ms(); });
       const stereo::MatchResult& r = runs[runs.size() / 2];
       const double bad = stereo::badPixelPercent(r.disparity, frame.left_disparity, frame.left_visible, 1.0);
+      const double bad_half = stereo::badPixelPercent(r.disparity, frame.left_disparity, frame.left_visible, 0.5);
+      const double median = medianAbsError(r.disparity, frame.left_disparity, frame.left_visible);
       const Row row{std::string(name) + "/" + std::to_string(o.frame_width) + "x" + std::to_string(o.frame_height),
                     method, o.frame_levels, r.total_ms(), r.energy.total()};
       if (o.csv) {
         printRow(o, row, &r);
       } else {
-        std::printf("%-22s %-10s %6d %10.1f %10.1f %10.1f %14.2f %7d %8.2f%%\n", row.scene.c_str(), method.c_str(),
-                    row.levels, r.cost_ms, r.optimize_ms, r.total_ms(), r.energy.total(), r.cuts, bad);
+        std::printf("%-22s %-10s %6d %10.1f %10.1f %10.1f %14.2f %7d %8.2f%% %8.2f%% %10.3f\n", row.scene.c_str(),
+                    method.c_str(), row.levels, r.cost_ms, r.optimize_ms, r.total_ms(), r.energy.total(), r.cuts, bad,
+                    bad_half, median);
         std::fflush(stdout);
       }
     }

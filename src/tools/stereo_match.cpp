@@ -96,11 +96,14 @@ void run(const Options& o) {
                   stereo::toString(o.params.refine).c_str(), r.refine_ms,
                   r.fattening.empty() ? 0 : cv::countNonZero(r.fattening));
   }
-  std::printf("stereo_match: %s %dx%d, disparities %d..%d: cost %.1f ms + %s %.1f ms%s = %.1f ms, energy %.2f "
-              "(data %.2f + smooth %.2f), %d cuts -> %s, %s\n",
-              o.method.c_str(), left.cols, left.rows, o.dmin, o.dmax, r.cost_ms, o.method.c_str(), r.optimize_ms, refine,
-              r.total_ms(), r.energy.total(), r.energy.data, r.energy.smooth, r.cuts, pfm.string().c_str(),
-              png.string().c_str());
+  char subpixel[64] = "";
+  if (r.subpixel_ms > 0.0) std::snprintf(subpixel, sizeof subpixel, " + sub-pixel %.1f ms", r.subpixel_ms);
+  std::printf(
+      "stereo_match: %s %dx%d, disparities %d..%d: cost %.1f ms + %s %.1f ms%s%s = %.1f ms, energy %.2f "
+      "(data %.2f + smooth %.2f), %d cuts -> %s, %s\n",
+      o.method.c_str(), left.cols, left.rows, o.dmin, o.dmax, r.cost_ms, o.method.c_str(), r.optimize_ms, refine,
+      subpixel, r.total_ms(), r.energy.total(), r.energy.data, r.energy.smooth, r.cuts, pfm.string().c_str(),
+      png.string().c_str());
 }
 
 }  // namespace

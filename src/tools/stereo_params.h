@@ -24,6 +24,9 @@ inline const char* stereoParamsHelp() {
                      thesis Eq. 2.11-2.13 without FFD) or ffd-mdc (the thesis's refinement:
                      fattening foreground detection, then MDC)
   --refine-window N  MDC support window side, odd (default 21)
+  --subpixel F       last, for every method but sgbm: each disparity moved to the minimum of the
+                     cost curve through d - 1, d, d + 1: parabola, equiangular or none (default)
+  --subpixel-window N  side of the window the cost is summed over for it, odd (default 5)
   --max-cycles N     expansion / swap cycles at most (default 20)
   --threads N        worker threads, 0 = all cores (default 0)
 )";
@@ -53,6 +56,16 @@ inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
     }
   };
   table.values["--refine-window"] = integer(p.refine_params.window);
+  table.values["--subpixel"] = [&p](const std::string&, const std::string& v) {
+    p.subpixel = v != "none";
+    if (!p.subpixel) return;
+    try {
+      p.subpixel_params.fit = stereo::parseSubpixelFit(v);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string(e.what()) + " or none");
+    }
+  };
+  table.values["--subpixel-window"] = integer(p.subpixel_params.window);
   table.values["--threads"] = integer(p.threads);
 }
 
@@ -71,6 +84,7 @@ inline void checkStereoParams(const stereo::StereoParams& p) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--refine-window: ") + e.what());
   }
+  require(p.subpixel_params.window >= 1 && p.subpixel_params.window % 2 == 1, "--subpixel-window must be odd and >= 1");
   require(p.max_cycles >= 1, "--max-cycles must be >= 1");
   require(p.threads >= 0, "--threads must be >= 0");
 }

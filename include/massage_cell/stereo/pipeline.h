@@ -11,6 +11,7 @@
 #include "massage_cell/stereo/cost_volume.h"
 #include "massage_cell/stereo/energy.h"
 #include "massage_cell/stereo/refine.h"
+#include "massage_cell/stereo/subpixel.h"
 
 namespace massage_cell::stereo {
 
@@ -37,15 +38,20 @@ struct StereoParams {
   int polish_cycles = 1;  ///< cycles of the polish (it stops earlier when a cycle changes nothing)
   Refinement refine = Refinement::kNone;  ///< after any method (none: the method's own output)
   RefineParams refine_params;             ///< detect_fattening is set from `refine`
+  /// Last, for the cost-volume methods (SGBM has its own 1/16 pixel): each
+  /// integer label moved to the minimum of its cost curve (subpixel.h).
+  bool subpixel = false;
+  SubpixelParams subpixel_params;
   int threads = 0;      ///< 0 = all cores
 };
 
 struct MatchResult {
-  cv::Mat disparity;         ///< CV_32F, NaN where the method gives none (SGBM)
+  cv::Mat disparity;         ///< CV_32F, NaN where the method gives none (SGBM); sub-pixel with `subpixel`
   double cost_ms = 0.0;      ///< matching cost volume (0 for SGBM)
   double optimize_ms = 0.0;  ///< the method itself
   double refine_ms = 0.0;    ///< the refinement (0 without)
-  double total_ms() const { return cost_ms + optimize_ms + refine_ms; }
+  double subpixel_ms = 0.0;  ///< the sub-pixel step (0 without)
+  double total_ms() const { return cost_ms + optimize_ms + refine_ms + subpixel_ms; }
   Energy energy;             ///< Eq. 2.2 of the (rounded, clamped) final result on this pair's cost volume
   cv::Mat fattening;         ///< FFD's mask (CV_8U, 255 = fattening) with Refinement::kFfdMdc, else empty
   int cuts = 0;
