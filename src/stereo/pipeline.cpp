@@ -125,6 +125,7 @@ void retainFreedMemory() {
 
 MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, const StereoParams& params) {
   MatchResult result;
+  if (params.subpixel) validate(params.subpixel_params);  // before minutes of matching, not after
   auto start = Clock::now();
   const CostVolume volume = computeCostVolume(left, right, params.cost);  // validates the input
   result.cost_ms = msSince(start);

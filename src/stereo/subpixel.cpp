@@ -16,13 +16,7 @@ void validate(const CostVolume& volume, const cv::Mat& disparity, const Subpixel
                                 std::to_string(disparity.rows) + ", the cost volume " + std::to_string(volume.width()) +
                                 "x" + std::to_string(volume.height()));
   }
-  if (params.window < 1 || params.window % 2 == 0) {
-    throw std::invalid_argument("subpixelDisparity: window must be odd and >= 1, got " + std::to_string(params.window));
-  }
-  if (!(params.max_offset > 0.0f && params.max_offset <= 0.5f)) {
-    throw std::invalid_argument("subpixelDisparity: max_offset must be in (0, 0.5], got " +
-                                std::to_string(params.max_offset));
-  }
+  validate(params);
   for (int y = 0; y < disparity.rows; ++y) {
     const float* d = disparity.ptr<float>(y);
     for (int x = 0; x < disparity.cols; ++x) {
@@ -43,6 +37,18 @@ double curveMinimum(SubpixelFit fit, double cm, double c0, double cp) {
 }
 
 }  // namespace
+
+void validate(const SubpixelParams& params) {
+  if (params.fit != SubpixelFit::kParabola && params.fit != SubpixelFit::kEquiangular) {
+    throw std::invalid_argument("subpixel: unknown fit " + std::to_string(static_cast<int>(params.fit)));
+  }
+  if (params.window < 1 || params.window % 2 == 0) {
+    throw std::invalid_argument("subpixel: window must be odd and >= 1, got " + std::to_string(params.window));
+  }
+  if (!(params.max_offset > 0.0f && params.max_offset <= 0.5f)) {
+    throw std::invalid_argument("subpixel: max_offset must be in (0, 0.5], got " + std::to_string(params.max_offset));
+  }
+}
 
 SubpixelFit parseSubpixelFit(const std::string& name) {
   if (name == "parabola") return SubpixelFit::kParabola;

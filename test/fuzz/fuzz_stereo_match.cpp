@@ -95,6 +95,10 @@ stereo::StereoParams validParams(fuzz::FuzzInput& in, cv::Size size) {
   r.gamma_g = static_cast<float>(in.real(1, 20));
   r.threads = static_cast<int>(in.range(0, 2));
   p.threads = static_cast<int>(in.range(0, 2));
+  p.subpixel = in.flag();
+  p.subpixel_params.fit = in.flag() ? stereo::SubpixelFit::kParabola : stereo::SubpixelFit::kEquiangular;
+  p.subpixel_params.window = odd(in, 9);
+  p.subpixel_params.max_offset = static_cast<float>(in.real(0.01, 0.5));
   return p;
 }
 
@@ -103,7 +107,7 @@ void breakOne(fuzz::FuzzInput& in, stereo::StereoParams& p, cv::Size size) {
   const double v = in.real(-3, 3, true);
   const auto i = static_cast<int>(std::lround(std::isfinite(v) ? v : -1));
   auto& r = p.refine_params;
-  switch (in.range(0, 22)) {
+  switch (in.range(0, 24)) {
     case 0:
       p.cost.dmin = i;
       break;
@@ -170,8 +174,16 @@ void breakOne(fuzz::FuzzInput& in, stereo::StereoParams& p, cv::Size size) {
     case 21:
       r.gamma_c = static_cast<float>(v);
       break;
-    default:
+    case 22:
       r.gamma_g = static_cast<float>(v);
+      break;
+    case 23:
+      p.subpixel = true;
+      p.subpixel_params.window = i + 1;
+      break;
+    default:
+      p.subpixel = true;
+      p.subpixel_params.max_offset = static_cast<float>(v);
       break;
   }
 }
@@ -202,7 +214,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
               << p.cost.dmin << ".." << p.cost.dmax << ", ncc " << p.cost.ncc_window << ", refine "
               << stereo::toString(p.refine) << ", superpixels " << static_cast<int>(p.refine_params.superpixels)
               << ", region " << p.refine_params.region_size << ", ruler " << p.refine_params.ruler << ", iterations "
-              << p.refine_params.slic_iterations << ", window " << p.refine_params.window << "\n";
+              << p.refine_params.slic_iterations << ", window " << p.refine_params.window << ", subpixel " << p.subpixel
+              << " " << stereo::toString(p.subpixel_params.fit) << " window " << p.subpixel_params.window
+              << " max_offset " << p.subpixel_params.max_offset << "\n";
   }
   stereo::MatchResult result;
   try {

@@ -32,6 +32,9 @@ struct SubpixelParams {
   float max_offset = 0.5f;
 };
 
+/// Throws std::invalid_argument naming the first bad parameter.
+void validate(const SubpixelParams& params);
+
 /// `disparity` (CV_32F, labels in the volume's range, NaN allowed) with each
 /// integer label d moved to the minimum of the curve through the
 /// window-summed cost at d - 1, d, d + 1 where d is a strict local minimum
