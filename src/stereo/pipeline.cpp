@@ -16,6 +16,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "massage_cell/stereo/consistency.h"
 #include "massage_cell/stereo/optimizers.h"
 
 #ifndef MASSAGE_CELL_SOURCE_DIR
@@ -123,7 +124,10 @@ void retainFreedMemory() {
 #endif
 }
 
-MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, const StereoParams& params) {
+namespace {
+
+/// One view: the method, its refinement and the sub-pixel step.
+MatchResult matchLeftView(const cv::Mat& left, const cv::Mat& right, Method method, const StereoParams& params) {
   MatchResult result;
   if (params.subpixel) validate(params.subpixel_params);  // before minutes of matching, not after
   auto start = Clock::now();
@@ -178,6 +182,23 @@ MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, cons
   }
   result.energy = labellingEnergy(volume, weights, toLabelling(result.disparity, volume.dmin(), volume.dmax()),
                                   params.smooth.truncation);
+  return result;
+}
+
+}  // namespace
+
+MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, const StereoParams& params) {
+  if (params.lr_check && !(params.lr_tolerance >= 0.0f && std::isfinite(params.lr_tolerance))) {
+    throw std::invalid_argument("lr_tolerance must be finite and >= 0, got " + std::to_string(params.lr_tolerance));
+  }
+  MatchResult result = matchLeftView(left, right, method, params);
+  if (!params.lr_check) return result;
+  const auto start = Clock::now();
+  const cv::Mat right_disparity = rightViewDisparity(
+      left, right, [&](const cv::Mat& a, const cv::Mat& b) { return matchLeftView(a, b, method, params).disparity; });
+  result.consistent = leftRightCheck(result.disparity, right_disparity, params.lr_tolerance);
+  result.disparity = fillFromBackground(result.disparity, result.consistent);
+  result.lr_ms = msSince(start);
   return result;
 }
 

@@ -2,6 +2,8 @@
 // massage_cell::stereo::StereoParams.
 #pragma once
 
+#include <cmath>
+
 #include "cli.h"
 #include "massage_cell/stereo/pipeline.h"
 
@@ -27,6 +29,10 @@ inline const char* stereoParamsHelp() {
   --subpixel F       last, for every method but sgbm: each disparity moved to the minimum of the
                      cost curve through d - 1, d, d + 1: parabola, equiangular or none (default)
   --subpixel-window N  side of the window the cost is summed over for it, odd (default 5)
+  --lr-check         also match the right view (mirrored pair, same method: twice the time);
+                     left pixels it does not confirm (occluded, border band, mismatched) are
+                     filled from the background side along their row
+  --lr-tolerance T   largest left-right disagreement confirmed, pixels (default 1)
   --max-cycles N     expansion / swap cycles at most (default 20)
   --threads N        worker threads, 0 = all cores (default 0)
 )";
@@ -66,6 +72,8 @@ inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
     }
   };
   table.values["--subpixel-window"] = integer(p.subpixel_params.window);
+  table.flags["--lr-check"] = [&p] { p.lr_check = true; };
+  table.values["--lr-tolerance"] = number(p.lr_tolerance);
   table.values["--threads"] = integer(p.threads);
 }
 
@@ -85,6 +93,7 @@ inline void checkStereoParams(const stereo::StereoParams& p) {
     throw UsageError(std::string("--refine-window: ") + e.what());
   }
   require(p.subpixel_params.window >= 1 && p.subpixel_params.window % 2 == 1, "--subpixel-window must be odd and >= 1");
+  require(p.lr_tolerance >= 0.0f && std::isfinite(p.lr_tolerance), "--lr-tolerance must be >= 0");
   require(p.max_cycles >= 1, "--max-cycles must be >= 1");
   require(p.threads >= 0, "--threads must be >= 0");
 }

@@ -99,6 +99,8 @@ stereo::StereoParams validParams(fuzz::FuzzInput& in, cv::Size size) {
   p.subpixel_params.fit = in.flag() ? stereo::SubpixelFit::kParabola : stereo::SubpixelFit::kEquiangular;
   p.subpixel_params.window = odd(in, 9);
   p.subpixel_params.max_offset = static_cast<float>(in.real(0.01, 0.5));
+  p.lr_check = in.flag();
+  p.lr_tolerance = static_cast<float>(in.real(0, 2));
   return p;
 }
 
@@ -107,7 +109,7 @@ void breakOne(fuzz::FuzzInput& in, stereo::StereoParams& p, cv::Size size) {
   const double v = in.real(-3, 3, true);
   const auto i = static_cast<int>(std::lround(std::isfinite(v) ? v : -1));
   auto& r = p.refine_params;
-  switch (in.range(0, 24)) {
+  switch (in.range(0, 25)) {
     case 0:
       p.cost.dmin = i;
       break;
@@ -181,9 +183,13 @@ void breakOne(fuzz::FuzzInput& in, stereo::StereoParams& p, cv::Size size) {
       p.subpixel = true;
       p.subpixel_params.window = i + 1;
       break;
-    default:
+    case 24:
       p.subpixel = true;
       p.subpixel_params.max_offset = static_cast<float>(v);
+      break;
+    default:
+      p.lr_check = true;
+      p.lr_tolerance = static_cast<float>(v);
       break;
   }
 }
@@ -216,7 +222,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
               << ", region " << p.refine_params.region_size << ", ruler " << p.refine_params.ruler << ", iterations "
               << p.refine_params.slic_iterations << ", window " << p.refine_params.window << ", subpixel " << p.subpixel
               << " " << stereo::toString(p.subpixel_params.fit) << " window " << p.subpixel_params.window
-              << " max_offset " << p.subpixel_params.max_offset << "\n";
+              << " max_offset " << p.subpixel_params.max_offset << ", lr_check " << p.lr_check << " tolerance "
+              << p.lr_tolerance << "\n";
   }
   stereo::MatchResult result;
   try {

@@ -42,6 +42,13 @@ struct StereoParams {
   /// integer label moved to the minimum of its cost curve (subpixel.h).
   bool subpixel = false;
   SubpixelParams subpixel_params;
+  /// Left-right check (consistency.h; our addition beside the thesis): the
+  /// right view's map by the same method on the mirrored pair (twice the
+  /// time); left pixels it does not confirm within `lr_tolerance` — occluded,
+  /// in the border band, mismatched — are marked in MatchResult::consistent
+  /// and filled from the background side along their row.
+  bool lr_check = false;
+  float lr_tolerance = 1.0f;
   int threads = 0;      ///< 0 = all cores
 };
 
@@ -51,8 +58,12 @@ struct MatchResult {
   double optimize_ms = 0.0;  ///< the method itself
   double refine_ms = 0.0;    ///< the refinement (0 without)
   double subpixel_ms = 0.0;  ///< the sub-pixel step (0 without)
-  double total_ms() const { return cost_ms + optimize_ms + refine_ms + subpixel_ms; }
-  Energy energy;             ///< Eq. 2.2 of the (rounded, clamped) final result on this pair's cost volume
+  double lr_ms = 0.0;        ///< with lr_check: the right view's matching, the check and the filling
+  double total_ms() const { return cost_ms + optimize_ms + refine_ms + subpixel_ms + lr_ms; }
+  /// With lr_check: CV_8U, 255 where the right view confirms the disparity,
+  /// 0 where it was filled from the background; else empty.
+  cv::Mat consistent;
+  Energy energy;  ///< Eq. 2.2 of the (rounded, clamped) result on this pair's cost volume, before lr_check's filling
   cv::Mat fattening;         ///< FFD's mask (CV_8U, 255 = fattening) with Refinement::kFfdMdc, else empty
   int cuts = 0;
 };
