@@ -215,6 +215,7 @@ void HbdsNodelet::init() {
     depth_pub_ = it.advertise("depth", 1, it_connect, it_connect);
     depth_info_pub_ = nh.advertise<sensor_msgs::CameraInfo>("depth/camera_info", 1, connect, connect);
     points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points2", 1, connect, connect);
+    confidence_pub_ = it.advertise("confidence", 1, it_connect, it_connect);
   }
   NODELET_INFO_STREAM("dense stereo on " << nh.resolveName("left/image_raw") << " + " << nh.resolveName("right/image_raw")
                                          << (sync.approximate ? " (approximate sync)" : " (exact sync)")
@@ -262,13 +263,15 @@ void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
     config.downsample = config_.downsample;
   }
   config_ = config;
-  NODELET_INFO_STREAM(
-      "method " << config.method << ", disparities " << config.min_disparity << ".."
-                << config.min_disparity + config.disparity_range - 1 << ", eta " << config.eta << ", ncc_window "
-                << config.ncc_window << ", gradient_saturation " << config.gradient_saturation << ", tau " << config.tau
-                << ", u " << config.u_min << ".." << config.u_max << ", overlap " << config.overlap
-                << ", polish_window " << config.polish_window << ", refine " << config.refine << ", subpixel "
-                << config.subpixel << ", threads " << config.threads << ", downsample " << config.downsample);
+  NODELET_INFO_STREAM("method " << config.method << ", disparities " << config.min_disparity << ".."
+                                << config.min_disparity + config.disparity_range - 1 << ", eta " << config.eta
+                                << ", ncc_window " << config.ncc_window << ", gradient_saturation "
+                                << config.gradient_saturation << ", tau " << config.tau << ", u " << config.u_min
+                                << ".." << config.u_max << ", overlap " << config.overlap << ", polish_window "
+                                << config.polish_window << ", refine " << config.refine << ", subpixel "
+                                << config.subpixel << ", lr_check " << (config.lr_check ? "on" : "off")
+                                << " (tolerance " << config.lr_tolerance << ", fill " << (config.lr_fill ? "on" : "off")
+                                << "), threads " << config.threads << ", downsample " << config.downsample);
 }
 
 // ------------------------------------------------------ subscriptions --
@@ -278,6 +281,7 @@ HbdsNodelet::Outputs HbdsNodelet::wantedOutputs() {
   o.disparity = disparity_pub_.getNumSubscribers() > 0;
   o.depth = depth_pub_.getNumSubscribers() > 0 || depth_info_pub_.getNumSubscribers() > 0;
   o.points = points_pub_.getNumSubscribers() > 0;
+  o.confidence = confidence_pub_.getNumSubscribers() > 0;
   return o;
 }
 
@@ -431,21 +435,26 @@ void HbdsNodelet::process(const StereoPair& pair, const Config& config, const Ou
   params.refine_params.threads = config.threads;
   params.subpixel = config.subpixel != "none";
   if (params.subpixel) params.subpixel_params.fit = stereo::parseSubpixelFit(config.subpixel);
+  params.lr_check = config.lr_check;
+  params.lr_tolerance = static_cast<float>(config.lr_tolerance);
   const stereo::Method method = stereo::parseMethod(config.method);
   const stereo::MatchResult result = stereo::match(views[0], views[1], method, params);
 
   // 4. Disparity as stereo_msgs/DisparityImage defines it: d = x_l - x_r -
   // (cx_l - cx_r). Invalid pixels hold min_disparity - 1 (below the searched
   // range, as the message defines and stereo_image_proc does): those the
-  // method leaves empty (NaN) and the left band x < dmax, whose search ran
-  // off the right image's edge.
+  // method leaves empty (NaN); without the left-right check the left band
+  // x < dmax, whose search ran off the right image's edge; with it and
+  // lr_fill off, the pixels the right view does not confirm (with lr_fill on
+  // they hold the background's disparity and ~confidence marks them).
   std_msgs::Header header = pair.left_image->header;
   if (header.frame_id.empty()) header.frame_id = li.header.frame_id;
   const float offset = static_cast<float>(g.offset());
   const float min_disparity = static_cast<float>(params.cost.dmin) - offset;
   const float max_disparity = static_cast<float>(params.cost.dmax) - offset;
   const float invalid = min_disparity - 1.0f;
-  const int valid_x0 = params.cost.dmax;
+  const int valid_x0 = params.lr_check ? 0 : params.cost.dmax;
+  const cv::Mat keep = params.lr_check && !config.lr_fill ? result.consistent : cv::Mat();
 
   auto disparity_msg = boost::make_shared<stereo_msgs::DisparityImage>();
   disparity_msg->header = header;
@@ -469,9 +478,19 @@ void HbdsNodelet::process(const StereoPair& pair, const Config& config, const Ou
   for (int y = 0; y < g.height; ++y) {
     const float* in = result.disparity.ptr<float>(y);
     float* out = disparity.ptr<float>(y);
-    for (int x = 0; x < g.width; ++x) out[x] = (x >= valid_x0 && std::isfinite(in[x])) ? in[x] - offset : invalid;
+    const unsigned char* k = keep.empty() ? nullptr : keep.ptr<unsigned char>(y);
+    for (int x = 0; x < g.width; ++x) {
+      const bool valid = x >= valid_x0 && std::isfinite(in[x]) && (k == nullptr || k[x] != 0);
+      out[x] = valid ? in[x] - offset : invalid;
+    }
   }
   if (wanted.disparity) disparity_pub_.publish(disparity_msg);
+  if (wanted.confidence) {
+    // mono8: 255 where the right view confirms the disparity, 0 elsewhere;
+    // without the left-right check, 255 wherever the disparity is valid.
+    cv::Mat confidence = params.lr_check ? result.consistent.clone() : cv::Mat(disparity >= min_disparity);
+    confidence_pub_.publish(cv_bridge::CvImage(header, enc::MONO8, confidence).toImageMsg());
+  }
 
   // 5. Depth (REP 118: metres, NaN where unknown) = f T / d; d <= 0 is at or
   // beyond infinity and also NaN.

@@ -43,8 +43,8 @@ class HbdsNodelet : public nodelet::Nodelet {
 
   /// Which outputs have subscribers (decided per pair).
   struct Outputs {
-    bool disparity = false, depth = false, points = false;
-    bool any() const { return disparity || depth || points; }
+    bool disparity = false, depth = false, points = false, confidence = false;
+    bool any() const { return disparity || depth || points || confidence; }
   };
 
   /// Rectification maps of both views, kept until the calibration changes.
@@ -74,7 +74,7 @@ class HbdsNodelet : public nodelet::Nodelet {
   // Outputs.
   std::mutex connect_mutex_;  // guards (un)subscribing the inputs
   ros::Publisher disparity_pub_, depth_info_pub_, points_pub_;
-  image_transport::Publisher depth_pub_;
+  image_transport::Publisher depth_pub_, confidence_pub_;
 
   // Parameters (dynamic_reconfigure; the server locks config_mutex_ around configCb).
   boost::recursive_mutex config_mutex_;

@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "massage_cell/stereo/consistency.h"
 #include "stereo_params.h"
 
 namespace {
@@ -13,13 +14,18 @@ namespace {
 namespace stereo = massage_cell::stereo;
 using namespace massage_cell::tools;
 
-const char* const kUsageHead = R"(Usage: stereo_eval [--scenes tsukuba,venus,teddy,cones] [--methods hbds,expansion,swap,wta,sgbm]
-                   [--data DIR] [--csv] [--pictures DIR] [options]
+const char* const kUsageHead =
+    R"(Usage: stereo_eval [--scenes tsukuba,venus,teddy,cones,art,dolls] [--methods hbds,expansion,swap,wta,sgbm]
+                   [--data DIR] [--data2005 DIR] [--csv] [--pictures DIR] [options]
 
-Runs each method on each Middlebury scene (official range 0..dmax per scene)
-and prints the percentage of bad pixels (|d - d_gt| > 0.5 / 1 / 2 px) in the
-nonocc, all and disc masks, and the time. Data: --data, else
-$MASSAGE_CELL_MIDDLEBURY, else ../shared/data/middlebury2003 beside the package.
+Runs each method on each Middlebury scene (official range 0..dmax per scene;
+0..79 for the 2005 scenes) and prints the percentage of bad pixels
+(|d - d_gt| > 0.5 / 1 / 2 px) in the nonocc, all and disc masks, and the time.
+The 2005 scenes ship no masks: all = known GT, nonocc = known GT whose match
+lies inside the right image (x >= d_gt), disc = nonocc within 4 px of a GT
+jump > 2 px. Data: --data / --data2005, else $MASSAGE_CELL_MIDDLEBURY /
+$MASSAGE_CELL_MIDDLEBURY2005, else ../shared/data/middlebury2003 / middlebury2005
+beside the package.
   --csv              print CSV: scene,method,mask,threshold,bad_percent,time_ms
   --pictures DIR     also write DIR/<scene>_<method>.png: the disparity (colour) beside
                      the errors in the nonocc mask (> 1 px in red, NaN in blue, over the
@@ -27,10 +33,16 @@ $MASSAGE_CELL_MIDDLEBURY, else ../shared/data/middlebury2003 beside the package.
                      (yellow) over the grey left image
 )";
 
-struct Options {
+std::vector<std::string> allScenes() {
   std::vector<std::string> scenes = stereo::middleburyScenes();
+  for (const auto& s : stereo::middlebury2005Scenes()) scenes.push_back(s);
+  return scenes;
+}
+
+struct Options {
+  std::vector<std::string> scenes = allScenes();
   std::vector<std::string> methods{"hbds", "expansion", "swap", "wta", "sgbm"};
-  std::string data;
+  std::string data, data2005;
   bool csv = false;
   std::string pictures;
   stereo::StereoParams params;
@@ -41,6 +53,7 @@ bool parse(int argc, char** argv, Options& o) {
   t.values["--scenes"] = [&](const std::string&, const std::string& v) { o.scenes = splitList(v); };
   t.values["--methods"] = [&](const std::string&, const std::string& v) { o.methods = splitList(v); };
   t.values["--data"] = [&](const std::string&, const std::string& v) { o.data = v; };
+  t.values["--data2005"] = [&](const std::string&, const std::string& v) { o.data2005 = v; };
   t.flags["--csv"] = [&] { o.csv = true; };
   t.values["--pictures"] = [&](const std::string&, const std::string& v) { o.pictures = v; };
   addStereoParams(t, o.params);
@@ -56,6 +69,7 @@ bool parse(int argc, char** argv, Options& o) {
   }
   checkStereoParams(o.params);
   if (o.data.empty()) o.data = stereo::middleburyRoot();
+  if (o.data2005.empty()) o.data2005 = stereo::middlebury2005Root();
   return true;
 }
 
@@ -87,18 +101,69 @@ void writePicture(const Options& o, const stereo::MiddleburyScene& scene, const 
   if (!cv::imwrite(path, picture)) throw std::runtime_error("cannot write '" + path + "'");
 }
 
+struct Row {
+  std::string scene, label;
+  double bad[3][3];  // [nonocc, all, disc][> 0.5, > 1, > 2]
+  double ms;
+};
+
+const char* const kMasks[3] = {"nonocc", "all", "disc"};
+const double kThresholds[3] = {0.5, 1.0, 2.0};
+
+Row evaluate(const stereo::MiddleburyScene& scene, const std::string& label, const cv::Mat& disparity, double ms) {
+  const cv::Mat* masks[3] = {&scene.nonocc, &scene.all, &scene.disc};
+  Row row{scene.name, label, {}, ms};
+  for (int m = 0; m < 3; ++m) {
+    for (int t = 0; t < 3; ++t)
+      row.bad[m][t] = stereo::badPixelPercent(disparity, scene.ground_truth, *masks[m], kThresholds[t]);
+  }
+  return row;
+}
+
+void print(const Options& o, const Row& r) {
+  if (o.csv) {
+    for (int m = 0; m < 3; ++m) {
+      for (int t = 0; t < 3; ++t) {
+        std::printf("%s,%s,%s,%.1f,%.3f,%.1f\n", r.scene.c_str(), r.label.c_str(), kMasks[m], kThresholds[t],
+                    r.bad[m][t], r.ms);
+      }
+    }
+  } else {
+    std::printf("%-8s %-13s | %6.2f %6.2f %6.2f | %6.2f %6.2f %6.2f | %6.2f %6.2f %6.2f | %9.1f\n", r.scene.c_str(),
+                r.label.c_str(), r.bad[0][0], r.bad[0][1], r.bad[0][2], r.bad[1][0], r.bad[1][1], r.bad[1][2],
+                r.bad[2][0], r.bad[2][1], r.bad[2][2], r.ms);
+  }
+  std::fflush(stdout);
+}
+
+/// Each method's `all` bad > 1 px and time as a multiple of StereoSGBM's with its invalid pixels filled
+/// from the background side (the issue's reference), scene by scene.
+void printRatios(const std::vector<Row>& rows) {
+  std::printf(
+      "\nall > 1 px and time relative to sgbm+fill (StereoSGBM 3-way, invalid filled from the background side)\n");
+  for (const Row& ref : rows) {
+    if (ref.label != "sgbm+fill") continue;
+    for (const Row& r : rows) {
+      if (r.scene != ref.scene || r.label == "sgbm+fill" || r.label == "sgbm") continue;
+      std::printf("%-8s %-13s  %5.2f x bad   %7.1f x time\n", r.scene.c_str(), r.label.c_str(),
+                  ref.bad[1][1] > 0 ? r.bad[1][1] / ref.bad[1][1] : 0.0, ref.ms > 0 ? r.ms / ref.ms : 0.0);
+    }
+  }
+}
+
 void run(const Options& o) {
   if (!o.pictures.empty()) std::filesystem::create_directories(o.pictures);
-  const double thresholds[3] = {0.5, 1.0, 2.0};
   if (o.csv) {
     std::printf("scene,method,mask,threshold,bad_percent,time_ms\n");
   } else {
-    std::printf("Middlebury bad pixels (%%), data %s\n", o.data.c_str());
+    std::printf("Middlebury bad pixels (%%), data %s, %s\n", o.data.c_str(), o.data2005.c_str());
     std::printf("%-8s %-13s | %-20s | %-20s | %-20s | %9s\n", "scene", "method", "nonocc >0.5 >1 >2", "all >0.5 >1 >2",
                 "disc >0.5 >1 >2", "time ms");
   }
+  std::vector<Row> rows;
   for (const auto& name : o.scenes) {
-    const stereo::MiddleburyScene scene = stereo::loadMiddleburyScene(o.data, name);
+    const stereo::MiddleburyScene scene =
+        stereo::loadMiddleburyScene(stereo::isMiddlebury2005Scene(name) ? o.data2005 : o.data, name);
     stereo::StereoParams params = o.params;
     params.cost.dmin = 0;
     params.cost.dmax = scene.dmax;
@@ -106,27 +171,17 @@ void run(const Options& o) {
       const stereo::MatchResult r = stereo::match(scene.left, scene.right, stereo::parseMethod(method), params);
       const std::string label =
           params.refine == stereo::Refinement::kNone ? method : method + "+" + stereo::toString(params.refine);
-      const std::pair<const char*, const cv::Mat*> masks[3] = {{"nonocc", &scene.nonocc}, {"all", &scene.all}, {"disc", &scene.disc}};
       if (!o.pictures.empty()) writePicture(o, scene, label, r);
-      double bad[3][3];
-      for (int m = 0; m < 3; ++m) {
-        for (int t = 0; t < 3; ++t) bad[m][t] = stereo::badPixelPercent(r.disparity, scene.ground_truth, *masks[m].second, thresholds[t]);
+      rows.push_back(evaluate(scene, label, r.disparity, r.total_ms()));
+      print(o, rows.back());
+      if (method == "sgbm" && !params.lr_check && params.refine == stereo::Refinement::kNone) {
+        const cv::Mat filled = stereo::fillFromBackground(r.disparity, r.disparity == r.disparity);
+        rows.push_back(evaluate(scene, "sgbm+fill", filled, r.total_ms()));
+        print(o, rows.back());
       }
-      if (o.csv) {
-        for (int m = 0; m < 3; ++m) {
-          for (int t = 0; t < 3; ++t) {
-            std::printf("%s,%s,%s,%.1f,%.3f,%.1f\n", name.c_str(), label.c_str(), masks[m].first, thresholds[t], bad[m][t],
-                        r.total_ms());
-          }
-        }
-      } else {
-        std::printf("%-8s %-13s | %6.2f %6.2f %6.2f | %6.2f %6.2f %6.2f | %6.2f %6.2f %6.2f | %9.1f\n", name.c_str(),
-                    label.c_str(), bad[0][0], bad[0][1], bad[0][2], bad[1][0], bad[1][1], bad[1][2], bad[2][0], bad[2][1],
-                    bad[2][2], r.total_ms());
-      }
-      std::fflush(stdout);
     }
   }
+  if (!o.csv) printRatios(rows);
 }
 
 }  // namespace

@@ -9,6 +9,8 @@
 // mismatched sizes, an uncalibrated camera_info, an unsupported encoding and
 // a range wider than the image are skipped (named in the diagnostics), and a
 // good pair afterwards is still processed.
+// LeftRightCheck: a fourth node in /lr_input runs with lr_check: ~confidence
+// marks the left band unconfirmed, filled or invalid as lr_fill says.
 // RawPairIsRectified: a third node in /raw_input gets a raw (distorted,
 // unaligned) pair rendered by the simulator with its raw calibration; it
 // must rectify it and find the back at the ground-truth depth.
@@ -28,6 +30,7 @@
 
 #include <camera_calibration_parsers/parse.h>
 #include <cv_bridge/cv_bridge.h>
+#include <dynamic_reconfigure/Reconfigure.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
@@ -330,16 +333,18 @@ TEST_F(HbdsNode, BadInputIsSkipped) {
   EXPECT_TRUE(ros::service::exists("/bad_input/hbds/set_parameters", false)) << "the node is gone";
 }
 
-TEST_F(HbdsNode, RawPairIsRectified) {
-  massage_cell::test::TempDir dir("hbds_raw");
-  const auto render = massage_cell::test::runCommand(std::string(RENDER_SCENE_TOOL) +
-                                                         " --preset back --raw --width 320 --height 240 --fx 250"
-                                                         " --supersample 1 --out " + dir.str(),
-                                                     120);
+/// A pair rendered by the simulator's back preset at 320x240, f = 250 px (raw: distorted and unaligned, with
+/// its raw calibration; else rectified) into `dir`, as messages in the left optical frame.
+void renderPair(const massage_cell::test::TempDir& dir, bool raw_pair, StereoPair& pair) {
+  const auto render =
+      massage_cell::test::runCommand(std::string(RENDER_SCENE_TOOL) + " --preset back" + (raw_pair ? " --raw" : "") +
+                                         " --width 320 --height 240 --fx 250"
+                                         " --supersample 1 --out " +
+                                         dir.str(),
+                                     120);
   ASSERT_EQ(render.exit_code, 0) << render.output;
-  StereoPair raw;
-  sensor_msgs::CameraInfo* info[2] = {&raw.left_info, &raw.right_info};
-  sensor_msgs::Image* image[2] = {&raw.left, &raw.right};
+  sensor_msgs::CameraInfo* info[2] = {&pair.left_info, &pair.right_info};
+  sensor_msgs::Image* image[2] = {&pair.left, &pair.right};
   const char* side[2] = {"left", "right"};
   for (int i = 0; i < 2; ++i) {
     std::string name;
@@ -350,6 +355,12 @@ TEST_F(HbdsNode, RawPairIsRectified) {
     *image[i] = *cv_bridge::CvImage(std_msgs::Header(), "bgr8", bgr).toImageMsg();
     image[i]->header.frame_id = info[i]->header.frame_id = "stereo_left_optical_frame";
   }
+}
+
+TEST_F(HbdsNode, RawPairIsRectified) {
+  massage_cell::test::TempDir dir("hbds_raw");
+  StereoPair raw;
+  ASSERT_NO_FATAL_FAILURE(renderPair(dir, true, raw));
   // The raw calibration really is raw: distortion and a rectifying rotation.
   ASSERT_GT(std::abs(raw.left_info.D.at(0)), 0.01);
   ASSERT_GT(std::abs(raw.left_info.R[1]) + std::abs(raw.left_info.R[2]) + std::abs(raw.left_info.R[5]), 1e-4);
@@ -397,6 +408,80 @@ TEST_F(HbdsNode, RawPairIsRectified) {
       if (std::isfinite(a) && std::abs(a - b) < 0.02f) ++close;
     }
   EXPECT_GT(close, counted * 6 / 10) << close << " of " << counted << " centre pixels within 2 cm";
+}
+
+// ------------------------------------------------------ left-right check --
+
+TEST_F(HbdsNode, LeftRightCheck) {
+  // The node in /lr_input runs with lr_check (hbds.test). Its left band, whose
+  // matches lie off the right image, is not confirmed by the right view:
+  // ~confidence is 0 there, and the disparity is filled (lr_fill, the default)
+  // or invalid (lr_fill off, set here through dynamic_reconfigure).
+  massage_cell::test::TempDir dir("hbds_lr");
+  StereoPair pair;
+  ASSERT_NO_FATAL_FAILURE(renderPair(dir, false, pair));
+  ros::NodeHandle ns("/lr_input");
+  PairPublisher input(ns, 2);
+  stereo_msgs::DisparityImageConstPtr disparity;
+  sensor_msgs::ImageConstPtr confidence;
+  ros::Subscriber subs[2] = {
+      ns.subscribe<stereo_msgs::DisparityImage>("disparity", 2,
+                                                [&](const stereo_msgs::DisparityImageConstPtr& m) { disparity = m; }),
+      ns.subscribe<sensor_msgs::Image>("confidence", 2, [&](const sensor_msgs::ImageConstPtr& m) { confidence = m; })};
+  ASSERT_TRUE(spinUntil([&] { return input.subscribed(); }, 15.0)) << "the node in /lr_input did not subscribe";
+  // One pair and both outputs of its stamp (a few tries: the first may race the subscriptions).
+  auto processed = [&](int first_second) {
+    disparity.reset();
+    confidence.reset();
+    for (int attempt = 0; attempt < 5; ++attempt) {
+      const ros::Time stamp(first_second + attempt, 0);
+      input.publish(pair, stamp);
+      if (spinUntil(
+              [&] {
+                return disparity && confidence && disparity->header.stamp == stamp && confidence->header.stamp == stamp;
+              },
+              10.0)) {
+        return true;
+      }
+    }
+    return false;
+  };
+  ASSERT_TRUE(processed(3000)) << "no disparity and confidence from /lr_input";
+  ASSERT_EQ(confidence->encoding, "mono8");
+  ASSERT_EQ(confidence->width, disparity->image.width);
+  ASSERT_EQ(confidence->height, disparity->image.height);
+  const int w = confidence->width, h = confidence->height;
+  EXPECT_EQ(disparity->valid_window.x_offset, 0u) << "with the check, the band is part of the output";
+  // The back is at ~0.76 m (disparity ~33 px), the wall behind it farther: nothing in x < 8 has a match.
+  auto count = [&](int x0, int x1, auto predicate) {
+    long n = 0;
+    for (int y = 0; y < h; ++y)
+      for (int x = x0; x < x1; ++x) n += predicate(y * w + x) ? 1 : 0;
+    return n;
+  };
+  const float* d = floats(disparity->image);
+  const auto& c = confidence->data;
+  const long band = 8L * h, centre = (w / 4) * static_cast<long>(h);
+  EXPECT_GT(count(0, 8, [&](long i) { return c[i] == 0; }), band * 9 / 10) << "band pixels marked confirmed";
+  EXPECT_GT(count(3 * w / 8, 5 * w / 8, [&](long i) { return c[i] == 255; }), centre * 8 / 10)
+      << "the back is not confirmed by the right view";
+  EXPECT_GT(count(0, 8, [&](long i) { return d[i] >= disparity->min_disparity; }), band * 9 / 10)
+      << "lr_fill: the band should be filled";
+
+  dynamic_reconfigure::ReconfigureRequest request;
+  dynamic_reconfigure::ReconfigureResponse response;
+  dynamic_reconfigure::BoolParameter fill;
+  fill.name = "lr_fill";
+  fill.value = false;
+  request.config.bools.push_back(fill);
+  ASSERT_TRUE(ros::service::call("/lr_input/hbds/set_parameters", request, response));
+  ASSERT_TRUE(processed(3100)) << "no disparity and confidence from /lr_input after lr_fill off";
+  const float* unfilled = floats(disparity->image);
+  const auto& c2 = confidence->data;
+  EXPECT_EQ(count(0, w, [&](long i) { return c2[i] == 0 && unfilled[i] >= disparity->min_disparity; }), 0)
+      << "lr_fill off: unconfirmed pixels must be invalid";
+  EXPECT_GT(count(3 * w / 8, 5 * w / 8, [&](long i) { return unfilled[i] >= disparity->min_disparity; }),
+            centre * 8 / 10);
 }
 
 }  // namespace

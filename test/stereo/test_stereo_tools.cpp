@@ -154,6 +154,43 @@ TEST(StereoEval, CsvOnMiddlebury) {
   EXPECT_EQ(rows, 9) << r.output;
 }
 
+TEST(StereoEval, Middlebury2005ScenesAndTheSgbmReference) {
+  namespace stereo = massage_cell::stereo;
+  const std::string root = stereo::middlebury2005Root();
+  if (!fs::exists(fs::path(root) / "dolls" / "left.png")) {
+    GTEST_SKIP() << "Middlebury 2005 data not found at " << root << " (set MASSAGE_CELL_MIDDLEBURY2005)";
+  }
+  // The derived masks: nonocc = known GT whose match is inside the right image, disc inside nonocc.
+  const stereo::MiddleburyScene dolls = stereo::loadMiddleburyScene(root, "dolls");
+  EXPECT_EQ(dolls.dmax, 79);
+  long nonocc = 0, outside = 0, disc = 0;
+  for (int y = 0; y < dolls.ground_truth.rows; ++y) {
+    for (int x = 0; x < dolls.ground_truth.cols; ++x) {
+      const float g = dolls.ground_truth.at<float>(y, x);
+      if (dolls.nonocc.at<uchar>(y, x)) {
+        ++nonocc;
+        if (!(g > 0.0f) || x < g) ++outside;
+      }
+      if (dolls.disc.at<uchar>(y, x)) {
+        ++disc;
+        if (!dolls.nonocc.at<uchar>(y, x)) ++outside;
+      }
+    }
+  }
+  EXPECT_EQ(outside, 0);
+  EXPECT_GT(nonocc, dolls.ground_truth.total() * 8 / 10);  // the band x < d is ~10 % of the image
+  EXPECT_LT(nonocc, dolls.ground_truth.total() * 95 / 100);
+  EXPECT_GT(disc, 0);
+  EXPECT_LT(disc, nonocc / 2);
+  // stereo_eval on a 2005 scene: SGBM's row, its filled reference and the ratio table.
+  const auto r = runCommand(kEval + " --scenes dolls --methods wta,sgbm", 120);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("dolls    sgbm+fill"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("relative to sgbm+fill"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("dolls    wta "), std::string::npos) << r.output;
+  expectFailure(kEval + " --scenes lighthouse --methods wta", 1, "unknown Middlebury scene 'lighthouse'");
+}
+
 TEST(StereoEval, PicturesOnMiddlebury) {
   const std::string root = massage_cell::stereo::middleburyRoot();
   if (!fs::exists(fs::path(root) / "tsukuba" / "left.png")) {

@@ -81,22 +81,29 @@ void retainFreedMemory();
 /// std::invalid_argument for bad input (see computeCostVolume).
 MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, const StereoParams& params);
 
-/// A Middlebury 2001/2003 scene as laid out in shared/data/middlebury2003.
+/// A Middlebury scene as laid out in shared/data/middlebury2003 (tsukuba, venus, teddy, cones: official
+/// masks) or shared/data/middlebury2005 (art, dolls: third size, no masks ship; `all` = every pixel with
+/// known GT, `nonocc` = those whose match lies inside the right image (x >= d_gt), `disc` = nonocc pixels
+/// within 4 px of a GT jump > 2 px).
 struct MiddleburyScene {
   std::string name;
   cv::Mat left, right;
   cv::Mat ground_truth;          ///< CV_32F pixels, 0 = unknown
   cv::Mat nonocc, all, disc;     ///< CV_8U masks, non-zero (255) = evaluated
-  int dmax = 0;                  ///< official search range 0..dmax
+  int dmax = 0;                  ///< search range 0..dmax (official for 2003; 79 for 2005's GT up to 75)
   int scale = 1;                 ///< GT value / scale = disparity
 };
 
-/// The folder of the Middlebury data: $MASSAGE_CELL_MIDDLEBURY if set, else
-/// ../shared/data/middlebury2003 next to the package's source folder.
+/// The folders of the Middlebury data: $MASSAGE_CELL_MIDDLEBURY (2003) / $MASSAGE_CELL_MIDDLEBURY2005 if
+/// set, else ../shared/data/middlebury2003 / middlebury2005 next to the package's source folder.
 std::string middleburyRoot();
-/// The four scene names in the order of the thesis's tables.
+std::string middlebury2005Root();
+/// The scene names in the order of the thesis's tables, and the two 2005 scenes.
 const std::vector<std::string>& middleburyScenes();
-/// Loads a scene; throws std::runtime_error naming the missing file or folder.
+const std::vector<std::string>& middlebury2005Scenes();
+bool isMiddlebury2005Scene(const std::string& name);
+/// Loads a scene from `root` (the folder of its year); throws std::runtime_error naming the missing file,
+/// the folder or an unknown scene.
 MiddleburyScene loadMiddleburyScene(const std::string& root, const std::string& name);
 
 /// Percentage of evaluated pixels (mask == 255 and GT known) whose disparity
