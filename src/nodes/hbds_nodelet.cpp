@@ -231,6 +231,10 @@ void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
     reject("method '" + config.method + "' (hbds, sgbm or wta): keeping '" + config_.method + "'");
     config.method = config_.method;
   }
+  if (config.cost != "thesis" && config.cost != "census" && config.cost != "ad-census") {
+    reject("cost '" + config.cost + "' (thesis, census or ad-census): keeping '" + config_.cost + "'");
+    config.cost = config_.cost;
+  }
   if (config.refine != "none" && config.refine != "mdc" && config.refine != "ffd_mdc") {
     reject("refine '" + config.refine + "' (none, mdc or ffd_mdc): keeping '" + config_.refine + "'");
     config.refine = config_.refine;
@@ -264,12 +268,12 @@ void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
   }
   config_ = config;
   NODELET_INFO_STREAM("method " << config.method << ", disparities " << config.min_disparity << ".."
-                                << config.min_disparity + config.disparity_range - 1 << ", eta " << config.eta
-                                << ", ncc_window " << config.ncc_window << ", gradient_saturation "
-                                << config.gradient_saturation << ", tau " << config.tau << ", u " << config.u_min
-                                << ".." << config.u_max << ", overlap " << config.overlap << ", polish_window "
-                                << config.polish_window << ", refine " << config.refine << ", subpixel "
-                                << config.subpixel << ", lr_check " << (config.lr_check ? "on" : "off")
+                                << config.min_disparity + config.disparity_range - 1 << ", cost " << config.cost
+                                << ", eta " << config.eta << ", ncc_window " << config.ncc_window
+                                << ", gradient_saturation " << config.gradient_saturation << ", tau " << config.tau
+                                << ", u " << config.u_min << ".." << config.u_max << ", overlap " << config.overlap
+                                << ", polish_window " << config.polish_window << ", refine " << config.refine
+                                << ", subpixel " << config.subpixel << ", lr_check " << (config.lr_check ? "on" : "off")
                                 << " (tolerance " << config.lr_tolerance << ", fill " << (config.lr_fill ? "on" : "off")
                                 << "), threads " << config.threads << ", downsample " << config.downsample);
 }
@@ -420,6 +424,7 @@ void HbdsNodelet::process(const StereoPair& pair, const Config& config, const Ou
                           : std::string()) +
                    " is wider than the image (width " + std::to_string(g.width) + ")");
   }
+  params.cost.data_term = stereo::parseDataTerm(config.cost);
   params.cost.eta = static_cast<float>(config.eta);
   params.cost.ncc_window = config.ncc_window;
   params.cost.gradient_saturation = static_cast<float>(config.gradient_saturation);

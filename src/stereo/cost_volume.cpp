@@ -77,7 +77,9 @@ namespace {
 
 [[noreturn]] void fail(const std::string& what) { throw std::invalid_argument("computeCostVolume: " + what); }
 
-void validate(const cv::Mat& left, const cv::Mat& right, const CostParams& p) {
+}  // namespace
+
+void validateCostInputs(const cv::Mat& left, const cv::Mat& right, const CostParams& p) {
   if (left.empty() || right.empty()) fail(std::string(left.empty() ? "left" : "right") + " image is empty");
   if (left.size() != right.size()) {
     std::ostringstream s;
@@ -98,6 +100,8 @@ void validate(const cv::Mat& left, const cv::Mat& right, const CostParams& p) {
     fail("ncc_window must be odd, >= 1 and <= min(width, height) (got " + std::to_string(n) + ")");
   if (!(p.eta > 0.0f) || !std::isfinite(p.eta)) fail("eta must be a positive finite number");
 }
+
+namespace {
 
 cv::Mat toGrey(const cv::Mat& img) {
   if (img.channels() == 1) return img;
@@ -384,7 +388,8 @@ cv::Mat textureWeight(const cv::Mat& left, float gradient_saturation) {
 }
 
 CostVolume computeCostVolume(const cv::Mat& left, const cv::Mat& right, const CostParams& params) {
-  validate(left, right, params);
+  if (params.data_term != DataTerm::kThesis) return computeCensusCostVolume(left, right, params);
+  validateCostInputs(left, right, params);
   Inputs in;
   in.W = left.cols;
   in.H = left.rows;

@@ -10,7 +10,11 @@
 namespace massage_cell::tools {
 
 inline const char* stereoParamsHelp() {
-  return R"(  --eta E            colour-cost truncation, grey levels (default 20)
+  return R"(  --cost C           data term: thesis (Eq. 2.6-2.8, default), census (Hamming distance of
+                     9x7 census strings) or ad-census (census + colour difference, Mei et al.)
+  --census-lambda L  ad-census: census distance (bits) where its term reaches 1 - 1/e (default 30)
+  --ad-lambda L      ad-census: colour difference (grey levels) likewise (default 10)
+  --eta E            colour-cost truncation, grey levels (default 20)
   --ncc-window N     NCC window side, odd (default 5)
   --gradient-saturation G  Sobel magnitude where the texture weight reaches 1 (default 20; 0: divide by the maximum)
   --tau T            intensity difference where the smoothness weight reaches u_min (default 30)
@@ -43,6 +47,15 @@ inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
     return [&field](const std::string& opt, const std::string& v) { field = static_cast<float>(parseDouble(opt, v)); };
   };
   auto integer = [](int& field) { return [&field](const std::string& opt, const std::string& v) { field = parseInt(opt, v); }; };
+  table.values["--cost"] = [&p](const std::string&, const std::string& v) {
+    try {
+      p.cost.data_term = stereo::parseDataTerm(v);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+  };
+  table.values["--census-lambda"] = number(p.cost.census_lambda);
+  table.values["--ad-lambda"] = number(p.cost.ad_lambda);
   table.values["--eta"] = number(p.cost.eta);
   table.values["--ncc-window"] = integer(p.cost.ncc_window);
   table.values["--gradient-saturation"] = number(p.cost.gradient_saturation);
@@ -79,6 +92,8 @@ inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
 
 inline void checkStereoParams(const stereo::StereoParams& p) {
   require(p.cost.eta > 0.0f, "--eta must be > 0");
+  require(p.cost.census_lambda > 0.0f && std::isfinite(p.cost.census_lambda), "--census-lambda must be > 0");
+  require(p.cost.ad_lambda > 0.0f && std::isfinite(p.cost.ad_lambda), "--ad-lambda must be > 0");
   require(p.cost.ncc_window >= 1 && p.cost.ncc_window % 2 == 1, "--ncc-window must be odd and >= 1");
   require(p.cost.gradient_saturation >= 0.0f, "--gradient-saturation must be >= 0");
   require(p.smooth.tau > 0.0f, "--tau must be > 0");

@@ -101,6 +101,11 @@ stereo::StereoParams validParams(fuzz::FuzzInput& in, cv::Size size) {
   p.subpixel_params.max_offset = static_cast<float>(in.real(0.01, 0.5));
   p.lr_check = in.flag();
   p.lr_tolerance = static_cast<float>(in.real(0, 2));
+  p.cost.data_term = static_cast<stereo::DataTerm>(in.range(0, 2));
+  p.cost.census_width = 3 + 2 * static_cast<int>(in.range(0, 3));
+  p.cost.census_height = 3 + 2 * static_cast<int>(in.range(0, 2));
+  p.cost.census_lambda = static_cast<float>(in.real(1, 60));
+  p.cost.ad_lambda = static_cast<float>(in.real(1, 60));
   return p;
 }
 
@@ -109,7 +114,7 @@ void breakOne(fuzz::FuzzInput& in, stereo::StereoParams& p, cv::Size size) {
   const double v = in.real(-3, 3, true);
   const auto i = static_cast<int>(std::lround(std::isfinite(v) ? v : -1));
   auto& r = p.refine_params;
-  switch (in.range(0, 25)) {
+  switch (in.range(0, 28)) {
     case 0:
       p.cost.dmin = i;
       break;
@@ -187,6 +192,18 @@ void breakOne(fuzz::FuzzInput& in, stereo::StereoParams& p, cv::Size size) {
       p.subpixel = true;
       p.subpixel_params.max_offset = static_cast<float>(v);
       break;
+    case 25:
+      p.cost.data_term = stereo::DataTerm::kCensus;
+      p.cost.census_width = i + 8;  // even, or over 64 bits
+      break;
+    case 26:
+      p.cost.data_term = stereo::DataTerm::kAdCensus;
+      p.cost.census_lambda = static_cast<float>(v);
+      break;
+    case 27:
+      p.cost.data_term = stereo::DataTerm::kAdCensus;
+      p.cost.ad_lambda = static_cast<float>(v);
+      break;
     default:
       p.lr_check = true;
       p.lr_tolerance = static_cast<float>(v);
@@ -217,7 +234,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (std::getenv("FUZZ_VERBOSE")) {
     std::cerr << "pair " << left.cols << "x" << left.rows << " type " << left.type() << " / " << right.cols << "x"
               << right.rows << " type " << right.type() << ", method " << stereo::toString(method) << ", d "
-              << p.cost.dmin << ".." << p.cost.dmax << ", ncc " << p.cost.ncc_window << ", refine "
+              << p.cost.dmin << ".." << p.cost.dmax << ", " << stereo::toString(p.cost.data_term) << " census "
+              << p.cost.census_width << "x" << p.cost.census_height << ", ncc " << p.cost.ncc_window << ", refine "
               << stereo::toString(p.refine) << ", superpixels " << static_cast<int>(p.refine_params.superpixels)
               << ", region " << p.refine_params.region_size << ", ruler " << p.refine_params.ruler << ", iterations "
               << p.refine_params.slic_iterations << ", window " << p.refine_params.window << ", subpixel " << p.subpixel

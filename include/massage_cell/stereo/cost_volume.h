@@ -10,12 +10,21 @@
 #include <memory>
 #include <new>
 #include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
 
 namespace massage_cell::stereo {
+
+/// The data term S(x, y, d): the thesis's Eq. 2.6-2.8 (default); the census
+/// transform's Hamming distance (Zabih & Woodfill), robust to gain and offset
+/// differences between the cameras; or AD-census (Mei et al. 2011), the
+/// census and the absolute colour difference each through 1 - exp(-c / lambda).
+enum class DataTerm { kThesis, kCensus, kAdCensus };
+DataTerm parseDataTerm(const std::string& name);  ///< "thesis" | "census" | "ad-census"
+std::string toString(DataTerm term);
 
 struct CostParams {
   int dmin = 0;             ///< smallest disparity searched (pixels)
@@ -26,6 +35,11 @@ struct CostParams {
   /// magnitude by its image maximum (the thesis's literal reading); > 0 divides
   /// by this magnitude and clamps at 1 (w = 1 from this much gradient on).
   float gradient_saturation = 20.0f;
+  DataTerm data_term = DataTerm::kThesis;
+  int census_width = 9;  ///< census window, odd sides, width x height - 1 <= 64 bits
+  int census_height = 7;
+  float census_lambda = 30.0f;  ///< ad-census: the census distance (bits) where its term reaches 1 - 1/e
+  float ad_lambda = 10.0f;      ///< ad-census: the mean channel difference (grey levels) likewise
   int threads = 0;          ///< worker threads, 0 = all cores
 };
 
@@ -89,10 +103,23 @@ class CostVolume {
 /// interpolated, both directions) colour cost of Eq. 2.7; T = (1 - NCC) / 2
 /// over the window W (Eq. 2.8, box filters); w the normalised Sobel gradient
 /// magnitude of the left image. Where x - d falls outside the right image the
-/// cost is 1. Inputs: CV_8UC3 (BGR) or CV_8UC1, same size. Throws
+/// cost is 1. With params.data_term census or ad-census, computeCensusCostVolume
+/// instead. Inputs: CV_8UC3 (BGR) or CV_8UC1, same size. Throws
 /// std::invalid_argument naming the problem (empty, sizes or types differ,
 /// unsupported type, dmax < dmin, range wider than the image, bad window).
 CostVolume computeCostVolume(const cv::Mat& left, const cv::Mat& right, const CostParams& params);
+
+/// The checks computeCostVolume makes before it starts (the images, the
+/// range, the thesis term's window and eta); throws std::invalid_argument
+/// naming the problem.
+void validateCostInputs(const cv::Mat& left, const cv::Mat& right, const CostParams& params);
+
+/// S for DataTerm::kCensus (Hamming distance / window bits) or kAdCensus
+/// ((rho(census, census_lambda) + rho(|I_L - I_R|, ad_lambda)) / 2 with
+/// rho(c, l) = 1 - exp(-c / l)); in [0, 1], 1 where x - d is outside the
+/// right image. Called by computeCostVolume; throws as it does, and for a
+/// census window that is even, under 3 or over 64 bits, or lambdas <= 0.
+CostVolume computeCensusCostVolume(const cv::Mat& left, const cv::Mat& right, const CostParams& params);
 
 /// The texture weight w of Eq. 2.6: Sobel gradient magnitude of the left
 /// image (grey), divided by its maximum (gradient_saturation 0) or by
