@@ -24,6 +24,21 @@ namespace massage_cell::nodes {
 
 namespace {
 
+/// The library's name of a cfg refinement value (cfg values use '_' where the library uses '-').
+std::string refinementName(std::string value) {
+  std::replace(value.begin(), value.end(), '_', '-');
+  return value;
+}
+
+bool validRefinement(const std::string& value) {
+  try {
+    massage_cell::stereo::parseRefinement(refinementName(value));
+    return true;
+  } catch (const std::invalid_argument&) {
+    return false;
+  }
+}
+
 namespace enc = sensor_msgs::image_encodings;
 
 constexpr double kErrorLogPeriod = 5.0;  // s between two ERRORs naming the same problem
@@ -235,8 +250,9 @@ void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
     reject("cost '" + config.cost + "' (thesis, census or ad-census): keeping '" + config_.cost + "'");
     config.cost = config_.cost;
   }
-  if (config.refine != "none" && config.refine != "mdc" && config.refine != "ffd_mdc") {
-    reject("refine '" + config.refine + "' (none, mdc or ffd_mdc): keeping '" + config_.refine + "'");
+  if (!validRefinement(config.refine)) {
+    reject("refine '" + config.refine +
+           "' (none, mdc, ffd_mdc, 2dbf, ffd_2dbf, 3dbf, ffd_3dbf, wmf or ffd_wmf): keeping '" + config_.refine + "'");
     config.refine = config_.refine;
   }
   if (config.subpixel != "none" && config.subpixel != "parabola" && config.subpixel != "equiangular") {
@@ -435,7 +451,7 @@ void HbdsNodelet::process(const StereoPair& pair, const Config& config, const Ou
   params.threads = config.threads;
   params.polish_window = config.polish_window;
   params.hbds_overlap = config.overlap;
-  params.refine = stereo::parseRefinement(config.refine == "ffd_mdc" ? "ffd-mdc" : config.refine);
+  params.refine = stereo::parseRefinement(refinementName(config.refine));
   params.refine_params.window = config.refine_window;
   params.refine_params.threads = config.threads;
   params.subpixel = config.subpixel != "none";

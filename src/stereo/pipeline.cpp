@@ -17,6 +17,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "massage_cell/stereo/consistency.h"
+#include "massage_cell/stereo/filters.h"
 #include "massage_cell/stereo/optimizers.h"
 
 #ifndef MASSAGE_CELL_SOURCE_DIR
@@ -90,21 +91,66 @@ Method parseMethod(const std::string& name) {
   return it->second;
 }
 
+namespace {
+
+const std::vector<std::pair<Refinement, std::string>>& refinementNames() {
+  static const std::vector<std::pair<Refinement, std::string>> names{
+      {Refinement::kNone, "none"},        {Refinement::kMdc, "mdc"},          {Refinement::kFfdMdc, "ffd-mdc"},
+      {Refinement::kBf2d, "2dbf"},        {Refinement::kFfdBf2d, "ffd-2dbf"}, {Refinement::kBf3d, "3dbf"},
+      {Refinement::kFfdBf3d, "ffd-3dbf"}, {Refinement::kWmf, "wmf"},          {Refinement::kFfdWmf, "ffd-wmf"}};
+  return names;
+}
+
+}  // namespace
+
 Refinement parseRefinement(const std::string& name) {
-  if (name == "none") return Refinement::kNone;
-  if (name == "mdc") return Refinement::kMdc;
-  if (name == "ffd-mdc") return Refinement::kFfdMdc;
-  throw std::invalid_argument("unknown refinement '" + name + "' (none, mdc, ffd-mdc)");
+  std::string all;
+  for (const auto& [refinement, text] : refinementNames()) {
+    if (text == name) return refinement;
+    all += (all.empty() ? "" : ", ") + text;
+  }
+  throw std::invalid_argument("unknown refinement '" + name + "' (" + all + ")");
 }
 
 std::string toString(Refinement refinement) {
-  switch (refinement) {
-    case Refinement::kNone: return "none";
-    case Refinement::kMdc: return "mdc";
-    case Refinement::kFfdMdc: return "ffd-mdc";
+  for (const auto& [r, text] : refinementNames()) {
+    if (r == refinement) return text;
   }
   return "?";
 }
+
+bool usesFattening(Refinement refinement) {
+  return refinement == Refinement::kFfdMdc || refinement == Refinement::kFfdBf2d ||
+         refinement == Refinement::kFfdBf3d || refinement == Refinement::kFfdWmf;
+}
+
+namespace {
+
+cv::Mat applyRefinement(const cv::Mat& left, const cv::Mat& disparity, const StereoParams& params, cv::Mat* fattening) {
+  switch (params.refine) {
+    case Refinement::kNone:
+      return disparity;
+    case Refinement::kMdc:
+    case Refinement::kFfdMdc: {
+      RefineParams rp = params.refine_params;
+      rp.detect_fattening = params.refine == Refinement::kFfdMdc;
+      return refineDisparity(left, disparity, rp, fattening);
+    }
+    default:
+      break;
+  }
+  validate(params.filter_params);
+  cv::Mat mask;
+  if (usesFattening(params.refine)) mask = detectFattening(left, disparity, params.refine_params);
+  if (fattening != nullptr) *fattening = mask;
+  const DisparityFilter filter =
+      params.refine == Refinement::kBf2d || params.refine == Refinement::kFfdBf2d   ? DisparityFilter::kBilateral2d
+      : params.refine == Refinement::kBf3d || params.refine == Refinement::kFfdBf3d ? DisparityFilter::kBilateral3d
+                                                                                    : DisparityFilter::kWeightedMedian;
+  return filterDisparity(left, disparity, filter, mask, params.filter_params);
+}
+
+}  // namespace
 
 std::string toString(Method method) {
   switch (method) {
@@ -170,9 +216,7 @@ MatchResult matchLeftView(const cv::Mat& left, const cv::Mat& right, Method meth
   }
   if (params.refine != Refinement::kNone) {
     start = Clock::now();
-    RefineParams rp = params.refine_params;
-    rp.detect_fattening = params.refine == Refinement::kFfdMdc;
-    result.disparity = refineDisparity(left, result.disparity, rp, &result.fattening);
+    result.disparity = applyRefinement(left, result.disparity, params, &result.fattening);
     result.refine_ms = msSince(start);
   }
   if (params.subpixel && method != Method::kSgbm) {

@@ -1,5 +1,6 @@
 // stereo_eval: the Middlebury evaluation of the stereo methods — bad-pixel
 // rates at 0.5 / 1 / 2 px in the nonocc, all and disc masks.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 
@@ -16,7 +17,7 @@ using namespace massage_cell::tools;
 
 const char* const kUsageHead =
     R"(Usage: stereo_eval [--scenes tsukuba,venus,teddy,cones,art,dolls] [--methods hbds,expansion,swap,wta,sgbm]
-                   [--data DIR] [--data2005 DIR] [--csv] [--pictures DIR] [options]
+                   [--data DIR] [--data2005 DIR] [--refiners R1,R2,...] [--csv] [--pictures DIR] [options]
 
 Runs each method on each Middlebury scene (official range 0..dmax per scene;
 0..79 for the 2005 scenes) and prints the percentage of bad pixels
@@ -26,6 +27,8 @@ lies inside the right image (x >= d_gt), disc = nonocc within 4 px of a GT
 jump > 2 px. Data: --data / --data2005, else $MASSAGE_CELL_MIDDLEBURY /
 $MASSAGE_CELL_MIDDLEBURY2005, else ../shared/data/middlebury2003 / middlebury2005
 beside the package.
+  --refiners LIST    run each method once per refinement in LIST (instead of --refine), e.g.
+                     none,2dbf,ffd-2dbf,3dbf,ffd-3dbf,wmf,ffd-wmf,mdc,ffd-mdc for the thesis's Table 2.5
   --csv              print CSV: scene,method,mask,threshold,bad_percent,time_ms
   --pictures DIR     also write DIR/<scene>_<method>.png: the disparity (colour) beside
                      the errors in the nonocc mask (> 1 px in red, NaN in blue, over the
@@ -43,6 +46,7 @@ struct Options {
   std::vector<std::string> scenes = allScenes();
   std::vector<std::string> methods{"hbds", "expansion", "swap", "wta", "sgbm"};
   std::string data, data2005;
+  std::vector<stereo::Refinement> refiners;
   bool csv = false;
   std::string pictures;
   stereo::StereoParams params;
@@ -54,6 +58,16 @@ bool parse(int argc, char** argv, Options& o) {
   t.values["--methods"] = [&](const std::string&, const std::string& v) { o.methods = splitList(v); };
   t.values["--data"] = [&](const std::string&, const std::string& v) { o.data = v; };
   t.values["--data2005"] = [&](const std::string&, const std::string& v) { o.data2005 = v; };
+  t.values["--refiners"] = [&](const std::string&, const std::string& v) {
+    o.refiners.clear();
+    for (const auto& name : splitList(v)) {
+      try {
+        o.refiners.push_back(stereo::parseRefinement(name));
+      } catch (const std::invalid_argument& e) {
+        throw UsageError(e.what());
+      }
+    }
+  };
   t.flags["--csv"] = [&] { o.csv = true; };
   t.values["--pictures"] = [&](const std::string&, const std::string& v) { o.pictures = v; };
   addStereoParams(t, o.params);
@@ -68,6 +82,7 @@ bool parse(int argc, char** argv, Options& o) {
     }
   }
   checkStereoParams(o.params);
+  if (o.refiners.empty()) o.refiners.push_back(o.params.refine);
   if (o.data.empty()) o.data = stereo::middleburyRoot();
   if (o.data2005.empty()) o.data2005 = stereo::middlebury2005Root();
   return true;
@@ -136,6 +151,31 @@ void print(const Options& o, const Row& r) {
   std::fflush(stdout);
 }
 
+/// The thesis's Tables 2.4-2.6 layout: one row per method (+ refinement), nonocc / all / disc bad > 1 px
+/// per scene.
+void printTable(const std::vector<Row>& rows, const std::vector<std::string>& scenes) {
+  std::vector<std::string> labels;
+  for (const Row& r : rows) {
+    if (std::find(labels.begin(), labels.end(), r.label) == labels.end()) labels.push_back(r.label);
+  }
+  std::printf("\nbad > 1 px (%%): nonocc / all / disc\n%-16s", "method");
+  for (const auto& scene : scenes) std::printf(" | %-20s", scene.c_str());
+  std::printf("\n");
+  for (const auto& label : labels) {
+    std::printf("%-16s", label.c_str());
+    for (const auto& scene : scenes) {
+      const auto it =
+          std::find_if(rows.begin(), rows.end(), [&](const Row& r) { return r.scene == scene && r.label == label; });
+      if (it == rows.end()) {
+        std::printf(" | %-20s", "");
+      } else {
+        std::printf(" | %6.2f %6.2f %6.2f", it->bad[0][1], it->bad[1][1], it->bad[2][1]);
+      }
+    }
+    std::printf("\n");
+  }
+}
+
 /// Each method's `all` bad > 1 px and time as a multiple of StereoSGBM's with its invalid pixels filled
 /// from the background side (the issue's reference), scene by scene.
 void printRatios(const std::vector<Row>& rows) {
@@ -168,20 +208,26 @@ void run(const Options& o) {
     params.cost.dmin = 0;
     params.cost.dmax = scene.dmax;
     for (const auto& method : o.methods) {
-      const stereo::MatchResult r = stereo::match(scene.left, scene.right, stereo::parseMethod(method), params);
-      const std::string label =
-          params.refine == stereo::Refinement::kNone ? method : method + "+" + stereo::toString(params.refine);
-      if (!o.pictures.empty()) writePicture(o, scene, label, r);
-      rows.push_back(evaluate(scene, label, r.disparity, r.total_ms()));
-      print(o, rows.back());
-      if (method == "sgbm" && !params.lr_check && params.refine == stereo::Refinement::kNone) {
-        const cv::Mat filled = stereo::fillFromBackground(r.disparity, r.disparity == r.disparity);
-        rows.push_back(evaluate(scene, "sgbm+fill", filled, r.total_ms()));
+      for (const stereo::Refinement refiner : o.refiners) {
+        params.refine = refiner;
+        const stereo::MatchResult r = stereo::match(scene.left, scene.right, stereo::parseMethod(method), params);
+        const std::string label =
+            params.refine == stereo::Refinement::kNone ? method : method + "+" + stereo::toString(params.refine);
+        if (!o.pictures.empty()) writePicture(o, scene, label, r);
+        rows.push_back(evaluate(scene, label, r.disparity, r.total_ms()));
         print(o, rows.back());
+        if (method == "sgbm" && !params.lr_check && params.refine == stereo::Refinement::kNone) {
+          const cv::Mat filled = stereo::fillFromBackground(r.disparity, r.disparity == r.disparity);
+          rows.push_back(evaluate(scene, "sgbm+fill", filled, r.total_ms()));
+          print(o, rows.back());
+        }
       }
     }
   }
-  if (!o.csv) printRatios(rows);
+  if (!o.csv) {
+    printTable(rows, o.scenes);
+    printRatios(rows);
+  }
 }
 
 }  // namespace

@@ -27,8 +27,15 @@ inline const char* stereoParamsHelp() {
                      of alpha, lowering the Eq. 2.2 energy (default 0: pure HBDS)
   --polish-cycles N  cycles of that polish (default 1)
   --refine R         after the method: none (default), mdc (Gu's disparity calibration,
-                     thesis Eq. 2.11-2.13 without FFD) or ffd-mdc (the thesis's refinement:
-                     fattening foreground detection, then MDC)
+                     thesis Eq. 2.11-2.13 without FFD), ffd-mdc (the thesis's refinement:
+                     fattening foreground detection, then MDC), or a conventional refiner
+                     (thesis Table 2.5): 2dbf (joint bilateral on the disparity), 3dbf
+                     (bilateral on a cost volume of the map), wmf (weighted median), each
+                     also as ffd-2dbf / ffd-3dbf / ffd-wmf (fattening pixels no support)
+  --filter-radius R  2dbf / 3dbf / wmf window radius (default 7)
+  --filter-sigma-colour S  their colour sigma, grey levels (default 12)
+  --filter-sigma-space S   2dbf / 3dbf spatial sigma, pixels (default 7)
+  --filter-truncation T    3dbf cost truncation, levels (default 2)
   --refine-window N  MDC support window side, odd (default 21)
   --subpixel F       last, for every method but sgbm: each disparity moved to the minimum of the
                      cost curve through d - 1, d, d + 1: parabola, equiangular or none (default)
@@ -75,6 +82,10 @@ inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
     }
   };
   table.values["--refine-window"] = integer(p.refine_params.window);
+  table.values["--filter-radius"] = integer(p.filter_params.radius);
+  table.values["--filter-sigma-colour"] = number(p.filter_params.sigma_colour);
+  table.values["--filter-sigma-space"] = number(p.filter_params.sigma_space);
+  table.values["--filter-truncation"] = number(p.filter_params.truncation);
   table.values["--subpixel"] = [&p](const std::string&, const std::string& v) {
     p.subpixel = v != "none";
     if (!p.subpixel) return;
@@ -106,6 +117,11 @@ inline void checkStereoParams(const stereo::StereoParams& p) {
     stereo::validate(p.refine_params);
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--refine-window: ") + e.what());
+  }
+  try {
+    stereo::validate(p.filter_params);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--filter-*: ") + e.what());
   }
   require(p.subpixel_params.window >= 1 && p.subpixel_params.window % 2 == 1, "--subpixel-window must be odd and >= 1");
   require(p.lr_tolerance >= 0.0f && std::isfinite(p.lr_tolerance), "--lr-tolerance must be >= 0");

@@ -76,7 +76,11 @@ stereo::StereoParams validParams(fuzz::FuzzInput& in, cv::Size size) {
   p.hbds_overlap = static_cast<int>(in.range(0, 2));
   p.polish_window = static_cast<int>(in.range(0, 2));
   p.polish_cycles = static_cast<int>(in.range(1, 2));
-  p.refine = static_cast<stereo::Refinement>(in.range(0, 2));
+  p.refine = static_cast<stereo::Refinement>(in.range(0, 8));
+  p.filter_params.radius = static_cast<int>(in.range(1, 5));
+  p.filter_params.sigma_colour = static_cast<float>(in.real(1, 40));
+  p.filter_params.sigma_space = static_cast<float>(in.real(1, 10));
+  p.filter_params.truncation = static_cast<float>(in.real(0.5, 4));
   auto& r = p.refine_params;
   r.superpixels = static_cast<stereo::Superpixels>(in.range(0, 2));
   r.region_size = static_cast<int>(in.range(4, 16));
@@ -114,7 +118,7 @@ void breakOne(fuzz::FuzzInput& in, stereo::StereoParams& p, cv::Size size) {
   const double v = in.real(-3, 3, true);
   const auto i = static_cast<int>(std::lround(std::isfinite(v) ? v : -1));
   auto& r = p.refine_params;
-  switch (in.range(0, 28)) {
+  switch (in.range(0, 30)) {
     case 0:
       p.cost.dmin = i;
       break;
@@ -203,6 +207,14 @@ void breakOne(fuzz::FuzzInput& in, stereo::StereoParams& p, cv::Size size) {
     case 27:
       p.cost.data_term = stereo::DataTerm::kAdCensus;
       p.cost.ad_lambda = static_cast<float>(v);
+      break;
+    case 28:
+      p.refine = stereo::Refinement::kBf3d;
+      p.filter_params.radius = i;
+      break;
+    case 29:
+      p.refine = stereo::Refinement::kFfdWmf;
+      p.filter_params.sigma_colour = static_cast<float>(v);
       break;
     default:
       p.lr_check = true;

@@ -214,6 +214,14 @@ TEST(StereoEval, PicturesOnMiddlebury) {
   cv::inRange(a(cv::Rect(384, 0, 384, 288)), cv::Scalar(0, 0, 250), cv::Scalar(10, 10, 255), red);
   EXPECT_GT(cv::countNonZero(red), 384 * 288 / 20);
   expectFailure(kEval + " --refine magic", 2, "unknown refinement 'magic'");
+  expectFailure(kEval + " --refiners none,magic", 2, "unknown refinement 'magic'");
+  expectFailure(kEval + " --refiners wmf --filter-radius 0", 2, "radius must be in 1..64");
+  // --refiners: one row per refinement in the thesis's table layout.
+  const auto table = runCommand(kEval + " --scenes tsukuba --methods wta --refiners none,wmf,ffd-2dbf", 120);
+  ASSERT_EQ(table.exit_code, 0) << table.output;
+  for (const char* row : {"\nwta              |", "\nwta+wmf          |", "\nwta+ffd-2dbf     |"}) {
+    EXPECT_NE(table.output.find(row), std::string::npos) << row << " in\n" << table.output;
+  }
 }
 
 }  // namespace

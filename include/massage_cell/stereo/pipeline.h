@@ -10,6 +10,7 @@
 
 #include "massage_cell/stereo/cost_volume.h"
 #include "massage_cell/stereo/energy.h"
+#include "massage_cell/stereo/filters.h"
 #include "massage_cell/stereo/refine.h"
 #include "massage_cell/stereo/subpixel.h"
 
@@ -17,10 +18,14 @@ namespace massage_cell::stereo {
 
 enum class Method { kHbds, kExpansion, kSwap, kWta, kSgbm };
 /// Refinement after the method (thesis Sec. 2.3, refine.h): none; Gu's
-/// disparity calibration (MDC without fattening detection); FFD + MDC.
-enum class Refinement { kNone, kMdc, kFfdMdc };
-Refinement parseRefinement(const std::string& name);  ///< "none" | "mdc" | "ffd-mdc"
+/// disparity calibration (MDC without fattening detection); FFD + MDC; and
+/// the conventional refiners of the thesis's Table 2.5 (filters.h), each
+/// alone or blind to FFD's fattening mask.
+enum class Refinement { kNone, kMdc, kFfdMdc, kBf2d, kFfdBf2d, kBf3d, kFfdBf3d, kWmf, kFfdWmf };
+/// "none" | "mdc" | "ffd-mdc" | "2dbf" | "ffd-2dbf" | "3dbf" | "ffd-3dbf" | "wmf" | "ffd-wmf"
+Refinement parseRefinement(const std::string& name);
 std::string toString(Refinement refinement);
+bool usesFattening(Refinement refinement);    ///< the ffd-* ones
 Method parseMethod(const std::string& name);  ///< "hbds" | "expansion" | "swap" | "wta" | "sgbm"
 std::string toString(Method method);
 
@@ -38,6 +43,7 @@ struct StereoParams {
   int polish_cycles = 1;  ///< cycles of the polish (it stops earlier when a cycle changes nothing)
   Refinement refine = Refinement::kNone;  ///< after any method (none: the method's own output)
   RefineParams refine_params;             ///< detect_fattening is set from `refine`
+  FilterParams filter_params;             ///< the 2dbf / 3dbf / wmf refiners
   /// Last, for the cost-volume methods (SGBM has its own 1/16 pixel): each
   /// integer label moved to the minimum of its cost curve (subpixel.h).
   bool subpixel = false;
@@ -64,7 +70,7 @@ struct MatchResult {
   /// 0 where it was filled from the background; else empty.
   cv::Mat consistent;
   Energy energy;  ///< Eq. 2.2 of the (rounded, clamped) result on this pair's cost volume, before lr_check's filling
-  cv::Mat fattening;         ///< FFD's mask (CV_8U, 255 = fattening) with Refinement::kFfdMdc, else empty
+  cv::Mat fattening;  ///< FFD's mask (CV_8U, 255 = fattening) with the ffd-* refinements, else empty
   int cuts = 0;
 };
 
