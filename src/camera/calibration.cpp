@@ -141,6 +141,11 @@ cv::Mat Decimation::apply(const cv::Mat& image) const {
 }
 
 CameraCalibration Decimation::apply(const CameraCalibration& c) const {
+  if (full_.area() > 0 && (c.width != full_.width || c.height != full_.height)) {
+    throw std::invalid_argument("decimation: the calibration is for " + std::to_string(c.width) + "x" +
+                                std::to_string(c.height) + ", the images are " + std::to_string(full_.width) + "x" +
+                                std::to_string(full_.height));
+  }
   CameraCalibration out = c;
   if (identity()) return out;
   out.width = size_.width;

@@ -472,6 +472,11 @@ TEST(DecimationTest, CalibrationAndPixelsAgreeWithTheProjection) {
   EXPECT_NEAR(d.toFull(p_half).x, p_full.x, 1e-3);
   EXPECT_NEAR(d.toFull(p_half).y, p_full.y, 1e-3);
   EXPECT_NEAR(half.K[2], (full.K[2] + 0.5) / 2 - 0.5, 1e-12) << "the principal point keeps its pixel centre";
+  // A calibration for another size is refused, not silently given the decimated size (found by fuzz_cect).
+  CameraCalibration other = full;
+  other.width = 641;
+  EXPECT_THROW(d.apply(other), std::invalid_argument);
+  EXPECT_THROW(Decimation({640, 480}, 1).apply(other), std::invalid_argument);
 }
 
 TEST(DecimationTest, ImagesShrinkByAreaAndKeepTheirContentInPlace) {

@@ -72,6 +72,7 @@ class Decimation {
   /// Throws std::invalid_argument when its size is not fullSize().
   cv::Mat apply(const cv::Mat& image) const;
   /// The calibration of the decimated images (a copy when identity()).
+  /// Throws std::invalid_argument when it is for another size than fullSize().
   CameraCalibration apply(const CameraCalibration& calib) const;
   cv::Point2f toDecimated(const cv::Point2f& full_pixel) const;
   cv::Point2f toFull(const cv::Point2f& decimated_pixel) const;
