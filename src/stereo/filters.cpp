@@ -124,6 +124,11 @@ cv::Mat weightedMedian(const cv::Mat& left, const cv::Mat& disparity, const cv::
   cv::Mat mask8, out;
   mask.convertTo(mask8, CV_8U);
   if (cv::countNonZero(mask8) == 0) return disparity.clone();
+  // Pixels that are no support hold the smallest support's value, not 0: ximgproc's filter bins the values
+  // between their extremes, and a 0 there would stretch the bins (and, were it ever used, lie outside the range).
+  double lowest = 0.0;
+  cv::minMaxLoc(values, &lowest, nullptr, nullptr, nullptr, mask8);
+  values.setTo(lowest, mask8 == 0);
   cv::ximgproc::weightedMedianFilter(left, values, out, p.radius, p.sigma_colour, cv::ximgproc::WMF_EXP, mask8);
   // A pixel whose window holds no support keeps its value (the filter leaves such pixels undefined).
   cv::Mat support;
@@ -131,7 +136,9 @@ cv::Mat weightedMedian(const cv::Mat& left, const cv::Mat& disparity, const cv::
                 cv::BORDER_REPLICATE);
   for (int y = 0; y < out.rows; ++y) {
     for (int x = 0; x < out.cols; ++x) {
-      if (!(support.at<float>(y, x) > 0.5f)) out.at<float>(y, x) = disparity.at<float>(y, x);
+      if (!(support.at<float>(y, x) > 0.5f) || !std::isfinite(out.at<float>(y, x))) {
+        out.at<float>(y, x) = disparity.at<float>(y, x);
+      }
     }
   }
   return out;
