@@ -3,6 +3,7 @@
 // mask, so excluded and invalid pixels carry no weight.
 #include "massage_cell/stereo/filters.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -126,8 +127,8 @@ cv::Mat weightedMedian(const cv::Mat& left, const cv::Mat& disparity, const cv::
   if (cv::countNonZero(mask8) == 0) return disparity.clone();
   // Pixels that are no support hold the smallest support's value, not 0: ximgproc's filter bins the values
   // between their extremes, and a 0 there would stretch the bins (and, were it ever used, lie outside the range).
-  double lowest = 0.0;
-  cv::minMaxLoc(values, &lowest, nullptr, nullptr, nullptr, mask8);
+  double lowest = 0.0, highest = 0.0;
+  cv::minMaxLoc(values, &lowest, &highest, nullptr, nullptr, mask8);
   values.setTo(lowest, mask8 == 0);
   cv::ximgproc::weightedMedianFilter(left, values, out, p.radius, p.sigma_colour, cv::ximgproc::WMF_EXP, mask8);
   // A pixel whose window holds no support keeps its value (the filter leaves such pixels undefined).
@@ -136,8 +137,11 @@ cv::Mat weightedMedian(const cv::Mat& left, const cv::Mat& disparity, const cv::
                 cv::BORDER_REPLICATE);
   for (int y = 0; y < out.rows; ++y) {
     for (int x = 0; x < out.cols; ++x) {
-      if (!(support.at<float>(y, x) > 0.5f) || !std::isfinite(out.at<float>(y, x))) {
-        out.at<float>(y, x) = disparity.at<float>(y, x);
+      float& o = out.at<float>(y, x);
+      if (!(support.at<float>(y, x) > 0.5f) || !std::isfinite(o)) {
+        o = disparity.at<float>(y, x);
+      } else {  // a median of supports lies between their extremes
+        o = std::clamp(o, static_cast<float>(lowest), static_cast<float>(highest));
       }
     }
   }
