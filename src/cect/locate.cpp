@@ -1,6 +1,7 @@
 #include "massage_cell/cect/locate.h"
 
 #include <algorithm>
+#include <sstream>
 
 namespace massage_cell::cect {
 
@@ -53,6 +54,15 @@ LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& mo
     p.placed = true;
     p.rectified = it->pixel;
     p.raw = frame.geometry().toRaw(it->pixel);
+    const cv::Size size = frame.geometry().size();
+    if (!(p.raw.x >= -0.5f && p.raw.y >= -0.5f && p.raw.x <= size.width - 0.5f && p.raw.y <= size.height - 0.5f)) {
+      // Rectification can bring in pixels the camera never saw (a strong distortion or rotation).
+      std::ostringstream reason;
+      reason << "not seen: its raw pixel (" << p.raw.x << ", " << p.raw.y << ") lies outside the " << size.width << "x"
+             << size.height << " image";
+      p.reason = reason.str();
+      continue;
+    }
     p.point = frame.localizeRectified(it->pixel);
     p.valid = p.point.valid;
     if (p.valid) {
