@@ -288,10 +288,11 @@ void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
                                 << ", eta " << config.eta << ", ncc_window " << config.ncc_window
                                 << ", gradient_saturation " << config.gradient_saturation << ", tau " << config.tau
                                 << ", u " << config.u_min << ".." << config.u_max << ", overlap " << config.overlap
-                                << ", polish_window " << config.polish_window << ", refine " << config.refine
-                                << ", subpixel " << config.subpixel << ", lr_check " << (config.lr_check ? "on" : "off")
-                                << " (tolerance " << config.lr_tolerance << ", fill " << (config.lr_fill ? "on" : "off")
-                                << "), threads " << config.threads << ", downsample " << config.downsample);
+                                << ", coarse " << config.coarse << ", polish_window " << config.polish_window
+                                << ", refine " << config.refine << ", subpixel " << config.subpixel << ", lr_check "
+                                << (config.lr_check ? "on" : "off") << " (tolerance " << config.lr_tolerance
+                                << ", fill " << (config.lr_fill ? "on" : "off") << "), threads " << config.threads
+                                << ", downsample " << config.downsample);
 }
 
 // ------------------------------------------------------ subscriptions --
@@ -451,6 +452,7 @@ void HbdsNodelet::process(const StereoPair& pair, const Config& config, const Ou
   params.threads = config.threads;
   params.polish_window = config.polish_window;
   params.hbds_overlap = config.overlap;
+  params.hbds_coarse = config.coarse;
   params.refine = stereo::parseRefinement(refinementName(config.refine));
   params.refine_params.window = config.refine_window;
   params.refine_params.threads = config.threads;

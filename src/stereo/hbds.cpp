@@ -169,6 +169,15 @@ struct Scratch {
   std::vector<int> arg_b, arg_f;    // their argmins (ties: smaller d)
   std::vector<int> pending;  // node-local indices needing a pass over B, then over F
   std::vector<double> hist;
+  std::vector<double> cost_b, cost_f;  // unary of each label: Eq. 2.4 plus the boundary pairs
+  std::vector<std::uint8_t> side;      // the cut's answer per node pixel: 1 = B (source)
+  std::vector<int> graph_id;           // node pixel -> id in the fine graph, -1: fixed by the coarse cut
+  // Coarse cut (Context::coarse > 1): blocks of coarse x coarse pixels.
+  std::vector<int> block_of;     // node pixel -> compact block id
+  std::vector<int> block_index;  // block grid cell -> compact block id, -1 (all -1 between nodes)
+  std::vector<int> block_cell;   // compact block id -> grid cell
+  std::vector<double> block_b, block_f, block_right, block_down;
+  std::vector<std::uint8_t> block_side, block_band;
   MaxFlow graph;  // reused across the worker's nodes (keeps its memory)
 };
 
@@ -178,6 +187,8 @@ struct Context {
   const float* u_down = nullptr;
   int width = 0, height = 0;
   int overlap = 0;  // levels each child's set reaches across the break point
+  int coarse = 1;   // block side of the coarse cut (1: none)
+  int blocks_x = 0, blocks_y = 0;
   // Per pixel, 2 bits per neighbour (kRight, kDown, kLeft, kUp): kSame while
   // both are in one node; at the cut that separates them, the pixel sent to
   // B records its neighbour as kAbove and the one sent to F records kBelow.
@@ -231,13 +242,167 @@ void assignLevel(Context& ctx, const std::vector<int>& pixels, int d) {
   for (int p : pixels) ctx.disparity[p] = value;
 }
 
+// Calls fn(q, dir, u_pq, forward) for each 4-neighbour q of pixel p inside
+// the image; forward: q is p's right or lower neighbour (each pair once).
+template <class Fn>
+inline void forEachNeighbour(const Context& ctx, int p, Fn&& fn) {
+  const int W = ctx.width, N = ctx.width * ctx.height, x = p % W;
+  if (x + 1 < W) fn(p + 1, kRight, ctx.u_right[p], true);
+  if (p + W < N) fn(p + W, kDown, ctx.u_down[p], true);
+  if (x > 0) fn(p - 1, kLeft, ctx.u_right[p - 1], false);
+  if (p >= W) fn(p - W, kUp, ctx.u_down[p - W], false);
+}
+
+// The two labels' unaries of each node pixel: Eq. 2.4's D(B), D(F) plus, for
+// a pair whose other pixel already left the node, u_pq |D*| / 2 on the label
+// away from that pixel's set.
+void unaries(const Context& ctx, const Node& node, double half, Scratch& s) {
+  const int n = static_cast<int>(node.pixels.size());
+  s.cost_b.resize(n);
+  s.cost_f.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const int p = node.pixels[i];
+    double uB = 0.0, uF = 0.0;
+    forEachNeighbour(ctx, p, [&](int, Direction dir, float u, bool) {
+      const unsigned rel = relationOf(ctx, p, dir);
+      if (rel == kAbove)
+        uB += u;
+      else if (rel == kBelow)
+        uF += u;
+    });
+    s.cost_b[i] = s.min_b[i] + half * uB;
+    s.cost_f[i] = s.min_f[i] + half * uF;
+  }
+}
+
+// One binary cut over the node pixels with graph_id >= 0; the others keep
+// their s.side and charge each free neighbour u_pq |D*| / 2 for the other
+// label. Source side = B: a pixel on the source side cuts its sink edge, so
+// the sink capacity is its B unary and the source capacity its F unary.
+void cutPixels(const Context& ctx, const Node& node, double half, int free_count, Scratch& s) {
+  const int n = static_cast<int>(node.pixels.size());
+  MaxFlow& graph = s.graph;
+  graph.reset(free_count, 2 * free_count);
+  graph.addNodes(free_count);
+  for (int i = 0; i < n; ++i) {
+    const int id = s.graph_id[i];
+    if (id < 0) continue;
+    double cb = s.cost_b[i], cf = s.cost_f[i];
+    const int p = node.pixels[i];
+    forEachNeighbour(ctx, p, [&](int q, Direction dir, float u, bool forward) {
+      if (u <= 0.0f || relationOf(ctx, p, dir) != kSame) return;  // not in the node, or no pair term
+      const int j = ctx.index[q];
+      const int jd = s.graph_id[j];
+      if (jd >= 0) {
+        if (forward) graph.addEdge(id, jd, u * half, u * half);
+      } else if (s.side[j]) {
+        cf += u * half;  // q fixed in B: F pays the pair
+      } else {
+        cb += u * half;
+      }
+    });
+    const double m = std::min(cb, cf);
+    graph.addTerminalWeights(id, cf - m, cb - m);
+  }
+  graph.solve();
+  for (int i = 0; i < n; ++i)
+    if (s.graph_id[i] >= 0) s.side[i] = graph.isSource(s.graph_id[i]) ? 1 : 0;
+}
+
+// Coarse to fine (Context::coarse = c > 1): the node's pixels are grouped in
+// c x c blocks and one cut over the blocks (each block's unaries summed, and
+// the pairs between two blocks summed into one edge) labels every block; the
+// pixels of blocks more than one block away from a block of the other label
+// take their block's label, and the rest (the band around the boundary) are
+// left to the fine cut: their graph_id is set, and the count is returned.
+int coarseCut(const Context& ctx, const Node& node, double half, Scratch& s) {
+  const int n = static_cast<int>(node.pixels.size());
+  const int c = ctx.coarse, W = ctx.width, BW = ctx.blocks_x, BH = ctx.blocks_y;
+  if (s.block_index.empty()) s.block_index.assign(static_cast<std::size_t>(BW) * BH, -1);
+  s.block_cell.clear();
+  s.block_of.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const int p = node.pixels[i];
+    const int cell = (p / W / c) * BW + (p % W) / c;
+    int& b = s.block_index[cell];
+    if (b < 0) {
+      b = static_cast<int>(s.block_cell.size());
+      s.block_cell.push_back(cell);
+    }
+    s.block_of[i] = b;
+  }
+  const int nb = static_cast<int>(s.block_cell.size());
+  s.block_b.assign(nb, 0.0);
+  s.block_f.assign(nb, 0.0);
+  s.block_right.assign(nb, 0.0);
+  s.block_down.assign(nb, 0.0);
+  for (int i = 0; i < n; ++i) {
+    const int b = s.block_of[i], p = node.pixels[i];
+    s.block_b[b] += s.cost_b[i];
+    s.block_f[b] += s.cost_f[i];
+    forEachNeighbour(ctx, p, [&](int q, Direction dir, float u, bool forward) {
+      if (!forward || u <= 0.0f || relationOf(ctx, p, dir) != kSame) return;
+      if (s.block_of[ctx.index[q]] == b) return;  // inside the block
+      (dir == kRight ? s.block_right : s.block_down)[b] += u * half;
+    });
+  }
+  MaxFlow& graph = s.graph;
+  graph.reset(nb, 2 * nb);
+  graph.addNodes(nb);
+  for (int b = 0; b < nb; ++b) {
+    const int cell = s.block_cell[b];
+    if (s.block_right[b] > 0.0) graph.addEdge(b, s.block_index[cell + 1], s.block_right[b], s.block_right[b]);
+    if (s.block_down[b] > 0.0) graph.addEdge(b, s.block_index[cell + BW], s.block_down[b], s.block_down[b]);
+    const double m = std::min(s.block_b[b], s.block_f[b]);
+    graph.addTerminalWeights(b, s.block_f[b] - m, s.block_b[b] - m);
+  }
+  graph.solve();
+  s.block_side.resize(nb);
+  for (int b = 0; b < nb; ++b) s.block_side[b] = graph.isSource(b) ? 1 : 0;
+
+  // The band: blocks with a 4-neighbour block of the other label, grown by
+  // one block (8-neighbourhood).
+  auto blockAt = [&](int bx, int by) {
+    return bx < 0 || by < 0 || bx >= BW || by >= BH ? -1 : s.block_index[by * BW + bx];
+  };
+  s.block_band.assign(nb, 0);
+  for (int b = 0; b < nb; ++b) {
+    const int bx = s.block_cell[b] % BW, by = s.block_cell[b] / BW;
+    bool edge = false;
+    for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{-1, 0}, std::pair{0, 1}, std::pair{0, -1}}) {
+      const int o = blockAt(bx + dx, by + dy);
+      edge = edge || (o >= 0 && s.block_side[o] != s.block_side[b]);
+    }
+    if (!edge) continue;
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int o = blockAt(bx + dx, by + dy);
+        if (o >= 0) s.block_band[o] = 1;
+      }
+  }
+  int free_count = 0;
+  for (int i = 0; i < n; ++i) {
+    const int b = s.block_of[i];
+    if (s.block_band[b]) {
+      s.graph_id[i] = free_count++;
+    } else {
+      s.graph_id[i] = -1;
+      s.side[i] = s.block_side[b];
+    }
+  }
+  for (int cell : s.block_cell) s.block_index[cell] = -1;  // clean for the worker's next node
+  return free_count;
+}
+
+// Smallest pixel chunk worth a thread of its own in the data-term passes.
+constexpr int kMinChunk = 16384;
+// Smallest node cut coarse to fine (Context::coarse > 1): smaller cuts are fast.
+constexpr int kCoarseMinPixels = 8192;
+
 // One bilateral disparity estimation (Eq. 2.3) on `node`; the compact index of
 // the node's pixels must already be set and their relation bits must be those
 // left by the node's ancestors. `helpers`: threads available to this node's
 // data-term passes (the graph cut itself is sequential).
-// Smallest pixel chunk worth a thread of its own in the data-term passes.
-constexpr int kMinChunk = 16384;
-
 void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOutput& out) {
   const CostVolume& vol = *ctx.volume;
   const std::vector<int>& pix = node.pixels;
@@ -345,36 +510,20 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
     sideMin(needB + chunkBegin(c, needF), needB + chunkBegin(c + 1, needF), f_lo, hi, s.min_f.data(), s.arg_f.data());
   });
 
-  // Graph: source side = B. A node on the source side cuts its sink edge, so
-  // the sink capacity is D(B) and the source capacity D(F).
+  // The cut (source side = B), on every pixel or coarse to fine.
   const double half = 0.5 * static_cast<double>(hi - lo + 1);  // |D*| / 2 of Eq. 2.5
   const int W = ctx.width;
   const int N = ctx.width * ctx.height;
-  MaxFlow& graph = s.graph;
-  graph.reset(n, 2 * n);
-  graph.addNodes(n);
-  for (int i = 0; i < n; ++i) {
-    double dB = s.min_b[i];
-    double dF = s.min_f[i];
-    const int p = pix[i];
-    const int x = p % W;
-    double uB = 0.0, uF = 0.0;  // boundary pairs: penalty of the side away from q
-    auto neighbour = [&](int q, Direction dir, float u, bool forward) {
-      const unsigned rel = relationOf(ctx, p, dir);
-      if (rel == kAbove) uB += u;
-      else if (rel == kBelow) uF += u;
-      else if (forward && u > 0) graph.addEdge(i, ctx.index[q], u * half, u * half);  // q is in the node
-    };
-    if (x + 1 < W) neighbour(p + 1, kRight, ctx.u_right[p], true);
-    if (p + W < N) neighbour(p + W, kDown, ctx.u_down[p], true);
-    if (x > 0) neighbour(p - 1, kLeft, ctx.u_right[p - 1], false);
-    if (p >= W) neighbour(p - W, kUp, ctx.u_down[p - W], false);
-    dB += half * uB;
-    dF += half * uF;
-    const double m = std::min(dB, dF);
-    graph.addTerminalWeights(i, dF - m, dB - m);
+  unaries(ctx, node, half, s);
+  s.side.resize(n);
+  s.graph_id.resize(n);
+  int free_count = n;
+  if (ctx.coarse > 1 && n >= kCoarseMinPixels) {
+    free_count = coarseCut(ctx, node, half, s);
+  } else {
+    for (int i = 0; i < n; ++i) s.graph_id[i] = i;
   }
-  graph.solve();
+  if (free_count > 0) cutPixels(ctx, node, half, free_count, s);
 
   Node back, fore;
   back.pixels.reserve(n);
@@ -390,7 +539,7 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
   // Each child inherits its side's minimum and argmin (pass 1 of the child).
   const bool inherit_back = b_hi > lo, inherit_fore = hi > f_lo;  // single-level children need none
   for (int i = 0; i < n; ++i) {
-    const bool to_back = graph.isSource(i);
+    const bool to_back = s.side[i] != 0;
     Node& child = to_back ? back : fore;
     child.pixels.push_back(pix[i]);
     if (to_back ? !inherit_back : !inherit_fore) continue;
@@ -400,10 +549,10 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
   // Record the pairs this cut separates (both pixels are the node's).
   for (int i = 0; i < n; ++i) {
     const int p = pix[i];
-    const bool p_back = graph.isSource(i);
+    const bool p_back = s.side[i] != 0;
     auto separate = [&](int q, Direction dir, Direction back_dir) {
       if (relationOf(ctx, p, dir) != kSame) return;
-      const bool q_back = graph.isSource(ctx.index[q]);
+      const bool q_back = s.side[ctx.index[q]] != 0;
       if (q_back == p_back) return;
       setRelation(ctx, p, dir, p_back ? kAbove : kBelow);
       setRelation(ctx, q, back_dir, p_back ? kBelow : kAbove);
@@ -419,8 +568,8 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
 
 }  // namespace
 
-OptimizerResult hbds(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
-                     int threads, int overlap) {
+OptimizerResult hbds(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth, int threads,
+                     int overlap, int coarse) {
   const int W = volume.width(), H = volume.height();
   if (W <= 0 || H <= 0) throw std::invalid_argument("hbds: empty cost volume");
   const cv::Size size(W, H);
@@ -429,6 +578,7 @@ OptimizerResult hbds(const CostVolume& volume, const PairwiseWeights& weights, c
     throw std::invalid_argument("hbds: pairwise weights must be CV_32F of the cost volume's size");
   if (threads < 0) throw std::invalid_argument("hbds: threads must be >= 0");
   if (overlap < 0) throw std::invalid_argument("hbds: overlap must be >= 0");
+  if (coarse < 1 || coarse > 8) throw std::invalid_argument("hbds: coarse must be in 1..8");
   if (threads == 0) threads = std::max(1, cv::getNumberOfCPUs());
 
   // Continuous copies only if needed (ROIs).
@@ -446,6 +596,9 @@ OptimizerResult hbds(const CostVolume& volume, const PairwiseWeights& weights, c
   ctx.height = H;
   const std::size_t N = static_cast<std::size_t>(W) * H;
   ctx.overlap = overlap;
+  ctx.coarse = coarse;
+  ctx.blocks_x = (W + coarse - 1) / coarse;
+  ctx.blocks_y = (H + coarse - 1) / coarse;
   ctx.relation.assign(N, 0);
   ctx.index.assign(N, 0);
   ctx.disparity = result.disparity.ptr<float>();

@@ -183,7 +183,7 @@ MatchResult matchLeftView(const cv::Mat& left, const cv::Mat& right, Method meth
   start = Clock::now();
   switch (method) {
     case Method::kHbds: {
-      OptimizerResult r = hbds(volume, weights, params.smooth, params.threads, params.hbds_overlap);
+      OptimizerResult r = hbds(volume, weights, params.smooth, params.threads, params.hbds_overlap, params.hbds_coarse);
       if (params.polish_window > 0) {
         const int hbds_cuts = r.cuts;
         r = localExpansion(volume, weights, params.smooth, r.disparity, params.polish_window, params.polish_cycles);

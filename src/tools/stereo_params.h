@@ -23,6 +23,8 @@ inline const char* stereoParamsHelp() {
   --truncation T     truncate |dp - dq| at T in the energy (default 0: none)
   --overlap M        hbds: each child's disparity set reaches M levels across the break
                      point (0: the thesis's disjoint split; default 0)
+  --coarse C         hbds: cut large layers coarse to fine, first on C x C pixel blocks, then
+                     at full resolution near the blocks' boundary (1: off, default; 2 or 4)
   --polish W         hbds: then local alpha-expansion moves over labels within W levels
                      of alpha, lowering the Eq. 2.2 energy (default 0: pure HBDS)
   --polish-cycles N  cycles of that polish (default 1)
@@ -72,6 +74,7 @@ inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
   table.values["--truncation"] = number(p.smooth.truncation);
   table.values["--max-cycles"] = integer(p.max_cycles);
   table.values["--overlap"] = integer(p.hbds_overlap);
+  table.values["--coarse"] = integer(p.hbds_coarse);
   table.values["--polish"] = integer(p.polish_window);
   table.values["--polish-cycles"] = integer(p.polish_cycles);
   table.values["--refine"] = [&p](const std::string&, const std::string& v) {
@@ -111,6 +114,7 @@ inline void checkStereoParams(const stereo::StereoParams& p) {
   require(p.smooth.u_min >= 0.0f && p.smooth.u_max >= p.smooth.u_min, "need 0 <= --u-min <= --u-max");
   require(p.smooth.truncation >= 0.0f, "--truncation must be >= 0");
   require(p.hbds_overlap >= 0, "--overlap must be >= 0");
+  require(p.hbds_coarse >= 1 && p.hbds_coarse <= 8, "--coarse must be in 1..8");
   require(p.polish_window >= 0, "--polish must be >= 0");
   require(p.polish_cycles >= 1, "--polish-cycles must be >= 1");
   try {

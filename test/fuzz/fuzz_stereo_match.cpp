@@ -110,6 +110,7 @@ stereo::StereoParams validParams(fuzz::FuzzInput& in, cv::Size size) {
   p.cost.census_height = 3 + 2 * static_cast<int>(in.range(0, 2));
   p.cost.census_lambda = static_cast<float>(in.real(1, 60));
   p.cost.ad_lambda = static_cast<float>(in.real(1, 60));
+  p.hbds_coarse = static_cast<int>(in.range(1, 4));
   return p;
 }
 
@@ -118,7 +119,7 @@ void breakOne(fuzz::FuzzInput& in, stereo::StereoParams& p, cv::Size size) {
   const double v = in.real(-3, 3, true);
   const auto i = static_cast<int>(std::lround(std::isfinite(v) ? v : -1));
   auto& r = p.refine_params;
-  switch (in.range(0, 30)) {
+  switch (in.range(0, 31)) {
     case 0:
       p.cost.dmin = i;
       break;
@@ -215,6 +216,9 @@ void breakOne(fuzz::FuzzInput& in, stereo::StereoParams& p, cv::Size size) {
     case 29:
       p.refine = stereo::Refinement::kFfdWmf;
       p.filter_params.sigma_colour = static_cast<float>(v);
+      break;
+    case 30:
+      p.hbds_coarse = 4 * i;  // 0, negative or over 8 (or 4 / 8: valid)
       break;
     default:
       p.lr_check = true;

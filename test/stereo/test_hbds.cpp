@@ -336,11 +336,74 @@ TEST(Hbds, PairsCrossingTheLayerBoundaryPullTowardsTheNeighboursSet) {
   }
 }
 
+// Coarse to fine (hbds' `coarse`): layers large enough for the coarse cuts
+// (>= 8192 pixels) come out as with the full cuts, whatever the thread count.
+TEST(Hbds, CoarseToFineRecoversLargeLayers) {
+  const cv::Mat truth = layers(160, 120, 5, {{10, 12, 60, 50, 20}, {80, 20, 60, 40, 33}, {40, 70, 90, 40, 47}});
+  const CostVolume vol = syntheticVolume(truth, 0, 49, 0.3f, 11);
+  const SmoothParams sp = smoothParams();
+  const PairwiseWeights w = edgeWeights(truth, sp.u_max, sp.u_min);
+  for (int coarse : {2, 4}) {
+    for (int overlap : {0, 1}) {
+      SCOPED_TRACE("coarse " + std::to_string(coarse) + ", overlap " + std::to_string(overlap));
+      const OptimizerResult r = hbds(vol, w, sp, 1, overlap, coarse);
+      expectValidResult(r, vol);
+      EXPECT_EQ(countDifferent(r.disparity, truth), 0);
+      for (int threads : {2, 0}) {
+        const OptimizerResult rn = hbds(vol, w, sp, threads, overlap, coarse);
+        EXPECT_EQ(countDifferent(r.disparity, rn.disparity), 0) << "threads " << threads;
+        EXPECT_EQ(r.energy.total(), rn.energy.total()) << "threads " << threads;
+      }
+    }
+  }
+}
+
+// On a noisy, ambiguous volume (many cuts of odd shapes) the coarse cuts give
+// a valid labelling whose energy stays close to the full cuts'.
+TEST(Hbds, CoarseToFineOnANoisyVolumeStaysNearTheFullCutsEnergy) {
+  const cv::Mat truth = layers(128, 96, 2, {{10, 8, 60, 40, 19}, {50, 40, 60, 40, 33}});
+  CostVolume vol = syntheticVolume(truth, 0, 39, 0.0f, 21);
+  cv::RNG rng(8);
+  for (int y = 0; y < truth.rows; ++y)
+    for (int x = 0; x < truth.cols; ++x) vol(x, y, static_cast<int>(truth.at<float>(y, x))) = rng.uniform(0.0f, 0.5f);
+  const SmoothParams sp = smoothParams(0.08f, 0.02f);
+  const PairwiseWeights w = edgeWeights(truth, sp.u_max, sp.u_min);
+  const OptimizerResult full = hbds(vol, w, sp, 1, 1, 1);
+  for (int coarse : {2, 4}) {
+    SCOPED_TRACE("coarse " + std::to_string(coarse));
+    const OptimizerResult r = hbds(vol, w, sp, 1, 1, coarse);
+    expectValidResult(r, vol);
+    EXPECT_LT(r.energy.total(), 1.05 * full.energy.total());
+    const OptimizerResult r2 = hbds(vol, w, sp, 2, 1, coarse);
+    EXPECT_EQ(countDifferent(r.disparity, r2.disparity), 0);
+  }
+}
+
+// The approximation coarse to fine makes: a detail smaller than a block, far
+// from any boundary between the blocks' labels, takes its block's label,
+// while the full cut keeps it (its pairs with the background are weak);
+// elsewhere both agree.
+TEST(Hbds, CoarseToFineDropsAnIsolatedPixelTheFullCutKeeps) {
+  cv::Mat truth = layers(128, 96, 4, {});
+  truth.at<float>(41, 61) = 30.0f;
+  const CostVolume vol = syntheticVolume(truth, 0, 39, 0.9f, 3);
+  const SmoothParams sp = smoothParams(0.06f, 0.002f);
+  const PairwiseWeights w = edgeWeights(truth, sp.u_max, sp.u_min);
+  const OptimizerResult full = hbds(vol, w, sp, 1, 0, 1);
+  EXPECT_EQ(countDifferent(full.disparity, truth), 0);
+  const OptimizerResult coarse = hbds(vol, w, sp, 1, 0, 2);
+  EXPECT_EQ(countDifferent(coarse.disparity, truth), 1);
+  EXPECT_LE(coarse.disparity.at<float>(41, 61), 19.0f) << "the pixel went with its block to the background's side";
+  EXPECT_GT(coarse.energy.total(), full.energy.total());
+}
+
 TEST(Hbds, RejectsBadArguments) {
   const CostVolume vol(20, 10, 0, 7);
   PairwiseWeights w = edgeWeights(cv::Mat(10, 20, CV_32F, cv::Scalar(0)), 0.06f, 0.01f);
   EXPECT_THROW(hbds(vol, w, smoothParams(), -1), std::invalid_argument);
   EXPECT_THROW(hbds(vol, w, smoothParams(), 1, -1), std::invalid_argument);
+  EXPECT_THROW(hbds(vol, w, smoothParams(), 1, 0, 0), std::invalid_argument);
+  EXPECT_THROW(hbds(vol, w, smoothParams(), 1, 0, 9), std::invalid_argument);
   PairwiseWeights small = edgeWeights(cv::Mat(10, 19, CV_32F, cv::Scalar(0)), 0.06f, 0.01f);
   EXPECT_THROW(hbds(vol, small, smoothParams()), std::invalid_argument);
   PairwiseWeights wrong_type = w;

@@ -29,9 +29,14 @@ struct OptimizerResult {
 /// children's sets reach `overlap` levels across the break point, B = [lo,
 /// psi + overlap], F = [psi + 1 - overlap, hi], so a pixel whose disparity
 /// is near psi (a slanted surface crossing the split) can still reach it from
-/// the side the cut sent it to. Results do not depend on `threads`.
+/// the side the cut sent it to. `coarse` (our addition; 1 = off): cuts of
+/// large layers are solved coarse to fine, first on coarse x coarse blocks
+/// of pixels (unaries and pairs summed), then at full resolution only in a
+/// band of one block around the blocks' label boundary (the other pixels take
+/// their block's label): an approximation that saves most of the max-flow
+/// time on smooth, weakly textured layers. Results do not depend on `threads`.
 OptimizerResult hbds(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
-                     int threads = 0, int overlap = 0);
+                     int threads = 0, int overlap = 0, int coarse = 1);
 
 /// alpha-expansion from `initial` (empty: WTA), cycles over all labels until a
 /// cycle brings no improvement (or max_cycles).

@@ -36,6 +36,8 @@ struct StereoParams {
   /// hbds only: levels each child's set reaches across the break point (0:
   /// the thesis's disjoint split; see hbds() in optimizers.h).
   int hbds_overlap = 0;
+  /// hbds only: block side of the coarse-to-fine cuts (1: off; see hbds()).
+  int hbds_coarse = 1;
   /// hbds only: after the hierarchy, local alpha-expansion moves (labels
   /// within polish_window levels of alpha) lower the Eq. 2.2 energy of the
   /// HBDS labelling; 0 = pure HBDS as in the thesis (default).
