@@ -25,17 +25,7 @@ add_library(massage_cell_calib_sim STATIC src/sim/hand_eye_scene.cpp)
 target_link_libraries(massage_cell_calib_sim PUBLIC massage_cell_calib massage_cell_sim)
 install(TARGETS massage_cell_calib massage_cell_calib_sim ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION})
 
-if(CATKIN_ENABLE_TESTING)
-  catkin_add_gtest(test_hand_eye ${PROJECT_SOURCE_DIR}/test/calib/test_hand_eye.cpp)
-  if(TARGET test_hand_eye)
-    target_link_libraries(test_hand_eye massage_cell_calib_sim)
-    target_compile_definitions(test_hand_eye PRIVATE MASSAGE_CELL_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
-  endif()
-  # scripts/calibrated_urdf.py: the URDF's camera mount from a calibration (arm.launch camera_calibration:=FILE).
-  add_test(NAME calibrated_urdf COMMAND /usr/bin/python3 ${PROJECT_SOURCE_DIR}/test/calib/test_calibrated_urdf.py)
-endif()
-
 add_executable(hand_eye_calibrate src/tools/hand_eye_calibrate.cpp)
 target_link_libraries(hand_eye_calibrate massage_cell_calib_sim massage_cell_arm)
-target_compile_definitions(hand_eye_calibrate PRIVATE MASSAGE_CELL_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+massage_cell_tool_paths(hand_eye_calibrate)
 install(TARGETS hand_eye_calibrate RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})

@@ -18,20 +18,10 @@ target_include_directories(massage_cell_planar PUBLIC include ${OpenCV_INCLUDE_D
 target_link_libraries(massage_cell_planar PUBLIC massage_cell_camera ${OpenCV_LIBS} yaml-cpp Threads::Threads)
 install(TARGETS massage_cell_planar ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION})
 
-if(CATKIN_ENABLE_TESTING)
-  foreach(name views features model half_plane delineate evaluation)
-    catkin_add_gtest(test_planar_${name} ${PROJECT_SOURCE_DIR}/test/planar/test_${name}.cpp)
-    if(TARGET test_planar_${name})
-      target_link_libraries(test_planar_${name} massage_cell_planar massage_cell_sim)
-      target_compile_definitions(test_planar_${name} PRIVATE MASSAGE_CELL_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
-    endif()
-  endforeach()
-endif()
-
 # Command-line tools: views in, planes out; the evaluation against exact planes.
 add_executable(planar_reconstruct src/tools/planar_reconstruct.cpp)
 target_link_libraries(planar_reconstruct massage_cell_planar)
 add_executable(planar_eval src/tools/planar_eval.cpp)
 target_link_libraries(planar_eval massage_cell_planar massage_cell_sim)
-target_compile_definitions(planar_eval PRIVATE MASSAGE_CELL_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+massage_cell_tool_paths(planar_eval)
 install(TARGETS planar_reconstruct planar_eval RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})

@@ -39,7 +39,9 @@ class Reader {
     }
   }
 
-  static std::string join(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
+  static std::string join(const std::string& path, const std::string& key) {
+    return path.empty() ? key : path + "." + key;
+  }
 
   double number(const YAML::Node& node, const std::string& path, double fallback, bool required = false) const {
     if (!node) {
@@ -219,7 +221,8 @@ ArmConfig armConfig(const std::string& yaml_text, const std::string& source, con
     }
     if (!n.IsSequence() || n.size() != 3) r.fail(key, "expected a list of 3 names (x, y, z)");
     auto& out = std::string(key) == "axes" ? c.axis_names : c.joint_names;
-    for (std::size_t i = 0; i < 3; ++i) out[i] = r.text(n[i], std::string(key) + "[" + std::to_string(i) + "]", "", true);
+    for (std::size_t i = 0; i < 3; ++i)
+      out[i] = r.text(n[i], std::string(key) + "[" + std::to_string(i) + "]", "", true);
   }
   const YAML::Node joints = root["joints"];
   if (!joints) r.fail("joints", "missing");
@@ -275,7 +278,8 @@ ArmConfig armConfig(const std::string& yaml_text, const std::string& source, con
     c.body.radius = r.number(b["radius"], "body.radius", c.body.radius);
   }
   const YAML::Node regions = root["regions"];
-  if (!regions || !regions.IsMap() || regions.size() == 0) r.fail("regions", "missing or empty (region: {max_depth, default_depth})");
+  if (!regions || !regions.IsMap() || regions.size() == 0)
+    r.fail("regions", "missing or empty (region: {max_depth, default_depth})");
   for (const auto& kv : regions) {
     const std::string name = kv.first.as<std::string>();
     const std::string path = "regions." + name;
@@ -307,12 +311,15 @@ ArmConfig loadArmConfig(const std::string& path) {
 
 void validate(const ArmConfig& c) {
   const std::string& s = c.source;
-  auto fail = [&](const std::string& path, const std::string& what) { throw ArmConfigError(s + ": " + path + ": " + what); };
+  auto fail = [&](const std::string& path, const std::string& what) {
+    throw ArmConfigError(s + ": " + path + ": " + what);
+  };
   std::set<std::string> seen;
   for (int i = 0; i < 3; ++i) {
     if (!seen.insert(c.axis_names[i]).second) fail("axes", "axis '" + c.axis_names[i] + "' given twice");
     const can::AxisConfig* a = c.can.findAxis(c.axis_names[i]);
-    if (!a) fail("axes[" + std::to_string(i) + "]", "CAN axis '" + c.axis_names[i] + "' is not in " + c.can_config_path);
+    if (!a)
+      fail("axes[" + std::to_string(i) + "]", "CAN axis '" + c.axis_names[i] + "' is not in " + c.can_config_path);
     const JointLimits& l = c.joints[i];
     const std::string path = "joints." + c.axis_names[i];
     if (!(l.min < l.max)) fail(path, "min " + num(l.min) + " m must be below max " + num(l.max) + " m");
@@ -329,7 +336,8 @@ void validate(const ArmConfig& c) {
   }
   for (int k = 0; k < 3; ++k) {
     const char axis = "xyz"[k];
-    if (!(c.workspace_min[k] < c.workspace_max[k])) fail("workspace", std::string("min.") + axis + " must be below max." + axis);
+    if (!(c.workspace_min[k] < c.workspace_max[k]))
+      fail("workspace", std::string("min.") + axis + " must be below max." + axis);
     const double lo = c.joints[k].min + c.tool_offset[k], hi = c.joints[k].max + c.tool_offset[k];
     if (c.workspace_min[k] < lo - 1e-12 || c.workspace_max[k] > hi + 1e-12) {
       fail("workspace", std::string("the ") + axis + " range [" + num(c.workspace_min[k]) + ", " +
@@ -355,7 +363,8 @@ void validate(const ArmConfig& c) {
     fail("body.safe_height", num(c.body.safe_height) + " m is outside the workspace's z range");
   }
   if (!(c.body.radius > 0.0)) fail("body.radius", "must be > 0");
-  if (!(p.max_normal_tilt >= 0.0) || p.max_normal_tilt > M_PI / 2) fail("press.max_normal_tilt_deg", "must be in [0, 90]");
+  if (!(p.max_normal_tilt >= 0.0) || p.max_normal_tilt > M_PI / 2)
+    fail("press.max_normal_tilt_deg", "must be in [0, 90]");
   if (!(p.knead_radius >= 0.0) || !(p.knead_period > 0.0) || p.knead_segments < 3) {
     fail("press", "knead_radius >= 0, knead_period > 0 and knead_segments >= 3 required");
   }
@@ -368,8 +377,8 @@ void validate(const ArmConfig& c) {
   if (!c.regions.count(c.default_region)) fail("default_region", "'" + c.default_region + "' is not one of regions");
   for (const auto& [point, region] : c.acupoint_regions) {
     if (!c.regions.count(region)) {
-      fail("acupoints", "point " + point + " of " + c.acupoints_path + " has region '" + region +
-                            "', which regions does not list");
+      fail("acupoints",
+           "point " + point + " of " + c.acupoints_path + " has region '" + region + "', which regions does not list");
     }
   }
 }

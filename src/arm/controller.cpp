@@ -22,22 +22,34 @@ std::string fmt(const char* format, double v) {
 
 bool faulted(Cia402State s) { return s == Cia402State::kFault || s == Cia402State::kFaultReactionActive; }
 
-std::string axisLabel(const can::AxisConfig& a) { return "axis " + a.name + " (node " + std::to_string(a.node_id) + ")"; }
+std::string axisLabel(const can::AxisConfig& a) {
+  return "axis " + a.name + " (node " + std::to_string(a.node_id) + ")";
+}
 
 }  // namespace
 
 const char* toString(Mode mode) {
   switch (mode) {
-    case Mode::kStarting: return "starting";
-    case Mode::kReady: return "ready (not homed)";
-    case Mode::kHoming: return "homing";
-    case Mode::kIdle: return "idle";
-    case Mode::kMoving: return "moving";
-    case Mode::kMassaging: return "massaging";
-    case Mode::kStopping: return "stopping";
-    case Mode::kResetting: return "resetting";
-    case Mode::kFault: return "fault";
-    case Mode::kEstop: return "e-stop";
+    case Mode::kStarting:
+      return "starting";
+    case Mode::kReady:
+      return "ready (not homed)";
+    case Mode::kHoming:
+      return "homing";
+    case Mode::kIdle:
+      return "idle";
+    case Mode::kMoving:
+      return "moving";
+    case Mode::kMassaging:
+      return "massaging";
+    case Mode::kStopping:
+      return "stopping";
+    case Mode::kResetting:
+      return "resetting";
+    case Mode::kFault:
+      return "fault";
+    case Mode::kEstop:
+      return "e-stop";
     case Mode::kReleasing:
       return "e-stop (releasing the pressure)";
   }
@@ -138,9 +150,7 @@ Eigen::Vector3d Controller::joints() const {
   return q;
 }
 
-bool Controller::allHomed() const {
-  return axes_[0]->homed() && axes_[1]->homed() && axes_[2]->homed();
-}
+bool Controller::allHomed() const { return axes_[0]->homed() && axes_[1]->homed() && axes_[2]->homed(); }
 
 // --- the cycle ---------------------------------------------------------------------------------------
 
@@ -165,8 +175,8 @@ void Controller::cycle(can::TimePoint now) {
     if (up) {
       mode_ = allHomed() ? Mode::kIdle : Mode::kReady;
       log("CAN nodes operational; " + std::string(toString(mode_)));
-    } else if (now - start_time_ > std::chrono::duration_cast<can::Duration>(
-                                        std::chrono::duration<double>(config_.bringup_timeout))) {
+    } else if (now - start_time_ >
+               std::chrono::duration_cast<can::Duration>(std::chrono::duration<double>(config_.bringup_timeout))) {
       fault("bring-up did not finish within " + fmt("%.1f", config_.bringup_timeout) + " s: " + missing);
     }
     if (mode_ == Mode::kStarting) return;
@@ -381,13 +391,18 @@ bool Controller::waitOps(const std::string& what) {
 
 bool Controller::tickAction(Action& a, can::TimePoint now) {
   switch (a.kind) {
-    case Action::Kind::kEnableAll: return waitOps("enable");
-    case Action::Kind::kQuickStopAll: return waitOps("quick stop");
+    case Action::Kind::kEnableAll:
+      return waitOps("enable");
+    case Action::Kind::kQuickStopAll:
+      return waitOps("quick stop");
     case Action::Kind::kWaitStopped:
       return waitOps("quick stop");
-    case Action::Kind::kFaultResetAll: return waitOps("fault reset");
-    case Action::Kind::kHome: return waitOps("homing");
-    case Action::Kind::kStep: break;
+    case Action::Kind::kFaultResetAll:
+      return waitOps("fault reset");
+    case Action::Kind::kHome:
+      return waitOps("homing");
+    case Action::Kind::kStep:
+      break;
   }
   const Step& s = a.step;
   if (s.kind == Step::Kind::kHold) return std::chrono::duration<double>(now - action_start_).count() >= s.duration;
@@ -408,8 +423,8 @@ bool Controller::tickAction(Action& a, can::TimePoint now) {
   const Eigen::Vector3d goal = config_.jointsOf(s.tool);
   const double error = (q - goal).norm();
   if (error > config_.position_tolerance) {
-    fault("move ended " + fmt("%.3f", error * 1000.0) + " mm from its goal " + formatPoint(s.tool) +
-          " (tolerance " + fmt("%.3f", config_.position_tolerance * 1000.0) + " mm)");
+    fault("move ended " + fmt("%.3f", error * 1000.0) + " mm from its goal " + formatPoint(s.tool) + " (tolerance " +
+          fmt("%.3f", config_.position_tolerance * 1000.0) + " mm)");
     return false;
   }
   return true;
@@ -447,12 +462,11 @@ void Controller::startMove(const Step& s) {
     for (int k = 0; k < 3; ++k) {
       if (written_profile_[i] && (*written_profile_[i])[k] == values[k]) continue;
       ++sdo_pending_;
-      master_->sdoDownload(a.node_id, objects[k], 0, can::toBytes(values[k], 4),
-                           [this, gen](const can::SdoResult& r) {
-                             if (gen != sdo_generation_) return;
-                             --sdo_pending_;
-                             if (!r.ok && sdo_error_.empty()) sdo_error_ = r.error;
-                           });
+      master_->sdoDownload(a.node_id, objects[k], 0, can::toBytes(values[k], 4), [this, gen](const can::SdoResult& r) {
+        if (gen != sdo_generation_) return;
+        --sdo_pending_;
+        if (!r.ok && sdo_error_.empty()) sdo_error_ = r.error;
+      });
     }
     written_profile_[i] = values;
   }
@@ -469,8 +483,10 @@ Accepted Controller::refuse(const std::string& why) {
 
 std::string Controller::refusal(bool needs_homed) const {
   switch (mode_) {
-    case Mode::kStarting: return "the drives are not up yet (bringing up the CAN nodes)";
-    case Mode::kEstop: return "the e-stop is latched: release it and call reset_fault";
+    case Mode::kStarting:
+      return "the drives are not up yet (bringing up the CAN nodes)";
+    case Mode::kEstop:
+      return "the e-stop is latched: release it and call reset_fault";
     case Mode::kReleasing:
       return "the e-stop is latched (the tool is backing off the body): release it and call reset_fault";
     case Mode::kFault: {
@@ -520,7 +536,8 @@ void Controller::finish(bool success, const std::string& message) {
   if (it == results_.end() || it->second.done) return;
   setResult(command_, success, message);
   if (!success) last_error_ = message;
-  log("command " + std::to_string(command_) + " (" + command_what_ + ") " + (success ? "done: " : "failed: ") + message);
+  log("command " + std::to_string(command_) + " (" + command_what_ + ") " + (success ? "done: " : "failed: ") +
+      message);
 }
 
 Accepted Controller::home() {
@@ -741,12 +758,24 @@ ArmStatus Controller::status() const {
   s.faults = faults_;
   if (current_) {
     switch (current_->kind) {
-      case Action::Kind::kEnableAll: s.activity = "enabling the drives"; break;
-      case Action::Kind::kQuickStopAll: s.activity = "quick stop"; break;
-      case Action::Kind::kFaultResetAll: s.activity = "fault reset"; break;
-      case Action::Kind::kHome: s.activity = current_->mask == 0b100 ? "homing Z" : "homing X, Y"; break;
-      case Action::Kind::kStep: s.activity = current_->step.label; break;
-      case Action::Kind::kWaitStopped: s.activity = "waiting for the axes to stop"; break;
+      case Action::Kind::kEnableAll:
+        s.activity = "enabling the drives";
+        break;
+      case Action::Kind::kQuickStopAll:
+        s.activity = "quick stop";
+        break;
+      case Action::Kind::kFaultResetAll:
+        s.activity = "fault reset";
+        break;
+      case Action::Kind::kHome:
+        s.activity = current_->mask == 0b100 ? "homing Z" : "homing X, Y";
+        break;
+      case Action::Kind::kStep:
+        s.activity = current_->step.label;
+        break;
+      case Action::Kind::kWaitStopped:
+        s.activity = "waiting for the axes to stop";
+        break;
     }
     if (current_->kind == Action::Kind::kStep) s.target = current_->step.target;
   }

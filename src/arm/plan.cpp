@@ -88,10 +88,12 @@ std::string checkTool(const ArmConfig& c, const Eigen::Vector3d& tool) {
   for (int k = 0; k < 3; ++k) {
     const char axis = "xyz"[k];
     if (tool[k] < c.workspace_min[k]) {
-      return formatPoint(tool) + " is outside the workspace envelope: " + axis + " below " + m3(c.workspace_min[k]) + " m";
+      return formatPoint(tool) + " is outside the workspace envelope: " + axis + " below " + m3(c.workspace_min[k]) +
+             " m";
     }
     if (tool[k] > c.workspace_max[k]) {
-      return formatPoint(tool) + " is outside the workspace envelope: " + axis + " above " + m3(c.workspace_max[k]) + " m";
+      return formatPoint(tool) + " is outside the workspace envelope: " + axis + " above " + m3(c.workspace_max[k]) +
+             " m";
     }
   }
   const Eigen::Vector3d q = c.jointsOf(tool);
@@ -151,8 +153,8 @@ std::string planMassage(const ArmConfig& c, const Eigen::Vector3d& from, const P
 
   std::vector<Step> out;
   Eigen::Vector3d at = from;
-  auto move = [&](const Eigen::Vector3d& goal, double v, const std::string& label, bool contact, bool retract, int target,
-                  const Eigen::Vector3d& retreat) {
+  auto move = [&](const Eigen::Vector3d& goal, double v, const std::string& label, bool contact, bool retract,
+                  int target, const Eigen::Vector3d& retreat) {
     Step s;
     s.kind = Step::Kind::kMove;
     s.tool = goal;
@@ -219,18 +221,22 @@ std::string planMassage(const ArmConfig& c, const Eigen::Vector3d& from, const P
       if (std::string bad = checkTool(c, v.p); !bad.empty()) return who + ": the " + v.what + " " + bad;
     }
     // Up from where we are, over, down to the approach point.
-    if (at.z() < travel_z - 1e-9) move(Eigen::Vector3d(at.x(), at.y(), travel_z), 0.0, prefix + "up to the travel height", false, false, i, approach);
+    if (at.z() < travel_z - 1e-9)
+      move(Eigen::Vector3d(at.x(), at.y(), travel_z), 0.0, prefix + "up to the travel height", false, false, i,
+           approach);
     move(Eigen::Vector3d(approach.x(), approach.y(), travel_z), 0.0, prefix + "travel", false, false, i, approach);
     move(approach, 0.0, prefix + "approach", false, false, i, approach);
     for (int r = 0; r < req.repeats; ++r) {
-      const std::string rep = req.repeats > 1 ? " (" + std::to_string(r + 1) + "/" + std::to_string(req.repeats) + ")" : "";
+      const std::string rep =
+          req.repeats > 1 ? " (" + std::to_string(r + 1) + "/" + std::to_string(req.repeats) + ")" : "";
       move(bottom, speed, prefix + "descend" + rep, true, false, i, approach);
       if (req.technique == Technique::kKnead && !circle.empty()) {
         const double seg_len = (circle[1] - circle[0]).norm();
         const double knead_speed = std::min(pc.max_speed, seg_len * pc.knead_segments / pc.knead_period);
         move(circle[0], speed, prefix + "knead" + rep, true, false, i, approach);
         for (int k = 0; k < circles; ++k) {
-          for (std::size_t s = 1; s < circle.size(); ++s) move(circle[s], knead_speed, prefix + "knead" + rep, true, false, i, approach);
+          for (std::size_t s = 1; s < circle.size(); ++s)
+            move(circle[s], knead_speed, prefix + "knead" + rep, true, false, i, approach);
         }
         move(bottom, speed, prefix + "knead" + rep, true, false, i, approach);
       } else {
@@ -247,7 +253,8 @@ std::string planMassage(const ArmConfig& c, const Eigen::Vector3d& from, const P
       move(approach, pc.retract_speed, prefix + "retract" + rep, true, true, i, approach);
       out.back().press_done = true;
     }
-    move(Eigen::Vector3d(approach.x(), approach.y(), travel_z), 0.0, prefix + "up to the travel height", false, true, i, approach);
+    move(Eigen::Vector3d(approach.x(), approach.y(), travel_z), 0.0, prefix + "up to the travel height", false, true, i,
+         approach);
   }
   *steps = std::move(out);
   return "";

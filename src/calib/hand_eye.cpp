@@ -47,8 +47,8 @@ Eigen::Vector3d spreadOf(const Eigen::Matrix3Xd& points) {
 
 /// Throws for collinear / coplanar base points; adds a warning for weak spread.
 void checkSpread(const Eigen::Vector3d& s, std::size_t n, const FitOptions& o, std::vector<std::string>* warnings) {
-  const std::string values = "singular values of the centred poses " + num(s(0) * 1e3) + ", " + num(s(1) * 1e3) +
-                             ", " + num(s(2) * 1e3) + " mm";
+  const std::string values = "singular values of the centred poses " + num(s(0) * 1e3) + ", " + num(s(1) * 1e3) + ", " +
+                             num(s(2) * 1e3) + " mm";
   if (!(s(0) > 0.0)) throw std::invalid_argument("hand-eye fit: degenerate poses: all poses are the same point");
   const double rms_weakest = s(2) / std::sqrt(static_cast<double>(n));
   if (s(1) / s(0) < o.min_singular_ratio) {
@@ -66,9 +66,7 @@ void checkSpread(const Eigen::Vector3d& s, std::size_t n, const FitOptions& o, s
 
 }  // namespace
 
-double rotationAngle(const Eigen::Matrix3d& rotation) {
-  return Eigen::AngleAxisd(rotation).angle();
-}
+double rotationAngle(const Eigen::Matrix3d& rotation) { return Eigen::AngleAxisd(rotation).angle(); }
 
 std::string utcNow() {
   const std::time_t t = std::time(nullptr);

@@ -82,8 +82,9 @@ void writeRecordedSet(const std::string& dir, const RecordedSet& set) {
   root["poses"] = poses;
   YAML::Emitter out;
   out.SetDoublePrecision(17);
-  out << YAML::Comment("hand-eye poses: tool_tip = commanded tool tip in arm_base_link, m; "
-                       "images relative to this folder")
+  out << YAML::Comment(
+             "hand-eye poses: tool_tip = commanded tool tip in arm_base_link, m; "
+             "images relative to this folder")
       << root;
   const std::string path = dir + "/poses.yaml";
   std::ofstream f(path);

@@ -70,8 +70,8 @@ std::map<int, cv::Point2f> charucoCorners(const cv::Mat& grey, const cv::Ptr<cv:
 }
 
 /// Corners seen in both views on (nearly) the same row.
-void matchViews(const std::map<int, cv::Point2f>& left, const std::map<int, cv::Point2f>& right,
-                double max_row_error, MarkerDetection* d) {
+void matchViews(const std::map<int, cv::Point2f>& left, const std::map<int, cv::Point2f>& right, double max_row_error,
+                MarkerDetection* d) {
   for (const auto& [id, pl] : left) {
     const auto it = right.find(id);
     if (it == right.end() || std::abs(it->second.y - pl.y) > max_row_error) continue;

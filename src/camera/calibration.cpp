@@ -35,8 +35,12 @@ std::vector<std::string> checkCalibration(const CameraCalibration& c, cv::Size i
                        " images but the camera delivers " + std::to_string(image.width) + "x" +
                        std::to_string(image.height));
   }
-  if (!(c.K[0] > 0.0) || !(c.K[4] > 0.0)) problems.push_back(which + " calibration: focal lengths K[0], K[4] must be > 0");
+  if (!(c.K[0] > 0.0) || !(c.K[4] > 0.0))
+    problems.push_back(which + " calibration: focal lengths K[0], K[4] must be > 0");
   if (!(c.P[0] > 0.0) || !(c.P[5] > 0.0)) problems.push_back(which + " calibration: projection P[0], P[5] must be > 0");
+  if (c.P[10] != 1.0 && std::isfinite(c.P[10])) {
+    problems.push_back(which + " calibration: projection P[10] must be 1, got " + num(c.P[10]));
+  }
   auto finite = [&](const auto& values, const char* name) {
     for (double v : values)
       if (!std::isfinite(v)) {
@@ -83,6 +87,10 @@ std::vector<std::string> checkStereoCalibration(const CameraCalibration& l, cons
     problems.push_back("right projection P[3] = " + num(r.P[3]) +
                        " must be -fx * baseline < 0 (right camera to the right of the left one); "
                        "stereo_image_proc computes no depth otherwise");
+  }
+  if (std::abs(r.P[7]) > 1e-9) {
+    problems.push_back("right projection P[7] = " + num(r.P[7]) +
+                       " must be 0: a vertical (or diagonal) pair is not supported, the cameras must be side by side");
   }
   return problems;
 }

@@ -27,8 +27,8 @@ std::vector<double> readMatrix(const YAML::Node& root, const char* key, std::siz
   std::vector<double> values;
   for (const auto& v : data) values.push_back(v.as<double>());
   if (expected > 0 && values.size() != expected) {
-    throw std::runtime_error(path + ": '" + std::string(key) + "' needs " + std::to_string(expected) +
-                             " values, has " + std::to_string(values.size()));
+    throw std::runtime_error(path + ": '" + std::string(key) + "' needs " + std::to_string(expected) + " values, has " +
+                             std::to_string(values.size()));
   }
   return values;
 }

@@ -192,7 +192,8 @@ class FolderSource : public FrameSource {
 // ------------------------------------------------ V4L2 devices and videos --
 
 std::string devicePath(const std::string& location) {
-  if (!location.empty() && std::all_of(location.begin(), location.end(), [](unsigned char c) { return std::isdigit(c); })) {
+  if (!location.empty() &&
+      std::all_of(location.begin(), location.end(), [](unsigned char c) { return std::isdigit(c); })) {
     return "/dev/video" + location;
   }
   return location;
@@ -227,7 +228,8 @@ class CaptureSource : public FrameSource {
     Frame first;
     ReadResult r = read(first);
     if (r.status != ReadStatus::kOk) {
-      throw ConfigError((live_ ? "device " : "video ") + config.locations[0] + " delivered no usable frame: " + r.message);
+      throw ConfigError((live_ ? "device " : "video ") + config.locations[0] +
+                        " delivered no usable frame: " + r.message);
     }
     size_ = first.views[0].size();
     type_ = first.views[0].type();
@@ -252,7 +254,8 @@ class CaptureSource : public FrameSource {
     if (live_) {
       // Grab every device first, then decode: keeps the views' exposures close.
       for (std::size_t c = 0; c < caps_.size(); ++c) {
-        if (!caps_[c].grab()) return {ReadStatus::kFailed, "device " + config_.locations[c] + " stopped delivering frames"};
+        if (!caps_[c].grab())
+          return {ReadStatus::kFailed, "device " + config_.locations[c] + " stopped delivering frames"};
         stamps[c] = deviceStamp(caps_[c]);
       }
       for (std::size_t c = 0; c < caps_.size(); ++c) {
@@ -365,7 +368,8 @@ class CaptureSource : public FrameSource {
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
     const double age_ms = now_mono_ms - buffer_ms;
     if (buffer_ms > 0.0 && age_ms >= 0.0 && age_ms < 2000.0) {
-      return now_wall - std::chrono::duration_cast<SystemClock::duration>(std::chrono::duration<double, std::milli>(age_ms));
+      return now_wall -
+             std::chrono::duration_cast<SystemClock::duration>(std::chrono::duration<double, std::milli>(age_ms));
     }
     return now_wall;
   }

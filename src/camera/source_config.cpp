@@ -28,18 +28,24 @@ Layout parseLayout(const std::string& text) {
 
 std::string toString(SourceType type) {
   switch (type) {
-    case SourceType::kV4l2: return "v4l2";
-    case SourceType::kFolder: return "folder";
-    case SourceType::kVideo: return "video";
+    case SourceType::kV4l2:
+      return "v4l2";
+    case SourceType::kFolder:
+      return "folder";
+    case SourceType::kVideo:
+      return "video";
   }
   return "?";
 }
 
 std::string toString(Layout layout) {
   switch (layout) {
-    case Layout::kMono: return "mono";
-    case Layout::kPair: return "pair";
-    case Layout::kSideBySide: return "side_by_side";
+    case Layout::kMono:
+      return "mono";
+    case Layout::kPair:
+      return "pair";
+    case Layout::kSideBySide:
+      return "side_by_side";
   }
   return "?";
 }
@@ -59,8 +65,8 @@ void validate(const SourceConfig& c) {
   require(c.fps >= 0.0, "fps must be >= 0 (0 keeps the device's default)");
   require(c.rate >= 0.0, "rate must be >= 0 (0 = the file's own rate)");
   require(c.rate <= 1000.0, "rate must be <= 1000 Hz");
-  require(c.buffer_size >= 1 && c.buffer_size <= 32, "buffer_queue_size must be in 1..32, got " +
-                                                         std::to_string(c.buffer_size));
+  require(c.buffer_size >= 1 && c.buffer_size <= 32,
+          "buffer_queue_size must be in 1..32, got " + std::to_string(c.buffer_size));
   require(c.pixel_format.empty() || c.pixel_format.size() == 4,
           "pixel_format must be a four-character code such as MJPG or YUYV, got '" + c.pixel_format + "'");
   if (c.layout == Layout::kSideBySide && c.width > 0) {
@@ -70,9 +76,9 @@ void validate(const SourceConfig& c) {
     case SourceType::kV4l2:
     case SourceType::kVideo: {
       const char* what = c.type == SourceType::kV4l2 ? "device" : "video file";
-      require(c.locations.size() == channels,
-              std::string("layout ") + toString(c.layout) + " needs " + std::to_string(channels) + " " +
-                  what + (channels == 1 ? "" : "s") + ", got " + std::to_string(c.locations.size()));
+      require(c.locations.size() == channels, std::string("layout ") + toString(c.layout) + " needs " +
+                                                  std::to_string(channels) + " " + what + (channels == 1 ? "" : "s") +
+                                                  ", got " + std::to_string(c.locations.size()));
       for (const auto& l : c.locations) require(!l.empty(), std::string("empty ") + what + " name");
       break;
     }

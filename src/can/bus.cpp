@@ -8,11 +8,16 @@ namespace massage_cell::can {
 
 const char* toString(BusState state) {
   switch (state) {
-    case BusState::kErrorActive: return "error-active";
-    case BusState::kErrorWarning: return "error-warning";
-    case BusState::kErrorPassive: return "error-passive";
-    case BusState::kBusOff: return "bus-off";
-    case BusState::kDown: return "down";
+    case BusState::kErrorActive:
+      return "error-active";
+    case BusState::kErrorWarning:
+      return "error-warning";
+    case BusState::kErrorPassive:
+      return "error-passive";
+    case BusState::kBusOff:
+      return "bus-off";
+    case BusState::kDown:
+      return "down";
   }
   return "unknown";
 }

@@ -147,14 +147,22 @@ Result<SdoFrame> sdoCommon(const can_frame& f, canid_t base, const char* what) {
 
 const char* toString(CobType type) {
   switch (type) {
-    case CobType::kNmt: return "NMT";
-    case CobType::kSync: return "SYNC";
-    case CobType::kEmcy: return "EMCY";
-    case CobType::kTpdo: return "TPDO";
-    case CobType::kRpdo: return "RPDO";
-    case CobType::kSdoResponse: return "SDO response";
-    case CobType::kSdoRequest: return "SDO request";
-    case CobType::kHeartbeat: return "heartbeat";
+    case CobType::kNmt:
+      return "NMT";
+    case CobType::kSync:
+      return "SYNC";
+    case CobType::kEmcy:
+      return "EMCY";
+    case CobType::kTpdo:
+      return "TPDO";
+    case CobType::kRpdo:
+      return "RPDO";
+    case CobType::kSdoResponse:
+      return "SDO response";
+    case CobType::kSdoRequest:
+      return "SDO request";
+    case CobType::kHeartbeat:
+      return "heartbeat";
   }
   return "?";
 }
@@ -168,19 +176,32 @@ Result<CobInfo> classify(const can_frame& f) {
   const auto node = static_cast<std::uint8_t>(id & 0x7F);
   if (node == 0) return Result<CobInfo>::failure("COB-ID " + hex(id, 3) + " is not in the pre-defined connection set");
   switch (function) {
-    case 0x080: return Result<CobInfo>::success({CobType::kEmcy, node, 0});
-    case 0x180: return Result<CobInfo>::success({CobType::kTpdo, node, 1});
-    case 0x280: return Result<CobInfo>::success({CobType::kTpdo, node, 2});
-    case 0x380: return Result<CobInfo>::success({CobType::kTpdo, node, 3});
-    case 0x480: return Result<CobInfo>::success({CobType::kTpdo, node, 4});
-    case 0x200: return Result<CobInfo>::success({CobType::kRpdo, node, 1});
-    case 0x300: return Result<CobInfo>::success({CobType::kRpdo, node, 2});
-    case 0x400: return Result<CobInfo>::success({CobType::kRpdo, node, 3});
-    case 0x500: return Result<CobInfo>::success({CobType::kRpdo, node, 4});
-    case 0x580: return Result<CobInfo>::success({CobType::kSdoResponse, node, 0});
-    case 0x600: return Result<CobInfo>::success({CobType::kSdoRequest, node, 0});
-    case 0x700: return Result<CobInfo>::success({CobType::kHeartbeat, node, 0});
-    default: break;
+    case 0x080:
+      return Result<CobInfo>::success({CobType::kEmcy, node, 0});
+    case 0x180:
+      return Result<CobInfo>::success({CobType::kTpdo, node, 1});
+    case 0x280:
+      return Result<CobInfo>::success({CobType::kTpdo, node, 2});
+    case 0x380:
+      return Result<CobInfo>::success({CobType::kTpdo, node, 3});
+    case 0x480:
+      return Result<CobInfo>::success({CobType::kTpdo, node, 4});
+    case 0x200:
+      return Result<CobInfo>::success({CobType::kRpdo, node, 1});
+    case 0x300:
+      return Result<CobInfo>::success({CobType::kRpdo, node, 2});
+    case 0x400:
+      return Result<CobInfo>::success({CobType::kRpdo, node, 3});
+    case 0x500:
+      return Result<CobInfo>::success({CobType::kRpdo, node, 4});
+    case 0x580:
+      return Result<CobInfo>::success({CobType::kSdoResponse, node, 0});
+    case 0x600:
+      return Result<CobInfo>::success({CobType::kSdoRequest, node, 0});
+    case 0x700:
+      return Result<CobInfo>::success({CobType::kHeartbeat, node, 0});
+    default:
+      break;
   }
   return Result<CobInfo>::failure("COB-ID " + hex(id, 3) + " is not in the pre-defined connection set");
 }
@@ -189,11 +210,16 @@ Result<CobInfo> classify(const can_frame& f) {
 
 const char* toString(NmtCommand command) {
   switch (command) {
-    case NmtCommand::kStart: return "start remote node";
-    case NmtCommand::kStop: return "stop remote node";
-    case NmtCommand::kEnterPreOperational: return "enter pre-operational";
-    case NmtCommand::kResetNode: return "reset node";
-    case NmtCommand::kResetCommunication: return "reset communication";
+    case NmtCommand::kStart:
+      return "start remote node";
+    case NmtCommand::kStop:
+      return "stop remote node";
+    case NmtCommand::kEnterPreOperational:
+      return "enter pre-operational";
+    case NmtCommand::kResetNode:
+      return "reset node";
+    case NmtCommand::kResetCommunication:
+      return "reset communication";
   }
   return "?";
 }
@@ -229,7 +255,8 @@ Result<std::optional<std::uint8_t>> decodeSync(const can_frame& f) {
   if (cob(f) != kSyncCobId) return R::failure("SYNC: COB-ID " + hex(cob(f), 3) + " is not 0x080");
   if (f.len == 0) return R::success(std::nullopt);
   if (f.len != 1) return R::failure("SYNC: DLC " + std::to_string(f.len) + " (expected 0 or 1)");
-  if (f.data[0] < 1 || f.data[0] > 240) return R::failure("SYNC: counter " + std::to_string(f.data[0]) + " outside 1..240");
+  if (f.data[0] < 1 || f.data[0] > 240)
+    return R::failure("SYNC: counter " + std::to_string(f.data[0]) + " outside 1..240");
   return R::success(f.data[0]);
 }
 
@@ -237,10 +264,14 @@ Result<std::optional<std::uint8_t>> decodeSync(const can_frame& f) {
 
 const char* toString(NmtState state) {
   switch (state) {
-    case NmtState::kBootUp: return "boot-up";
-    case NmtState::kStopped: return "stopped";
-    case NmtState::kOperational: return "operational";
-    case NmtState::kPreOperational: return "pre-operational";
+    case NmtState::kBootUp:
+      return "boot-up";
+    case NmtState::kStopped:
+      return "stopped";
+    case NmtState::kOperational:
+      return "operational";
+    case NmtState::kPreOperational:
+      return "pre-operational";
   }
   return "?";
 }
@@ -334,26 +365,48 @@ std::string emcyText(std::uint16_t code) {
     if (e.code == code) return e.text;
   }
   static const Entry kClass16[] = {
-      {0x2100, "current, device input side"}, {0x2200, "current inside the device"},
-      {0x2300, "current, device output side"}, {0x3100, "mains voltage"},
-      {0x3200, "voltage inside the device"},   {0x3300, "output voltage"},
-      {0x4100, "ambient temperature"},         {0x4200, "device temperature"},
-      {0x4300, "drive temperature"},           {0x5500, "data storage"},
-      {0x6100, "internal software"},           {0x6200, "user software"},
-      {0x6300, "data set"},                    {0x7100, "power"},
-      {0x7300, "sensor"},                      {0x8100, "communication"},
-      {0x8200, "protocol error"},              {0x8600, "positioning controller"},
-      {0xF000, "additional functions"},        {0xFF00, "device specific"},
+      {0x2100, "current, device input side"},
+      {0x2200, "current inside the device"},
+      {0x2300, "current, device output side"},
+      {0x3100, "mains voltage"},
+      {0x3200, "voltage inside the device"},
+      {0x3300, "output voltage"},
+      {0x4100, "ambient temperature"},
+      {0x4200, "device temperature"},
+      {0x4300, "drive temperature"},
+      {0x5500, "data storage"},
+      {0x6100, "internal software"},
+      {0x6200, "user software"},
+      {0x6300, "data set"},
+      {0x7100, "power"},
+      {0x7300, "sensor"},
+      {0x8100, "communication"},
+      {0x8200, "protocol error"},
+      {0x8600, "positioning controller"},
+      {0xF000, "additional functions"},
+      {0xFF00, "device specific"},
   };
   char suffix[16];
   std::snprintf(suffix, sizeof suffix, " (0x%04X)", code);
   for (const Entry& e : kClass16) {
     if ((code & 0xFF00) == e.code) return std::string(e.text) + suffix;
   }
-  static const char* const kClass[16] = {
-      "error reset or no error", "generic error", "current", "voltage", "temperature", "device hardware",
-      "device software", "additional modules", "monitoring", "external error", "unknown", "unknown",
-      "unknown", "unknown", "unknown", "additional functions / device specific"};
+  static const char* const kClass[16] = {"error reset or no error",
+                                         "generic error",
+                                         "current",
+                                         "voltage",
+                                         "temperature",
+                                         "device hardware",
+                                         "device software",
+                                         "additional modules",
+                                         "monitoring",
+                                         "external error",
+                                         "unknown",
+                                         "unknown",
+                                         "unknown",
+                                         "unknown",
+                                         "unknown",
+                                         "additional functions / device specific"};
   return std::string(kClass[code >> 12]) + suffix;
 }
 
@@ -405,11 +458,16 @@ std::string sdoAbortText(std::uint32_t code) {
 
 const char* toString(SdoCommand command) {
   switch (command) {
-    case SdoCommand::kInitiateDownload: return "initiate download";
-    case SdoCommand::kDownloadSegment: return "download segment";
-    case SdoCommand::kInitiateUpload: return "initiate upload";
-    case SdoCommand::kUploadSegment: return "upload segment";
-    case SdoCommand::kAbort: return "abort";
+    case SdoCommand::kInitiateDownload:
+      return "initiate download";
+    case SdoCommand::kDownloadSegment:
+      return "download segment";
+    case SdoCommand::kInitiateUpload:
+      return "initiate upload";
+    case SdoCommand::kUploadSegment:
+      return "upload segment";
+    case SdoCommand::kAbort:
+      return "abort";
   }
   return "?";
 }

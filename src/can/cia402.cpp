@@ -26,15 +26,24 @@ std::vector<std::uint8_t> u32(double v) {
 
 const char* toString(Cia402State state) {
   switch (state) {
-    case Cia402State::kNotReadyToSwitchOn: return "not ready to switch on";
-    case Cia402State::kSwitchOnDisabled: return "switch on disabled";
-    case Cia402State::kReadyToSwitchOn: return "ready to switch on";
-    case Cia402State::kSwitchedOn: return "switched on";
-    case Cia402State::kOperationEnabled: return "operation enabled";
-    case Cia402State::kQuickStopActive: return "quick stop active";
-    case Cia402State::kFaultReactionActive: return "fault reaction active";
-    case Cia402State::kFault: return "fault";
-    case Cia402State::kUnknown: return "unknown (invalid statusword)";
+    case Cia402State::kNotReadyToSwitchOn:
+      return "not ready to switch on";
+    case Cia402State::kSwitchOnDisabled:
+      return "switch on disabled";
+    case Cia402State::kReadyToSwitchOn:
+      return "ready to switch on";
+    case Cia402State::kSwitchedOn:
+      return "switched on";
+    case Cia402State::kOperationEnabled:
+      return "operation enabled";
+    case Cia402State::kQuickStopActive:
+      return "quick stop active";
+    case Cia402State::kFaultReactionActive:
+      return "fault reaction active";
+    case Cia402State::kFault:
+      return "fault";
+    case Cia402State::kUnknown:
+      return "unknown (invalid statusword)";
   }
   return "?";
 }
@@ -42,40 +51,61 @@ const char* toString(Cia402State state) {
 Cia402State decodeStatusword(std::uint16_t w) {
   switch (w & 0x6F) {
     case 0x00:
-    case 0x20: return Cia402State::kNotReadyToSwitchOn;
+    case 0x20:
+      return Cia402State::kNotReadyToSwitchOn;
     case 0x40:
-    case 0x60: return Cia402State::kSwitchOnDisabled;
-    case 0x21: return Cia402State::kReadyToSwitchOn;
-    case 0x23: return Cia402State::kSwitchedOn;
-    case 0x27: return Cia402State::kOperationEnabled;
-    case 0x07: return Cia402State::kQuickStopActive;
+    case 0x60:
+      return Cia402State::kSwitchOnDisabled;
+    case 0x21:
+      return Cia402State::kReadyToSwitchOn;
+    case 0x23:
+      return Cia402State::kSwitchedOn;
+    case 0x27:
+      return Cia402State::kOperationEnabled;
+    case 0x07:
+      return Cia402State::kQuickStopActive;
     case 0x0F:
-    case 0x2F: return Cia402State::kFaultReactionActive;
+    case 0x2F:
+      return Cia402State::kFaultReactionActive;
     case 0x08:
-    case 0x28: return Cia402State::kFault;
-    default: return Cia402State::kUnknown;
+    case 0x28:
+      return Cia402State::kFault;
+    default:
+      return Cia402State::kUnknown;
   }
 }
 
 std::optional<std::uint16_t> controlwordTowardsEnabled(Cia402State from) {
   switch (from) {
-    case Cia402State::kSwitchOnDisabled: return cw::kShutdown;           // 2
-    case Cia402State::kReadyToSwitchOn: return cw::kSwitchOn;            // 3
-    case Cia402State::kSwitchedOn: return cw::kEnableOperation;          // 4
-    case Cia402State::kQuickStopActive: return cw::kEnableOperation;     // 16
-    case Cia402State::kOperationEnabled: return cw::kEnableOperation;    // stay
-    default: return std::nullopt;
+    case Cia402State::kSwitchOnDisabled:
+      return cw::kShutdown;  // 2
+    case Cia402State::kReadyToSwitchOn:
+      return cw::kSwitchOn;  // 3
+    case Cia402State::kSwitchedOn:
+      return cw::kEnableOperation;  // 4
+    case Cia402State::kQuickStopActive:
+      return cw::kEnableOperation;  // 16
+    case Cia402State::kOperationEnabled:
+      return cw::kEnableOperation;  // stay
+    default:
+      return std::nullopt;
   }
 }
 
 Cia402State nextStateTowardsEnabled(Cia402State from) {
   switch (from) {
-    case Cia402State::kNotReadyToSwitchOn: return Cia402State::kSwitchOnDisabled;
-    case Cia402State::kSwitchOnDisabled: return Cia402State::kReadyToSwitchOn;
-    case Cia402State::kReadyToSwitchOn: return Cia402State::kSwitchedOn;
-    case Cia402State::kFaultReactionActive: return Cia402State::kFault;
-    case Cia402State::kFault: return Cia402State::kSwitchOnDisabled;
-    default: return Cia402State::kOperationEnabled;
+    case Cia402State::kNotReadyToSwitchOn:
+      return Cia402State::kSwitchOnDisabled;
+    case Cia402State::kSwitchOnDisabled:
+      return Cia402State::kReadyToSwitchOn;
+    case Cia402State::kReadyToSwitchOn:
+      return Cia402State::kSwitchedOn;
+    case Cia402State::kFaultReactionActive:
+      return Cia402State::kFault;
+    case Cia402State::kFault:
+      return Cia402State::kSwitchOnDisabled;
+    default:
+      return Cia402State::kOperationEnabled;
   }
 }
 
@@ -101,13 +131,20 @@ std::vector<StartupWrite> cia402StartupWrites(const AxisConfig& a) {
 
 const char* toString(Cia402Axis::Operation op) {
   switch (op) {
-    case Cia402Axis::Operation::kNone: return "none";
-    case Cia402Axis::Operation::kEnable: return "enable";
-    case Cia402Axis::Operation::kDisable: return "disable";
-    case Cia402Axis::Operation::kQuickStop: return "quick stop";
-    case Cia402Axis::Operation::kFaultReset: return "fault reset";
-    case Cia402Axis::Operation::kHoming: return "homing";
-    case Cia402Axis::Operation::kMove: return "move";
+    case Cia402Axis::Operation::kNone:
+      return "none";
+    case Cia402Axis::Operation::kEnable:
+      return "enable";
+    case Cia402Axis::Operation::kDisable:
+      return "disable";
+    case Cia402Axis::Operation::kQuickStop:
+      return "quick stop";
+    case Cia402Axis::Operation::kFaultReset:
+      return "fault reset";
+    case Cia402Axis::Operation::kHoming:
+      return "homing";
+    case Cia402Axis::Operation::kMove:
+      return "move";
   }
   return "?";
 }
@@ -261,7 +298,8 @@ void Cia402Axis::tick(TimePoint now) {
   if (!fb.valid) {
     have_state_ = false;
     const NodeState ns = master_.nodeState(config_.node_id);
-    if (ns == NodeState::kResetting || ns == NodeState::kConfiguring) homed_ = false;  // a rebooted drive lost its reference
+    if (ns == NodeState::kResetting || ns == NodeState::kConfiguring)
+      homed_ = false;  // a rebooted drive lost its reference
     if (status_ != Status::kRunning) return;
     if (ns != NodeState::kOperational && ns != NodeState::kStarting) {
       fail(std::string(toString(op_)) + " aborted: node is " + toString(ns));
@@ -309,7 +347,8 @@ void Cia402Axis::tick(TimePoint now) {
     case Operation::kQuickStop:
       command(cw::kQuickStop);
       if (s == Cia402State::kSwitchOnDisabled) return succeed("stopped, switch on disabled");
-      if (s == Cia402State::kQuickStopActive && (word & sw::kTargetReached)) return succeed("stopped in quick stop active");
+      if (s == Cia402State::kQuickStopActive && (word & sw::kTargetReached))
+        return succeed("stopped in quick stop active");
       if (faulted) return fail("quick stop ended in a drive fault (" + faultText(word) + ")");
       if (timedOut(now, quick_stop_timeout_ms_)) {
         fail("quick stop did not complete within " + std::to_string(quick_stop_timeout_ms_) + " ms (state '" +
@@ -364,8 +403,8 @@ void Cia402Axis::tickEnable(TimePoint now, Cia402State s, std::uint16_t word) {
   if (c) command(*c);
   if (timedOut(now, config_.enable_timeout_ms)) {
     fail("could not enable: stuck in '" + std::string(toString(s)) + "' (statusword " + hex4(word) + ") for " +
-         std::to_string(config_.enable_timeout_ms) + " ms waiting for '" + toString(nextStateTowardsEnabled(s)) +
-         "'" + (c ? " after controlword " + hex4(*c) : std::string(" (the drive has to get there by itself)")));
+         std::to_string(config_.enable_timeout_ms) + " ms waiting for '" + toString(nextStateTowardsEnabled(s)) + "'" +
+         (c ? " after controlword " + hex4(*c) : std::string(" (the drive has to get there by itself)")));
   }
 }
 
@@ -374,8 +413,8 @@ void Cia402Axis::tickMove(TimePoint now, Cia402State s, std::uint16_t word, std:
     if (s == Cia402State::kFault || s == Cia402State::kFaultReactionActive) {
       return fail("move aborted by a drive fault (" + faultText(word) + ")");
     }
-    return fail("move " + std::string(phase_ == Phase::kStart ? "refused" : "aborted") + ": drive is '" +
-                toString(s) + "', not operation enabled");
+    return fail("move " + std::string(phase_ == Phase::kStart ? "refused" : "aborted") + ": drive is '" + toString(s) +
+                "', not operation enabled");
   }
   if (now - op_start_ > std::chrono::milliseconds(config_.move_timeout_ms)) {
     return fail("move did not reach the target within " + std::to_string(config_.move_timeout_ms) + " ms (at " +
@@ -397,7 +436,8 @@ void Cia402Axis::tickMove(TimePoint now, Cia402State s, std::uint16_t word, std:
         command(cw::kEnableOperation | cw::kNewSetPoint);
         phase(Phase::kWaitAck);
       } else if (timedOut(now, config_.enable_timeout_ms)) {
-        fail("drive keeps the set-point acknowledge (bit 12) set with new set-point low (statusword " + hex4(word) + ")");
+        fail("drive keeps the set-point acknowledge (bit 12) set with new set-point low (statusword " + hex4(word) +
+             ")");
       }
       return;
     case Phase::kWaitAck:

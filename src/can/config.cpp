@@ -175,7 +175,9 @@ AxisConfig parseAxis(const YAML::Node& node, const std::string& path, const std:
 }  // namespace
 
 void validate(const CanConfig& c, const std::string& source) {
-  auto fail = [&](const std::string& where, const std::string& what) { throw ConfigError(source + ": " + where + ": " + what); };
+  auto fail = [&](const std::string& where, const std::string& what) {
+    throw ConfigError(source + ": " + where + ": " + what);
+  };
   if (c.axes.empty()) fail("axes", "no axes configured");
   if (c.sync_period_us < 1000) fail("bus.sync_period_ms", "must be at least 1 ms");
   if (!validNodeId(c.master_node_id)) {
@@ -189,7 +191,8 @@ void validate(const CanConfig& c, const std::string& source) {
     if (a.name.empty()) fail(p + ".name", "missing field (required)");
     if (!validNodeId(a.node_id)) fail(p + ".node_id", std::to_string(a.node_id) + " is outside 1..127");
     if (auto it = ids.find(a.node_id); it != ids.end()) {
-      fail(p + ".node_id", "duplicate node id " + std::to_string(a.node_id) + " (axis '" + it->second + "' already uses it)");
+      fail(p + ".node_id",
+           "duplicate node id " + std::to_string(a.node_id) + " (axis '" + it->second + "' already uses it)");
     }
     ids[a.node_id] = a.name;
     if (!names.insert(a.name).second) fail(p + ".name", "duplicate axis name '" + a.name + "'");
@@ -197,25 +200,28 @@ void validate(const CanConfig& c, const std::string& source) {
     if (a.min_position >= a.max_position) fail(p + ".max_position", "must be greater than min_position");
     if (a.heartbeatTimeoutMs() <= a.heartbeat_ms) fail(p + ".heartbeat_timeout_ms", "must be longer than heartbeat_ms");
     if (a.node_id == c.master_node_id) {
-      fail(p + ".node_id", "node id " + std::to_string(a.node_id) + " is the master's own (bus.master_node_id); "
-                           "give the master or the axis another id");
+      fail(p + ".node_id", "node id " + std::to_string(a.node_id) +
+                               " is the master's own (bus.master_node_id); "
+                               "give the master or the axis another id");
     }
     if (a.master_heartbeat_timeout_ms > 0) {
       if (c.master_heartbeat_ms == 0) {
-        fail(p + ".master_heartbeat_timeout_ms", "the drive would monitor the master's heartbeat, but "
-                                                  "bus.master_heartbeat_ms is 0 (the master sends none)");
+        fail(p + ".master_heartbeat_timeout_ms",
+             "the drive would monitor the master's heartbeat, but "
+             "bus.master_heartbeat_ms is 0 (the master sends none)");
       }
       if (a.master_heartbeat_timeout_ms <= c.master_heartbeat_ms) {
         fail(p + ".master_heartbeat_timeout_ms", std::to_string(a.master_heartbeat_timeout_ms) +
-                                                      " ms must be longer than bus.master_heartbeat_ms (" +
-                                                      std::to_string(c.master_heartbeat_ms) + " ms)");
+                                                     " ms must be longer than bus.master_heartbeat_ms (" +
+                                                     std::to_string(c.master_heartbeat_ms) + " ms)");
       }
     }
     if (a.abort_connection_option < 0 || a.abort_connection_option > 3) {
       fail(p + ".abort_connection_option", std::to_string(a.abort_connection_option) + " is outside 0..3");
     }
     const double max_counts = static_cast<double>(std::numeric_limits<std::int32_t>::max());
-    if (std::abs(a.min_position) * a.counts_per_metre > max_counts || std::abs(a.max_position) * a.counts_per_metre > max_counts) {
+    if (std::abs(a.min_position) * a.counts_per_metre > max_counts ||
+        std::abs(a.max_position) * a.counts_per_metre > max_counts) {
       fail(p + ".counts_per_metre", "position limits do not fit in 32-bit counts at this scale");
     }
   }

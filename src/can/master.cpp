@@ -38,30 +38,48 @@ std::string hex4(unsigned v) {
 
 const char* toString(NodeState state) {
   switch (state) {
-    case NodeState::kUnknown: return "unknown";
-    case NodeState::kResetting: return "resetting";
-    case NodeState::kConfiguring: return "configuring";
-    case NodeState::kStarting: return "starting";
-    case NodeState::kOperational: return "operational";
-    case NodeState::kStopped: return "stopped";
-    case NodeState::kLost: return "lost";
-    case NodeState::kFailed: return "failed";
+    case NodeState::kUnknown:
+      return "unknown";
+    case NodeState::kResetting:
+      return "resetting";
+    case NodeState::kConfiguring:
+      return "configuring";
+    case NodeState::kStarting:
+      return "starting";
+    case NodeState::kOperational:
+      return "operational";
+    case NodeState::kStopped:
+      return "stopped";
+    case NodeState::kLost:
+      return "lost";
+    case NodeState::kFailed:
+      return "failed";
   }
   return "?";
 }
 
 const char* toString(EventType type) {
   switch (type) {
-    case EventType::kBootUp: return "boot-up";
-    case EventType::kNodeOperational: return "node operational";
-    case EventType::kConfigureFailed: return "configure failed";
-    case EventType::kHeartbeatTimeout: return "heartbeat timeout";
-    case EventType::kHeartbeatResumed: return "heartbeat resumed";
-    case EventType::kNmtStateChanged: return "NMT state changed";
-    case EventType::kEmcy: return "EMCY";
-    case EventType::kBusStateChanged: return "bus state";
-    case EventType::kMalformedFrame: return "malformed frame";
-    case EventType::kAxis: return "axis";
+    case EventType::kBootUp:
+      return "boot-up";
+    case EventType::kNodeOperational:
+      return "node operational";
+    case EventType::kConfigureFailed:
+      return "configure failed";
+    case EventType::kHeartbeatTimeout:
+      return "heartbeat timeout";
+    case EventType::kHeartbeatResumed:
+      return "heartbeat resumed";
+    case EventType::kNmtStateChanged:
+      return "NMT state changed";
+    case EventType::kEmcy:
+      return "EMCY";
+    case EventType::kBusStateChanged:
+      return "bus state";
+    case EventType::kMalformedFrame:
+      return "malformed frame";
+    case EventType::kAxis:
+      return "axis";
   }
   return "?";
 }
@@ -80,7 +98,8 @@ std::vector<StartupWrite> canopenStartupWrites(const AxisConfig& a, std::uint8_t
   w.push_back({0x1017, 0, u16(a.heartbeat_ms)});
   if (a.master_heartbeat_timeout_ms > 0) {
     // Consumer of the master's heartbeat (bits 16..23 node id, 0..15 time in ms), and what the drive does on its loss.
-    w.push_back({0x1016, 1, u32(static_cast<std::uint32_t>(master_node_id) << 16 | (a.master_heartbeat_timeout_ms & 0xFFFF))});
+    w.push_back(
+        {0x1016, 1, u32(static_cast<std::uint32_t>(master_node_id) << 16 | (a.master_heartbeat_timeout_ms & 0xFFFF))});
     w.push_back({0x6007, 0, u16(static_cast<std::uint16_t>(a.abort_connection_option))});
   }
   auto map = [&](std::uint16_t comm, std::uint16_t mapping, std::uint32_t cob, const PdoMapping& entries) {
@@ -123,8 +142,8 @@ struct Master::Node {
   TimePoint last_malformed_event{};
   std::uint64_t rpdos_sent = 0;
   TimePoint reset_sent{};
-  std::uint64_t outage_mark = 0;    // stats_.bus_outages when the current bring-up attempt began
-  bool restart_on_recovery = false; // its bring-up failed during an outage: restart when the bus is back
+  std::uint64_t outage_mark = 0;     // stats_.bus_outages when the current bring-up attempt began
+  bool restart_on_recovery = false;  // its bring-up failed during an outage: restart when the bus is back
 };
 
 Master::Master(Bus& bus, const Clock& clock, CanConfig config) : bus_(bus), clock_(clock), config_(std::move(config)) {
@@ -483,7 +502,7 @@ void Master::process(const TimedFrame& tf) {
       n.last_heartbeat = clock_.now();
       const std::optional<NmtState> before = n.nmt;
       if (h->state == NmtState::kBootUp) {
-        n.nmt = NmtState::kPreOperational;  // a booted node enters pre-operational by itself
+        n.nmt = NmtState::kPreOperational;     // a booted node enters pre-operational by itself
         if (n.state == NodeState::kUnknown) {  // not brought up yet: bringUp() will reset it anyway
           event(EventType::kBootUp, id, label(id) + ": boot-up (not brought up yet)");
           return;
@@ -571,7 +590,7 @@ void Master::timers(TimePoint now) {
   if (config_.master_heartbeat_ms > 0 && now >= next_heartbeat_) {
     if (send(encodeHeartbeat(config_.master_node_id, own_nmt_))) ++stats_.heartbeats_produced;
     const Duration hb = std::chrono::milliseconds(config_.master_heartbeat_ms);
-    next_heartbeat_ += hb;  // the first one (at the first poll) sets the phase
+    next_heartbeat_ += hb;                                   // the first one (at the first poll) sets the phase
     if (next_heartbeat_ <= now) next_heartbeat_ = now + hb;  // fell behind: do not burst
   }
   // SYNC producer: the owner's hook, then RPDOs, so synchronous drives apply

@@ -69,7 +69,8 @@ std::uint32_t ObjectDictionary::write(std::uint16_t index, std::uint8_t sub, con
 
 std::int64_t ObjectDictionary::get(std::uint16_t index, std::uint8_t sub) const {
   const Entry* e = find(index, sub);
-  if (!e) throw std::out_of_range("ObjectDictionary::get: no object " + std::to_string(index) + ":" + std::to_string(sub));
+  if (!e)
+    throw std::out_of_range("ObjectDictionary::get: no object " + std::to_string(index) + ":" + std::to_string(sub));
   const std::uint64_t v = fromBytes(e->value);
   return e->is_signed ? signExtend(v, static_cast<unsigned>(e->size * 8)) : static_cast<std::int64_t>(v);
 }

@@ -48,7 +48,9 @@ std::vector<ProbeResult> probeNodes(Bus& bus, const ProbeOptions& options) {
   std::size_t outstanding = 0;
   auto client = [&](std::uint8_t node) -> SdoClient& {
     auto& c = clients[node];
-    if (!c) c = std::make_unique<SdoClient>(node, [&bus](const can_frame& f) { return bus.send(f); }, clock, options.sdo_timeout);
+    if (!c)
+      c = std::make_unique<SdoClient>(
+          node, [&bus](const can_frame& f) { return bus.send(f); }, clock, options.sdo_timeout);
     return *c;
   };
   auto pump = [&](Duration wait) {
@@ -104,8 +106,8 @@ std::vector<ProbeResult> probeNodes(Bus& bus, const ProbeOptions& options) {
       if (r.ok && r.data.size() == 2) {
         found[node].statusword = static_cast<std::uint16_t>(fromBytes(r.data));
       } else if (!r.ok) {
-        found[node].notes += (found[node].notes.empty() ? "" : "; ") + std::string("no statusword (") +
-                             sdoAbortText(r.abort_code) + ")";
+        found[node].notes +=
+            (found[node].notes.empty() ? "" : "; ") + std::string("no statusword (") + sdoAbortText(r.abort_code) + ")";
       }
     });
   }

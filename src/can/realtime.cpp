@@ -39,9 +39,9 @@ std::string setRealtimePriority(pthread_t thread, int priority) {
   const int rc = pthread_setschedparam(thread, SCHED_FIFO, &param);
   if (rc == 0) return "";
   if (rc == EPERM) {
-    return what + " refused (" + std::strerror(rc) + "): the process needs CAP_SYS_NICE or an rtprio limit >= " +
-           std::to_string(priority) + " (now " + limitText(RLIMIT_RTPRIO, "") +
-           "): run `ulimit -r " + std::to_string(priority) +
+    return what + " refused (" + std::strerror(rc) +
+           "): the process needs CAP_SYS_NICE or an rtprio limit >= " + std::to_string(priority) + " (now " +
+           limitText(RLIMIT_RTPRIO, "") + "): run `ulimit -r " + std::to_string(priority) +
            "` before starting it, or add `<user> - rtprio 99` to /etc/security/limits.conf (log in again), or "
            "`setcap cap_sys_nice+ep <executable>`; in a container, --cap-add=SYS_NICE / --ulimit rtprio=99";
   }

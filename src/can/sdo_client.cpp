@@ -59,8 +59,9 @@ void SdoClient::startNext() {
       fail(sdo_abort::kLengthTooLow, "nothing to download", false);
       continue;
     }
-    const can_frame f = current_.upload ? sdoInitiateUploadRequest(node_, current_.index, current_.sub)
-                                        : sdoInitiateDownloadRequest(node_, current_.index, current_.sub, current_.data);
+    const can_frame f = current_.upload
+                            ? sdoInitiateUploadRequest(node_, current_.index, current_.sub)
+                            : sdoInitiateDownloadRequest(node_, current_.index, current_.sub, current_.data);
     // A frame the bus refused is handled like a lost one: the response timeout fires.
     sendFrame(f);
   }
@@ -157,14 +158,15 @@ bool SdoClient::handle(const SdoFrame& r) {
     }
     current_.data.insert(current_.data.end(), r.data.begin(), r.data.end());
     if (size_known_ && current_.data.size() > expected_size_) {
-      fail(sdo_abort::kLengthTooHigh, "more data than the announced " + std::to_string(expected_size_) + " bytes", true);
+      fail(sdo_abort::kLengthTooHigh, "more data than the announced " + std::to_string(expected_size_) + " bytes",
+           true);
       return true;
     }
     if (r.last) {
       if (size_known_ && current_.data.size() != expected_size_) {
         fail(sdo_abort::kLengthMismatch,
-             "received " + std::to_string(current_.data.size()) + " of the announced " + std::to_string(expected_size_) +
-                 " bytes",
+             "received " + std::to_string(current_.data.size()) + " of the announced " +
+                 std::to_string(expected_size_) + " bytes",
              true);
         return true;
       }

@@ -10,7 +10,7 @@ namespace massage_cell::can {
 namespace {
 
 using A = ObjectDictionary::Access;
-constexpr double kStepS = 0.001;                  // motion integration step
+constexpr double kStepS = 0.001;  // motion integration step
 constexpr std::uint32_t kPdoInvalid = 0x80000000u;
 
 bool isRpdoComm(std::uint16_t i) { return i >= 0x1400 && i <= 0x1403; }
@@ -21,10 +21,17 @@ bool isTpdoMap(std::uint16_t i) { return i >= 0x1A00 && i <= 0x1A03; }
 std::uint8_t errorRegisterFor(std::uint16_t code) {
   std::uint8_t reg = 0x01;  // generic
   switch (code >> 12) {
-    case 0x2: reg |= 0x02; break;
-    case 0x3: reg |= 0x04; break;
-    case 0x4: reg |= 0x08; break;
-    default: break;
+    case 0x2:
+      reg |= 0x02;
+      break;
+    case 0x3:
+      reg |= 0x04;
+      break;
+    case 0x4:
+      reg |= 0x08;
+      break;
+    default:
+      break;
   }
   if ((code & 0xFF00) == 0x8100) reg |= 0x10;
   if ((code & 0xFF00) == 0xFF00) reg |= 0x80;
@@ -36,7 +43,8 @@ std::uint8_t errorRegisterFor(std::uint16_t code) {
 SimDrive::SimDrive(Bus& bus, const Clock& clock, const AxisConfig& config) : bus_(bus), clock_(clock), config_(config) {
   if (!validNodeId(config_.node_id)) throw std::invalid_argument("SimDrive: node id outside 1..127");
   if (!(config_.counts_per_metre > 0)) throw std::invalid_argument("SimDrive: counts_per_metre must be > 0");
-  od_.setWriteHook([this](std::uint16_t i, std::uint8_t s, const std::vector<std::uint8_t>& d) { return checkWrite(i, s, d); });
+  od_.setWriteHook(
+      [this](std::uint16_t i, std::uint8_t s, const std::vector<std::uint8_t>& d) { return checkWrite(i, s, d); });
   actual_ = demand_ = config_.toCounts(config_.sim.start_position);
   pp_target_ = actual_;
   switch_pos_ = config_.toCounts(config_.sim.home_switch);
@@ -48,7 +56,8 @@ SimDrive::SimDrive(Bus& bus, const Clock& clock, const AxisConfig& config) : bus
 
 void SimDrive::applyFilters() {
   const canid_t id = config_.node_id;
-  std::vector<can_filter> filters = {{kNmtCobId, CAN_SFF_MASK}, {kSyncCobId, CAN_SFF_MASK}, {kSdoRxBase + id, CAN_SFF_MASK}};
+  std::vector<can_filter> filters = {
+      {kNmtCobId, CAN_SFF_MASK}, {kSyncCobId, CAN_SFF_MASK}, {kSdoRxBase + id, CAN_SFF_MASK}};
   for (canid_t base : kRpdoBase) filters.push_back({base + id, CAN_SFF_MASK});
   const auto producer = static_cast<canid_t>((od_.get(0x1016, 1) >> 16) & 0x7F);
   if (producer != 0) filters.push_back({kHeartbeatBase + producer, CAN_SFF_MASK});
@@ -87,7 +96,7 @@ void SimDrive::resetApplication() {
   od_.add(0x6099, 2, A::kReadWrite, 4, std::llround(c.homing_speed * k / 4));
   od_.add(0x609A, 0, A::kReadWrite, 4, std::llround(c.profile_acceleration * k));
   od_.add(0x6502, 0, A::kReadOnly, 4, (1 << 0) | (1 << 5));  // supported modes: pp, homing
-  od_.add(0x6007, 0, A::kReadWrite, 2, 1, true);  // abort connection option code: fault
+  od_.add(0x6007, 0, A::kReadWrite, 2, 1, true);             // abort connection option code: fault
   // The drive restarts: the position reference (homing) is lost, the motor is off.
   actual_ -= offset_;
   demand_ -= offset_;
@@ -147,7 +156,8 @@ void SimDrive::resetCommunication() {
 PdoMapping SimDrive::mapping(std::uint16_t index) const {
   PdoMapping m;
   const auto n = od_.get(index, 0);
-  for (std::uint8_t k = 1; k <= n && k <= 8; ++k) m.push_back(decodeMappingEntry(static_cast<std::uint32_t>(od_.get(index, k))));
+  for (std::uint8_t k = 1; k <= n && k <= 8; ++k)
+    m.push_back(decodeMappingEntry(static_cast<std::uint32_t>(od_.get(index, k))));
   return m;
 }
 
@@ -271,7 +281,8 @@ void SimDrive::process(const can_frame& f, TimePoint now) {
       if (r) return handleSdo(*r, now);
       if (f.len == 8) {  // a full SDO frame with a command specifier we do not know: say so
         ++stats_.sdo_requests;
-        abortSdo(static_cast<std::uint16_t>(f.data[1] | (f.data[2] << 8)), f.data[3], sdo_abort::kCommandSpecifier, now);
+        abortSdo(static_cast<std::uint16_t>(f.data[1] | (f.data[2] << 8)), f.data[3], sdo_abort::kCommandSpecifier,
+                 now);
         return;
       }
       break;
@@ -315,9 +326,15 @@ void SimDrive::checkHeartbeatConsumer(TimePoint now) {
 void SimDrive::handleNmt(const NmtMessage& m, TimePoint now) {
   if (m.node != 0 && m.node != config_.node_id) return;
   switch (m.command) {
-    case NmtCommand::kStart: nmt_ = NmtState::kOperational; break;
-    case NmtCommand::kStop: nmt_ = NmtState::kStopped; break;
-    case NmtCommand::kEnterPreOperational: nmt_ = NmtState::kPreOperational; break;
+    case NmtCommand::kStart:
+      nmt_ = NmtState::kOperational;
+      break;
+    case NmtCommand::kStop:
+      nmt_ = NmtState::kStopped;
+      break;
+    case NmtCommand::kEnterPreOperational:
+      nmt_ = NmtState::kPreOperational;
+      break;
     case NmtCommand::kResetNode:
       resetApplication();
       resetCommunication();
@@ -366,7 +383,8 @@ void SimDrive::handleSdo(const SdoFrame& r, TimePoint now) {
       download_ = {};
       updateProcessObjects();
       std::vector<std::uint8_t> data;
-      if (const std::uint32_t code = od_.read(r.index, r.subindex, data)) return abortSdo(r.index, r.subindex, code, now);
+      if (const std::uint32_t code = od_.read(r.index, r.subindex, data))
+        return abortSdo(r.index, r.subindex, code, now);
       if (data.size() > 4) {
         upload_.active = true;
         upload_.index = r.index;
@@ -392,17 +410,21 @@ void SimDrive::handleSdo(const SdoFrame& r, TimePoint now) {
       upload_ = {};
       download_ = {};
       if (r.expedited) {
-        if (const std::uint32_t code = od_.write(r.index, r.subindex, r.data)) return abortSdo(r.index, r.subindex, code, now);
+        if (const std::uint32_t code = od_.write(r.index, r.subindex, r.data))
+          return abortSdo(r.index, r.subindex, code, now);
         afterWrite(r.index, r.subindex);
         return respondSdo(sdoInitiateDownloadResponse(id, r.index, r.subindex), now);
       }
       const ObjectDictionary::Entry* e = od_.find(r.index, r.subindex);
       if (!e) {
-        return abortSdo(r.index, r.subindex, od_.hasIndex(r.index) ? sdo_abort::kNoSubIndex : sdo_abort::kNoObject, now);
+        return abortSdo(r.index, r.subindex, od_.hasIndex(r.index) ? sdo_abort::kNoSubIndex : sdo_abort::kNoObject,
+                        now);
       }
-      if (e->access == A::kReadOnly || e->access == A::kConst) return abortSdo(r.index, r.subindex, sdo_abort::kReadOnly, now);
+      if (e->access == A::kReadOnly || e->access == A::kConst)
+        return abortSdo(r.index, r.subindex, sdo_abort::kReadOnly, now);
       if (r.size_indicated && e->size != 0 && r.size != e->size) {
-        return abortSdo(r.index, r.subindex, r.size > e->size ? sdo_abort::kLengthTooHigh : sdo_abort::kLengthTooLow, now);
+        return abortSdo(r.index, r.subindex, r.size > e->size ? sdo_abort::kLengthTooHigh : sdo_abort::kLengthTooLow,
+                        now);
       }
       download_.active = true;
       download_.index = r.index;
@@ -534,15 +556,33 @@ void SimDrive::checkChangeTpdos() {
 std::uint16_t SimDrive::composeStatusword() const {
   std::uint16_t w = 0;
   switch (state_) {
-    case Cia402State::kNotReadyToSwitchOn: w = 0x00; break;
-    case Cia402State::kSwitchOnDisabled: w = 0x40; break;
-    case Cia402State::kReadyToSwitchOn: w = 0x21; break;
-    case Cia402State::kSwitchedOn: w = 0x23; break;
-    case Cia402State::kOperationEnabled: w = 0x27; break;
-    case Cia402State::kQuickStopActive: w = 0x07; break;
-    case Cia402State::kFaultReactionActive: w = 0x0F; break;
-    case Cia402State::kFault: w = 0x08; break;
-    case Cia402State::kUnknown: w = 0x00; break;
+    case Cia402State::kNotReadyToSwitchOn:
+      w = 0x00;
+      break;
+    case Cia402State::kSwitchOnDisabled:
+      w = 0x40;
+      break;
+    case Cia402State::kReadyToSwitchOn:
+      w = 0x21;
+      break;
+    case Cia402State::kSwitchedOn:
+      w = 0x23;
+      break;
+    case Cia402State::kOperationEnabled:
+      w = 0x27;
+      break;
+    case Cia402State::kQuickStopActive:
+      w = 0x07;
+      break;
+    case Cia402State::kFaultReactionActive:
+      w = 0x0F;
+      break;
+    case Cia402State::kFault:
+      w = 0x08;
+      break;
+    case Cia402State::kUnknown:
+      w = 0x00;
+      break;
   }
   if (state_ == Cia402State::kReadyToSwitchOn || state_ == Cia402State::kSwitchedOn ||
       state_ == Cia402State::kOperationEnabled || state_ == Cia402State::kQuickStopActive) {
@@ -622,7 +662,7 @@ void SimDrive::processControlword() {
   if ((cw & cw::kFaultReset) && !(prev & cw::kFaultReset) && state_ == Cia402State::kFault) {
     od_.set(0x603F, 0, 0);
     od_.set(0x1001, 0, 0);
-    sendEmcy(0x0000, 0);  // error reset
+    sendEmcy(0x0000, 0);                         // error reset
     enterState(Cia402State::kSwitchOnDisabled);  // 15
     return;
   }
@@ -638,24 +678,36 @@ void SimDrive::processControlword() {
       if (shutdown) enterState(Cia402State::kReadyToSwitchOn);  // 2
       break;
     case Cia402State::kReadyToSwitchOn:
-      if (disable_voltage || quick_stop) enterState(Cia402State::kSwitchOnDisabled);  // 7
-      else if (switch_on) enterState(Cia402State::kSwitchedOn);                    // 3
-      else if (enable_op) enterState(Cia402State::kOperationEnabled);              // 3 + 4
+      if (disable_voltage || quick_stop)
+        enterState(Cia402State::kSwitchOnDisabled);  // 7
+      else if (switch_on)
+        enterState(Cia402State::kSwitchedOn);  // 3
+      else if (enable_op)
+        enterState(Cia402State::kOperationEnabled);  // 3 + 4
       break;
     case Cia402State::kSwitchedOn:
-      if (disable_voltage || quick_stop) enterState(Cia402State::kSwitchOnDisabled);  // 10
-      else if (shutdown) enterState(Cia402State::kReadyToSwitchOn);                // 6
-      else if (enable_op) enterState(Cia402State::kOperationEnabled);              // 4
+      if (disable_voltage || quick_stop)
+        enterState(Cia402State::kSwitchOnDisabled);  // 10
+      else if (shutdown)
+        enterState(Cia402State::kReadyToSwitchOn);  // 6
+      else if (enable_op)
+        enterState(Cia402State::kOperationEnabled);  // 4
       break;
     case Cia402State::kOperationEnabled:
-      if (disable_voltage) enterState(Cia402State::kSwitchOnDisabled);    // 9
-      else if (quick_stop) enterState(Cia402State::kQuickStopActive);     // 11
-      else if (shutdown) enterState(Cia402State::kReadyToSwitchOn);       // 8
-      else if (switch_on) enterState(Cia402State::kSwitchedOn);           // 5
+      if (disable_voltage)
+        enterState(Cia402State::kSwitchOnDisabled);  // 9
+      else if (quick_stop)
+        enterState(Cia402State::kQuickStopActive);  // 11
+      else if (shutdown)
+        enterState(Cia402State::kReadyToSwitchOn);  // 8
+      else if (switch_on)
+        enterState(Cia402State::kSwitchedOn);  // 5
       break;
     case Cia402State::kQuickStopActive:
-      if (disable_voltage) enterState(Cia402State::kSwitchOnDisabled);  // 12
-      else if (enable_op && option >= 5 && velocity_ == 0.0) enterState(Cia402State::kOperationEnabled);  // 16
+      if (disable_voltage)
+        enterState(Cia402State::kSwitchOnDisabled);  // 12
+      else if (enable_op && option >= 5 && velocity_ == 0.0)
+        enterState(Cia402State::kOperationEnabled);  // 16
       break;
     default:
       break;
@@ -711,7 +763,8 @@ void SimDrive::startHoming() {
       homing_active_ = false;
       return;
   }
-  if (homing_failing_ && homing_fail_kind_ == HomingFailure::kHang) homing_goal_ = actual_ + (homing_goal_ - actual_) * 0.5;
+  if (homing_failing_ && homing_fail_kind_ == HomingFailure::kHang)
+    homing_goal_ = actual_ + (homing_goal_ - actual_) * 0.5;
 }
 
 void SimDrive::completeHoming() {

@@ -3,8 +3,8 @@
 
 #include <fcntl.h>
 #include <linux/can/raw.h>
-#include <net/if_arp.h>
 #include <net/if.h>
+#include <net/if_arp.h>
 #include <poll.h>
 #include <sys/ioctl.h>
 #include <sys/socket.h>
@@ -115,7 +115,8 @@ int SocketCanBus::openSocket() {
                      std::to_string(hw.ifr_hwaddr.sa_family) + ", CAN is " + std::to_string(ARPHRD_CAN) + ")");
     }
     ifreq flags = ifr;
-    if (::ioctl(probe, SIOCGIFFLAGS, &flags) == 0 && (!(flags.ifr_flags & IFF_UP) || !(flags.ifr_flags & IFF_RUNNING))) {
+    if (::ioctl(probe, SIOCGIFFLAGS, &flags) == 0 &&
+        (!(flags.ifr_flags & IFF_UP) || !(flags.ifr_flags & IFF_RUNNING))) {
       ::close(probe);
       throw BusError("SocketCAN interface '" + ifname + "' is " +
                      ((flags.ifr_flags & IFF_UP) ? "up but not running (no carrier: bus-off?)" : "down") +
@@ -158,8 +159,7 @@ int SocketCanBus::openSocket() {
 void SocketCanBus::noteState(BusState state, const std::string& text) {
   std::lock_guard<std::mutex> lock(status_mutex_);
   if (state == BusState::kBusOff && status_.state != BusState::kBusOff) ++status_.bus_off_events;
-  if (state == BusState::kErrorActive &&
-      (status_.state == BusState::kBusOff || status_.state == BusState::kDown)) {
+  if (state == BusState::kErrorActive && (status_.state == BusState::kBusOff || status_.state == BusState::kDown)) {
     ++status_.recoveries;
     active_since_ = SteadyClock::instance().now();
   }

@@ -69,7 +69,8 @@ struct VirtualBus::Hub {
   }
 };
 
-VirtualBus::Endpoint::Endpoint(std::shared_ptr<Hub> hub, std::string name) : hub_(std::move(hub)), name_(std::move(name)) {
+VirtualBus::Endpoint::Endpoint(std::shared_ptr<Hub> hub, std::string name)
+    : hub_(std::move(hub)), name_(std::move(name)) {
   std::lock_guard<std::mutex> lock(hub_->mutex);
   hub_->ports[this] = std::make_unique<Hub::Port>();
 }
@@ -156,8 +157,7 @@ std::size_t VirtualBus::Endpoint::pending() const {
   return hub_->ports.at(this)->queue.size();
 }
 
-VirtualBus::VirtualBus(const Clock& clock, std::size_t queue_limit)
-    : hub_(std::make_shared<Hub>(clock, queue_limit)) {}
+VirtualBus::VirtualBus(const Clock& clock, std::size_t queue_limit) : hub_(std::make_shared<Hub>(clock, queue_limit)) {}
 
 VirtualBus::~VirtualBus() = default;
 

@@ -64,9 +64,9 @@
 #include <stdexcept>
 #include <utility>
 
+#include <yaml-cpp/yaml.h>
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
-#include <yaml-cpp/yaml.h>
 
 namespace massage_cell::cect {
 
@@ -86,11 +86,12 @@ constexpr double kNeckNarrower = 0.85;    // something above the shoulder line n
 constexpr double kWaistNarrower = 0.95;   // waist narrower than this x shoulders
 constexpr double kHipWider = 0.015;       // hips wider than the waist by this fraction (+ 0.5 px)
 constexpr double kMaxOutOfView = 0.25;    // L4 at most this fraction of C7 -> L4 below a back cut by the image
-constexpr double kNeckFlare = 0.1;        // the neck's base: within 10 % of the way from the neck's width to the shoulders'
-constexpr double kNeckRows = 0.04;        // a neck in view spans at least this fraction of the back's rows
-constexpr double kTopMismatch = 0.12;     // C7 from the top and from the shoulder line differ by more: the top is not the neck's base
-constexpr int kMinRows = 24;              // fewer rows: too small to find anything
-constexpr double kScaleWindow = 0.03;     // metres-per-pixel median over +-3 % of C7->L4 along the midline
+constexpr double kNeckFlare = 0.1;  // the neck's base: within 10 % of the way from the neck's width to the shoulders'
+constexpr double kNeckRows = 0.04;  // a neck in view spans at least this fraction of the back's rows
+constexpr double kTopMismatch =
+    0.12;  // C7 from the top and from the shoulder line differ by more: the top is not the neck's base
+constexpr int kMinRows = 24;           // fewer rows: too small to find anything
+constexpr double kScaleWindow = 0.03;  // metres-per-pixel median over +-3 % of C7->L4 along the midline
 
 const std::vector<std::string>& standardLevels() {
   static const std::vector<std::string> levels = {"C7", "T1",  "T2",  "T3",  "T4", "T5", "T6", "T7", "T8",
@@ -345,9 +346,9 @@ BackLandmarks invalid(const std::string& reason) {
 /// Where the body's frame lies in the (head-up) image: findLandmarksHeadUp
 /// needs the image's bottom edge, which is slanted in a turned frame.
 struct ImageEdge {
-  bool cut_at_bottom = false;  ///< the back reaches the image's last row
-  bool cut_at_top = false;     ///< the back reaches the image's first row
-  int rows = 0;                ///< image rows
+  bool cut_at_bottom = false;                              ///< the back reaches the image's last row
+  bool cut_at_top = false;                                 ///< the back reaches the image's first row
+  int rows = 0;                                            ///< image rows
   cv::Matx23d to_head_up = cv::Matx23d(1, 0, 0, 0, 1, 0);  ///< body frame -> head-up image
 };
 
@@ -444,12 +445,16 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   // then where the arms touch, not the trunk's).
   std::string no_waist;
   const bool creased = seg.trunk.arm_left || seg.trunk.arm_right;
-  if (up == ish) no_waist = "no waist (no narrowing between the shoulders and the bottom)";
-  else if (W(iw) > kWaistNarrower * W(ish)) no_waist = "no narrowing at the waist";
-  else if (W(ih) < (1.0 + kHipWider) * W(iw) + 0.5) no_waist = "no widening below the waist (hips out of view?)";
+  if (up == ish)
+    no_waist = "no waist (no narrowing between the shoulders and the bottom)";
+  else if (W(iw) > kWaistNarrower * W(ish))
+    no_waist = "no narrowing at the waist";
+  else if (W(ih) < (1.0 + kHipWider) * W(iw) + 0.5)
+    no_waist = "no widening below the waist (hips out of view?)";
   if (!no_waist.empty() && (!edge.cut_at_bottom || no_neck) && !creased) return invalid("not a back: " + no_waist);
   if (creased && !no_neck && no_waist.empty()) no_waist = "the flanks are the arms' creases";
-  if (!no_waist.empty() && no_neck) return invalid("not a back: neither the neck nor the waist in view (" + no_waist + ")");
+  if (!no_waist.empty() && no_neck)
+    return invalid("not a back: neither the neck nor the waist in view (" + no_waist + ")");
   const int iend = n - 1 - std::max(1, static_cast<int>(kBottomMargin * n));  // end of the midline fit
   if (iend < ish + 3) return invalid("not a back: too short below the shoulders");
   double waist_row = kNaN;
@@ -475,9 +480,12 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   // them and the model's proportions.
   const double c = model.c7_below_top, q = model.waist_fraction;
   double length = kNaN;
-  if (!no_neck && no_waist.empty()) length = (waist_row - anchor) / (c + q);
-  else if (!no_neck) length = model.length_per_shoulder_width * W(ish);
-  else length = (waist_row - shoulder_row) / (q - model.shoulder_below_c7);
+  if (!no_neck && no_waist.empty())
+    length = (waist_row - anchor) / (c + q);
+  else if (!no_neck)
+    length = model.length_per_shoulder_width * W(ish);
+  else
+    length = (waist_row - shoulder_row) / (q - model.shoulder_below_c7);
   if (!(length > 0.0)) return invalid("the waist is not below the top of the back");
   // Without a neck in view the back's top may not be the neck's base (hair
   // over the nape, hands or a cradle above it): when the shoulder line puts
@@ -523,11 +531,14 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   l.top_row = anchor;
   l.c7_measured = !c7_from_shoulders;
   l.waist_measured = no_waist.empty();
-  l.measured.push_back(ineck >= 0 ? "C7 at the neck's base" : c7_from_shoulders ? "the shoulder line" : "C7 at the back's top");
+  l.measured.push_back(ineck >= 0          ? "C7 at the neck's base"
+                       : c7_from_shoulders ? "the shoulder line"
+                                           : "C7 at the back's top");
   if (l.waist_measured) l.measured.push_back("the waist");
   if (!l.c7_measured)
-    l.inferred.push_back(no_neck ? "C7 from the shoulder line (the neck is out of view)"
-                                 : "C7 from the shoulder line (the back's top is not the neck's base: hair or something over it)");
+    l.inferred.push_back(
+        no_neck ? "C7 from the shoulder line (the neck is out of view)"
+                : "C7 from the shoulder line (the back's top is not the neck's base: hair or something over it)");
   if (!l.waist_measured) l.inferred.push_back("L4 from C7 and the shoulder width (" + no_waist + ")");
   return l;
 }
@@ -620,9 +631,9 @@ cv::Mat maskInBodyFrame(const BackLandmarks& l, const cv::Mat& mask) {
   if (isIdentity(l.to_image)) return mask;
   const cv::Matx23d to_body = inverse(l.to_image);
   float x1 = 0.0f, y1 = 0.0f;
-  for (const cv::Point2f corner : {cv::Point2f(0, 0), cv::Point2f(static_cast<float>(mask.cols), 0),
-                                   cv::Point2f(0, static_cast<float>(mask.rows)),
-                                   cv::Point2f(static_cast<float>(mask.cols), static_cast<float>(mask.rows))}) {
+  for (const cv::Point2f corner :
+       {cv::Point2f(0, 0), cv::Point2f(static_cast<float>(mask.cols), 0), cv::Point2f(0, static_cast<float>(mask.rows)),
+        cv::Point2f(static_cast<float>(mask.cols), static_cast<float>(mask.rows))}) {
     const cv::Point2f q = apply(to_body, corner);
     x1 = std::max(x1, q.x);
     y1 = std::max(y1, q.y);
@@ -762,7 +773,8 @@ double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left
     bool ok = true;
     for (int it = 0; it < 3 && ok; ++it) {
       cv::Point3d p, pa, pb;
-      ok = point(cv::Point2f(static_cast<float>(x), fy), &p) && point(cv::Point2f(static_cast<float>(x - 2), fy), &pa) &&
+      ok = point(cv::Point2f(static_cast<float>(x), fy), &p) &&
+           point(cv::Point2f(static_cast<float>(x - 2), fy), &pa) &&
            point(cv::Point2f(static_cast<float>(x + 2), fy), &pb);
       if (!ok) break;
       const double slope = dot(pb - pa, n) / 4.0;  // metres along n per pixel
@@ -959,7 +971,6 @@ PointLookup framePoints(const CectFrame& frame) {
   };
 }
 
-
 // ---------------------------------------------------------------------------
 // AcupointModel
 
@@ -1006,7 +1017,8 @@ void AcupointModel::validate() const {
     fail("cun_per_shoulder_width = " + num(cun_per_shoulder_width) + " is not in (0, 0.5)");
   }
   if (!(c7_below_top >= 0.0 && c7_below_top < 0.5)) fail("c7_below_top = " + num(c7_below_top) + " is not in [0, 0.5)");
-  if (!(std::abs(waist_rim_offset) < 0.2)) fail("waist_rim_offset = " + num(waist_rim_offset) + " is not in (-0.2, 0.2)");
+  if (!(std::abs(waist_rim_offset) < 0.2))
+    fail("waist_rim_offset = " + num(waist_rim_offset) + " is not in (-0.2, 0.2)");
   if (!(shoulder_below_c7 >= 0.0 && shoulder_below_c7 < 0.5))
     fail("shoulder_below_c7 = " + num(shoulder_below_c7) + " is not in [0, 0.5)");
   if (!(length_per_shoulder_width > 0.3 && length_per_shoulder_width < 3.0))
@@ -1145,8 +1157,7 @@ BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model
   // frame until the midline between C7 and L4 runs along its columns; the
   // row-by-row midline of a turned back leans less than the back itself, so
   // this takes a few turns. Within kMinTurn the image's own rows are kept.
-  constexpr double kMinTurn = 1.0 * CV_PI / 180.0, kTolerance = 0.1 * CV_PI / 180.0,
-                   kMaxTurn = 45.0 * CV_PI / 180.0;
+  constexpr double kMinTurn = 1.0 * CV_PI / 180.0, kTolerance = 0.1 * CV_PI / 180.0, kMaxTurn = 45.0 * CV_PI / 180.0;
   constexpr int kMaxTurns = 6;
   if (!usableContour(up.contour)) return l;
   if (l.valid && std::abs(midlineTilt(l)) < kMinTurn) return l;
@@ -1214,8 +1225,7 @@ cv::Point2f levelPixel(const BackLandmarks& landmarks, const AcupointModel& mode
 Eigen::Matrix3d layoutCovariance(const BackLandmarks& landmarks, const AcupointModel& model, const std::string& level,
                                  double metres_per_pixel) {
   const auto it = model.level_fraction.find(level);
-  if (it == model.level_fraction.end() || !landmarks.valid || !(metres_per_pixel > 0.0))
-    return Eigen::Matrix3d::Zero();
+  if (it == model.level_fraction.end() || !landmarks.valid || !(metres_per_pixel > 0.0)) return Eigen::Matrix3d::Zero();
   const cv::Point2f c7 = toImage(landmarks, landmarks.c7), l4 = toImage(landmarks, landmarks.l4);
   const double length_px = std::hypot(l4.x - c7.x, l4.y - c7.y);
   if (!(length_px > 0.0)) return Eigen::Matrix3d::Zero();

@@ -2,7 +2,7 @@
 // transfer inside it, three geometric constraints, triangulation
 // (see cect.h). Our design where the thesis extract is silent:
 //
-// * Epipolar lines are rows of the rectified pair (StereoGeometry). A left
+// * Epipolar lines are rows of the rectified pair (camera::StereoModel). A left
 //   contour sample's own crossing and the right view's crossings of that row
 //   are zero crossings of each view's continuous skin score, interpolated
 //   between pixels, so foundational correspondences are sub-pixel.
@@ -36,14 +36,14 @@
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <limits>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <set>
-#include <unordered_map>
-#include <utility>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
+#include <utility>
 
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
@@ -53,9 +53,7 @@ namespace massage_cell::cect {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
+double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 double median(std::vector<double> v) {
   if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
@@ -88,8 +86,8 @@ bool windowAt(const cv::Mat& img, float x, float y, int r, int ry, std::vector<f
   double sum = 0.0;
   int k = 0;
   const int xi = static_cast<int>(x), yi = static_cast<int>(y);
-  if (static_cast<float>(xi) == x && static_cast<float>(yi) == y && xi - r >= 0 && yi - ry >= 0 &&
-      xi + r < img.cols && yi + ry < img.rows) {
+  if (static_cast<float>(xi) == x && static_cast<float>(yi) == y && xi - r >= 0 && yi - ry >= 0 && xi + r < img.cols &&
+      yi + ry < img.rows) {
     // Whole pixels (seeds on the grid, integer disparities): no interpolation.
     for (int dy = -ry; dy <= ry; ++dy) {
       const float* row = img.ptr<float>(yi + dy) + xi;
@@ -177,8 +175,8 @@ MatchResult matchAlongRow(const cv::Mat& from, const cv::Mat& to, float x, float
   const int xi = static_cast<int>(x), yi = static_cast<int>(y);
   const int strip_x = to_left ? xi + lo - r : xi - hi - r;
   const cv::Rect strip(strip_x, yi - ry, hi - lo + 2 * r + 1, 2 * ry + 1);
-  if (static_cast<float>(xi) == x && static_cast<float>(yi) == y && (strip & cv::Rect(0, 0, to.cols, to.rows)) == strip &&
-      xi - r >= 0 && xi + r < from.cols) {
+  if (static_cast<float>(xi) == x && static_cast<float>(yi) == y &&
+      (strip & cv::Rect(0, 0, to.cols, to.rows)) == strip && xi - r >= 0 && xi + r < from.cols) {
     // Whole pixels, every candidate inside the image: the same zero-mean
     // NCC (cv::matchTemplate's TM_CCOEFF_NORMED) along the strip, directly:
     // the reference window is zero-mean and unit-length already, so each
@@ -211,17 +209,18 @@ MatchResult matchAlongRow(const cv::Mat& from, const cv::Mat& to, float x, float
         sum2 += cs2[static_cast<std::size_t>(i + ww - 1)] - cs2[static_cast<std::size_t>(i - 1)];
       }
       const double var = sum2 - sum * sum / n;
-      if (var > 1e-6 * n) score[static_cast<std::size_t>(to_left ? i : hi - lo - i)] = dot[static_cast<std::size_t>(i)] / std::sqrt(var);
+      if (var > 1e-6 * n)
+        score[static_cast<std::size_t>(to_left ? i : hi - lo - i)] = dot[static_cast<std::size_t>(i)] / std::sqrt(var);
     }
   } else
-  for (int d = lo; d <= hi; ++d) {
-    const float xc = to_left ? x + static_cast<float>(d) : x - static_cast<float>(d);
-    if (xc < r || xc > to.cols - 1 - r) continue;
-    if (!windowAt(to, xc, y, r, ry, &cand)) continue;
-    double s = 0.0;
-    for (std::size_t i = 0; i < ref.size(); ++i) s += static_cast<double>(ref[i]) * cand[i];
-    score[static_cast<std::size_t>(d - lo)] = s;
-  }
+    for (int d = lo; d <= hi; ++d) {
+      const float xc = to_left ? x + static_cast<float>(d) : x - static_cast<float>(d);
+      if (xc < r || xc > to.cols - 1 - r) continue;
+      if (!windowAt(to, xc, y, r, ry, &cand)) continue;
+      double s = 0.0;
+      for (std::size_t i = 0; i < ref.size(); ++i) s += static_cast<double>(ref[i]) * cand[i];
+      score[static_cast<std::size_t>(d - lo)] = s;
+    }
   return peakOf(score, lo, "matching window leaves the image");
 }
 
@@ -229,9 +228,9 @@ MatchResult matchAlongRow(const cv::Mat& from, const cv::Mat& to, float x, float
 /// window's pixels on `from_mask` whose candidate lies on `to_mask` count
 /// (at least a third of the window). Whole pixels (x, y rounded). Also
 /// returns the peak's sharpness (minus the second difference of the NCC).
-MatchResult maskedMatchAlongRow(const cv::Mat& from, const cv::Mat& to, const cv::Mat& from_mask, const cv::Mat& to_mask,
-                                float x, float y, double d_lo, double d_hi, int r, int ry, bool to_left,
-                                double* sharpness) {
+MatchResult maskedMatchAlongRow(const cv::Mat& from, const cv::Mat& to, const cv::Mat& from_mask,
+                                const cv::Mat& to_mask, float x, float y, double d_lo, double d_hi, int r, int ry,
+                                bool to_left, double* sharpness) {
   MatchResult res;
   *sharpness = 0.0;
   const int xi = cvRound(x), yi = cvRound(y);
@@ -327,8 +326,8 @@ MatchResult slantedMatch(const cv::Mat& left, const cv::Mat& right, int x, int y
 }
 
 /// Barycentric coordinates of p in triangle (a, b, c); false if degenerate.
-bool barycentric(const cv::Point2f& p, const cv::Point2f& a, const cv::Point2f& b, const cv::Point2f& c,
-                 double* l0, double* l1, double* l2) {
+bool barycentric(const cv::Point2f& p, const cv::Point2f& a, const cv::Point2f& b, const cv::Point2f& c, double* l0,
+                 double* l1, double* l2) {
   const double det = (b.y - c.y) * (a.x - c.x) + (c.x - b.x) * (a.y - c.y);
   if (std::abs(det) < 1e-9) return false;
   *l0 = ((b.y - c.y) * (p.x - c.x) + (c.x - b.x) * (p.y - c.y)) / det;
@@ -366,8 +365,8 @@ cv::Mat maskedBlur(const cv::Mat& img, const cv::Mat& w, double sigma) {
 /// d(centre), *rms = the weighted rms residual of the points kept, *nearest =
 /// the nearest used vertex's distance, *gradient = (dd/dx, dd/dy) at centre.
 bool fitQuadratic(const std::vector<Correspondence>& V, const std::vector<int>& idx, const cv::Point2f& centre,
-                  double radius, std::size_t min_count, double* value, double* rms = nullptr,
-                  double* nearest = nullptr, cv::Point2d* gradient = nullptr, bool quartic_x = false) {
+                  double radius, std::size_t min_count, double* value, double* rms = nullptr, double* nearest = nullptr,
+                  cv::Point2d* gradient = nullptr, bool quartic_x = false) {
   using Vec = Eigen::Matrix<double, 8, 1>;
   using Mat = Eigen::Matrix<double, 8, 8>;
   const double s2 = 2.0 * (radius / 2.0) * (radius / 2.0);
@@ -488,7 +487,7 @@ double viewScale(double median_disparity, double baseline) {
   return quantisedScale(median_disparity / baseline / kReferencePixelsPerMetre);
 }
 
-cv::Vec2d disparityRange(const CectParams& p, const StereoGeometry& geometry) {
+cv::Vec2d disparityRange(const CectParams& p, const camera::StereoModel& geometry) {
   const double width = geometry.size().width;
   double lo = p.min_disparity, hi = p.max_disparity;
   if (!(lo > 0)) lo = std::max(0.5, geometry.disparityAtDepth(p.max_depth));
@@ -594,8 +593,8 @@ class CectFrameBuilder {
     t = Clock::now();
     cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& views) {
       for (int v = views.start; v < views.end; ++v)
-        (v == 0 ? f_.left_grey_ : f_.right_grey_) = matchingImage(v == 0 ? f_.left_rect_ : f_.right_rect_,
-                                                                  v == 0 ? f_.left_seg_.mask : f_.right_seg_.mask);
+        (v == 0 ? f_.left_grey_ : f_.right_grey_) =
+            matchingImage(v == 0 ? f_.left_rect_ : f_.right_rect_, v == 0 ? f_.left_seg_.mask : f_.right_seg_.mask);
     });
     f_.timings_.segment_ms += msSince(t);
     const cv::Mat k3 = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(7, 7));
@@ -677,8 +676,7 @@ class CectFrameBuilder {
     for (int y = 0; y < bgr.rows; ++y) {
       const cv::Vec3b* src = bgr.ptr<cv::Vec3b>(y);
       cv::Vec3f* dst = lin.ptr<cv::Vec3f>(y);
-      for (int x = 0; x < bgr.cols; ++x)
-        dst[x] = cv::Vec3f(lut[src[x][0]], lut[src[x][1]], lut[src[x][2]]);
+      for (int x = 0; x < bgr.cols; ++x) dst[x] = cv::Vec3f(lut[src[x][0]], lut[src[x][1]], lut[src[x][2]]);
     }
     // The skin's chromaticity: per-channel medians of the normalised colour
     // over the more saturated half of the back (the sheen whitens the rest).
@@ -770,8 +768,6 @@ class CectFrameBuilder {
     band.copyTo(out(roi));
     return out;
   }
-
-
 
   double minDisparity() const { return f_.disparity_range_[0]; }
   double maxDisparity() const { return f_.disparity_range_[1]; }
@@ -1018,14 +1014,15 @@ class CectFrameBuilder {
       }
       int best = -1;
       for (std::size_t k = 0; k < cs.size(); ++k)
-        if (std::isfinite(cs[k]) && (best < 0 || cs[k] < cs[static_cast<std::size_t>(best)])) best = static_cast<int>(k);
+        if (std::isfinite(cs[k]) && (best < 0 || cs[k] < cs[static_cast<std::size_t>(best)]))
+          best = static_cast<int>(k);
       if (best <= 0 || best + 1 >= static_cast<int>(cs.size())) continue;
       const double a = cs[static_cast<std::size_t>(best - 1)], b = cs[static_cast<std::size_t>(best)],
                    c = cs[static_cast<std::size_t>(best + 1)];
       if (!std::isfinite(a) || !std::isfinite(c)) continue;
       const double denom = a - 2.0 * b + c;
-      const double d = ds[static_cast<std::size_t>(best)] +
-                       (denom > 0 ? std::clamp(0.5 * (a - c) / denom, -0.5, 0.5) * step : 0.0);
+      const double d =
+          ds[static_cast<std::size_t>(best)] + (denom > 0 ? std::clamp(0.5 * (a - c) / denom, -0.5, 0.5) * step : 0.0);
       const double c0 = cost(d), cm = cost(d - 2.0), cp = cost(d + 2.0);
       if (!std::isfinite(c0) || !std::isfinite(cm) || !std::isfinite(cp)) continue;
       const double bend = std::min(cm, cp) - c0;
@@ -1077,8 +1074,7 @@ class CectFrameBuilder {
     const cv::Mat& mask = f_.left_seg_.mask;
     // Edge midpoints of border triangles sit on the border itself: they may
     // fall up to 1.5 px outside the mask.
-    if (near_mask_.empty())
-      cv::dilate(mask, near_mask_, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
+    if (near_mask_.empty()) cv::dilate(mask, near_mask_, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
     for (const auto& t : tris) {
       const int a = indexOf(t[0], t[1]), b = indexOf(t[2], t[3]), c = indexOf(t[4], t[5]);
       if (a < 0 || b < 0 || c < 0) continue;
@@ -1364,10 +1360,18 @@ class CectFrameBuilder {
     for (const Job& j : jobs) {
       ++f_.seed_stats_.tried;
       switch (j.outcome) {
-        case Job::kNoPeak: ++f_.seed_stats_.no_peak; break;
-        case Job::kWeak: ++f_.seed_stats_.weak; break;
-        case Job::kLeftRight: ++f_.seed_stats_.left_right; break;
-        case Job::kFound: found.push_back({j.q, j.d, j.gx, j.gy}); break;
+        case Job::kNoPeak:
+          ++f_.seed_stats_.no_peak;
+          break;
+        case Job::kWeak:
+          ++f_.seed_stats_.weak;
+          break;
+        case Job::kLeftRight:
+          ++f_.seed_stats_.left_right;
+          break;
+        case Job::kFound:
+          found.push_back({j.q, j.d, j.gx, j.gy});
+          break;
       }
     }
     // Constraint 2: continuity with the grid neighbours.
@@ -1401,7 +1405,7 @@ class CectFrameBuilder {
   cv::Mat near_mask_;                     ///< the left mask dilated by 2 px
 };
 
-CectFrame CectFrame::analyse(const cv::Mat& left, const cv::Mat& right, const StereoGeometry& geometry,
+CectFrame CectFrame::analyse(const cv::Mat& left, const cv::Mat& right, const camera::StereoModel& geometry,
                              const CectParams& params) {
   if (geometry.empty()) throw std::invalid_argument("CECT: no stereo geometry (calibration) given");
   if (left.empty() || right.empty()) throw std::invalid_argument("CECT: empty image");
@@ -1426,8 +1430,8 @@ CectFrame CectFrame::analyse(const cv::Mat& left, const cv::Mat& right, const St
 }
 
 std::size_t CectFrame::foundationalCount() const {
-  return static_cast<std::size_t>(std::count_if(vertices_.begin(), vertices_.end(),
-                                                [](const Correspondence& c) { return c.foundational(); }));
+  return static_cast<std::size_t>(
+      std::count_if(vertices_.begin(), vertices_.end(), [](const Correspondence& c) { return c.foundational(); }));
 }
 
 double CectFrame::transfer(const cv::Point2f& q, double* spread, int* count, cv::Point2d* gradient) const {
@@ -1551,10 +1555,9 @@ LocalizedPoint CectFrame::localizeRectified(const cv::Point2f& q) const {
     const MatchResult m = matchAlongRow(left_grey_, right_grey_, q.x, q.y, d0 - reach - 1.0, d0 + reach + 1.0,
                                         params_.ncc_radius, ry, false);
     if (m.ok && m.ncc >= params_.min_ncc && std::abs(m.disparity - d0) <= reach) {
-      const MatchResult back =
-          matchAlongRow(right_grey_, left_grey_, static_cast<float>(q.x - m.disparity), q.y,
-                        m.disparity - 2.0 - params_.lr_tolerance, m.disparity + 2.0 + params_.lr_tolerance,
-                        params_.ncc_radius, ry, true);
+      const MatchResult back = matchAlongRow(right_grey_, left_grey_, static_cast<float>(q.x - m.disparity), q.y,
+                                             m.disparity - 2.0 - params_.lr_tolerance,
+                                             m.disparity + 2.0 + params_.lr_tolerance, params_.ncc_radius, ry, true);
       if (back.ok && std::abs(back.disparity - m.disparity) <= params_.lr_tolerance) {  // constraint 3
         d = m.disparity;
         sigma = matchingSigma();
@@ -1590,9 +1593,9 @@ bool CectFrame::directMatch(const cv::Point2f& q, double d, int rx, int ry, doub
     return false;
   const float xr = static_cast<float>(cvRound(q.x) - std::round(m.disparity));
   const double d_back = cvRound(q.x) - xr;
-  const MatchResult back =
-      maskedMatchAlongRow(right_grey_, left_grey_, right_inner_, left_inner_, xr, q.y, d_back - 2.0 - params_.lr_tolerance,
-                          d_back + 2.0 + params_.lr_tolerance, rx, ry, true, &sharp_back);
+  const MatchResult back = maskedMatchAlongRow(right_grey_, left_grey_, right_inner_, left_inner_, xr, q.y,
+                                               d_back - 2.0 - params_.lr_tolerance, d_back + 2.0 + params_.lr_tolerance,
+                                               rx, ry, true, &sharp_back);
   if (!back.ok || std::abs(back.disparity - d_back) > params_.lr_tolerance) return false;  // constraint 3
   *disparity = m.disparity;
   return true;
@@ -1671,7 +1674,8 @@ cv::Mat CectFrame::drawDebug() const {
   cv::Mat img = left_rect_.empty() ? cv::Mat() : left_rect_.clone();
   if (img.empty()) return img;
   for (const auto& t : triangles_) {
-    const cv::Point pts[3] = {vertices_[static_cast<std::size_t>(t[0])].left, vertices_[static_cast<std::size_t>(t[1])].left,
+    const cv::Point pts[3] = {vertices_[static_cast<std::size_t>(t[0])].left,
+                              vertices_[static_cast<std::size_t>(t[1])].left,
                               vertices_[static_cast<std::size_t>(t[2])].left};
     for (int j = 0; j < 3; ++j) cv::line(img, pts[j], pts[(j + 1) % 3], cv::Scalar(200, 200, 0), 1, cv::LINE_AA);
   }
@@ -1682,9 +1686,9 @@ cv::Mat CectFrame::drawDebug() const {
   }
   for (const auto& v : vertices_)
     cv::circle(img, cv::Point(cvRound(v.left.x), cvRound(v.left.y)), 2,
-               v.foundational()                                        ? cv::Scalar(0, 0, 255)
+               v.foundational()                                  ? cv::Scalar(0, 0, 255)
                : v.source == Correspondence::Source::kRimProfile ? cv::Scalar(0, 200, 255)
-                                                                  : cv::Scalar(0, 255, 0),
+                                                                 : cv::Scalar(0, 255, 0),
                -1, cv::LINE_AA);
   if (!valid_)
     cv::putText(img, reason_, cv::Point(10, 20), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 255), 1, cv::LINE_AA);

@@ -8,10 +8,10 @@
 #include <stdexcept>
 #include <vector>
 
+#include <Eigen/Dense>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
-#include <Eigen/Dense>
 
 namespace massage_cell::cect {
 
@@ -75,8 +75,8 @@ std::string DepthGate::summary() const {
   std::ostringstream s;
   s.precision(2);
   if (left_far.empty()) return "no depth gate";
-  s << "background beyond " << std::fixed << far_depth << " m (nearest surfaces at " << nearest_depth << " m): "
-    << cv::countNonZero(left_far) << " px left, " << cv::countNonZero(right_far) << " px right";
+  s << "background beyond " << std::fixed << far_depth << " m (nearest surfaces at " << nearest_depth
+    << " m): " << cv::countNonZero(left_far) << " px left, " << cv::countNonZero(right_far) << " px right";
   for (int v = 0; v < 2; ++v) {
     const cv::Mat& t = v == 0 ? left_table : right_table;
     if (!t.empty())
@@ -86,7 +86,7 @@ std::string DepthGate::summary() const {
   return s.str();
 }
 
-DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, const StereoGeometry& geometry,
+DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, const camera::StereoModel& geometry,
                         const cv::Vec2d& range, const DepthGateParams& params) {
   if (left_rect.size() != right_rect.size() || left_rect.type() != right_rect.type())
     throw std::invalid_argument("farBackground: the two views differ in size or type");
@@ -149,7 +149,9 @@ DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, con
 
 namespace {
 
-double signedDistance(const Eigen::Vector4d& plane, const Eigen::Vector3d& p) { return plane.head<3>().dot(p) + plane(3); }
+double signedDistance(const Eigen::Vector4d& plane, const Eigen::Vector3d& p) {
+  return plane.head<3>().dot(p) + plane(3);
+}
 
 /// The plane with the most points within `tolerance` among `tries` random
 /// triples, of those with at most `max_behind` of the points more than
@@ -169,8 +171,10 @@ bool ransacSupport(const std::vector<Eigen::Vector3d>& pts, double tolerance, do
     std::size_t in = 0, behind = 0;
     for (const Eigen::Vector3d& p : pts) {
       const double s = signedDistance(plane, p);
-      if (std::abs(s) < tolerance) ++in;
-      else if (s < -tolerance) ++behind;
+      if (std::abs(s) < tolerance)
+        ++in;
+      else if (s < -tolerance)
+        ++behind;
     }
     if (behind > max_behind * pts.size() || in <= best_in) continue;
     best_in = in;
@@ -181,7 +185,7 @@ bool ransacSupport(const std::vector<Eigen::Vector3d>& pts, double tolerance, do
 
 }  // namespace
 
-cv::Mat tablePixels(const cv::Mat& depth, const cv::Mat& far, const StereoGeometry& geometry, double margin) {
+cv::Mat tablePixels(const cv::Mat& depth, const cv::Mat& far, const camera::StereoModel& geometry, double margin) {
   constexpr double kTolerance = 0.02, kMaxBehind = 0.05, kMinShare = 0.1;
   constexpr int kStep = 4, kTries = 200;
   if (depth.empty() || depth.type() != CV_32FC1 || !(margin > 0.0) || geometry.empty()) return cv::Mat();

@@ -6,7 +6,8 @@
 namespace massage_cell::cect {
 
 int LocatedAcupoints::validCount() const {
-  return static_cast<int>(std::count_if(points.begin(), points.end(), [](const LocatedAcupoint& p) { return p.valid; }));
+  return static_cast<int>(
+      std::count_if(points.begin(), points.end(), [](const LocatedAcupoint& p) { return p.valid; }));
 }
 
 namespace {
@@ -45,7 +46,8 @@ LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& mo
   out.valid = true;
   out.reason.clear();
   for (LocatedAcupoint& p : out.points) {
-    const auto it = std::find_if(placed.begin(), placed.end(), [&](const AcupointPixel& a) { return a.name == p.name; });
+    const auto it =
+        std::find_if(placed.begin(), placed.end(), [&](const AcupointPixel& a) { return a.name == p.name; });
     if (it == placed.end()) continue;
     if (!it->valid) {
       p.reason = "not placed: " + it->reason;
@@ -67,7 +69,8 @@ LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& mo
     p.valid = p.point.valid;
     if (p.valid) {
       const AcupointSpec* spec = model.find(p.name);
-      p.layout_covariance = layoutCovariance(landmarks, model, spec->level, p.point.position.z() / frame.geometry().fx());
+      p.layout_covariance =
+          layoutCovariance(landmarks, model, spec->level, p.point.position.z() / frame.geometry().fx());
       p.covariance = p.point.covariance + p.layout_covariance;
     }
     p.reason = p.valid ? std::string() : "not localised: " + p.point.reason;

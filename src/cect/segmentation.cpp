@@ -431,7 +431,7 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
   // Every `stride`-th pixel is enough for the medians (a few thousand samples).
   const int stride = std::max(1, static_cast<int>(std::sqrt(best_area / 4000.0)));
   std::vector<float> sl, su, sv, bu, bv, ou, ov;  // region, its core, ring, all beyond the transition
-  std::vector<float> ring_depth;                   // the ring's depths (with a depth map)
+  std::vector<float> ring_depth;                  // the ring's depths (with a depth map)
   for (int y = 0; y < small.height; y += stride) {
     const cv::Vec2f* c = uv.ptr<cv::Vec2f>(y);
     const unsigned char* in_region = region.ptr<unsigned char>(y);

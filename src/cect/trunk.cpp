@@ -27,9 +27,9 @@ std::string TrunkReport::summary() const {
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
-constexpr double kNoiseFloor = 20.0;  // grey levels added to the local brightness (cloth test)
+constexpr double kNoiseFloor = 20.0;      // grey levels added to the local brightness (cloth test)
 constexpr double kMeanCreaseDepth = 2.0;  // an arm's crease is on average this many times crease_strength deep
-constexpr double kBodyWidth = 290.0;  // px: the body's median row width the pixel sizes are given for
+constexpr double kBodyWidth = 290.0;      // px: the body's median row width the pixel sizes are given for
 
 /// One run of mask pixels on a row: [a, b] inclusive; a > b when none.
 struct Run {
@@ -102,8 +102,8 @@ cv::Vec2d centreLine(const cv::Mat& mask) {
   for (int y = 0; y < mask.rows; ++y) {
     const std::vector<Run> runs = runsOf(mask, y);
     if (runs.empty()) continue;
-    const Run& r = *std::max_element(runs.begin(), runs.end(),
-                                     [](const Run& u, const Run& v) { return u.width() < v.width(); });
+    const Run& r =
+        *std::max_element(runs.begin(), runs.end(), [](const Run& u, const Run& v) { return u.width() < v.width(); });
     ys.push_back(y);
     xs.push_back(0.5 * (r.a + r.b));
   }
@@ -203,9 +203,10 @@ void relaxRow(const cv::Mat& smooth, int y, const Run& r, bool left, const Trunk
   for (int k = 0; k <= n; ++k) {
     const int x = s->lo + k - 1;
     // A valley as deep as `strength` costs nothing; deeper ones pay off.
-    const float cost = k == 0 ? 0.0f
-                              : std::clamp((strength - valleyDepth(smooth, y, x, r, reach, creaseMargin(p), left)) / strength,
-                                           -2.0f, 1.0f);
+    const float cost =
+        k == 0 ? 0.0f
+               : std::clamp((strength - valleyDepth(smooth, y, x, r, reach, creaseMargin(p), left)) / strength, -2.0f,
+                            1.0f);
     float best = 0.0f;
     int arg = 0;
     if (prev) {
@@ -234,8 +235,8 @@ std::vector<int> creasePath(const cv::Mat& smooth, const std::vector<Run>& centr
   for (int y = 0; y < rows; ++y) {
     RowStates& s = st[static_cast<std::size_t>(y)];
     creaseBand(central[static_cast<std::size_t>(y)], left, p, &s);
-    relaxRow(smooth, y, central[static_cast<std::size_t>(y)], left, p, y > 0 ? &st[static_cast<std::size_t>(y - 1)] : nullptr,
-             &s);
+    relaxRow(smooth, y, central[static_cast<std::size_t>(y)], left, p,
+             y > 0 ? &st[static_cast<std::size_t>(y - 1)] : nullptr, &s);
   }
   // Backtrack from the cheapest final state.
   std::vector<int> path(static_cast<std::size_t>(rows), -1);
@@ -295,8 +296,10 @@ void cutArms(const cv::Mat& log_grey, cv::Mat* mask, const std::vector<Run>& cen
       if (x < 0) continue;
       const Run& r = central[static_cast<std::size_t>(y)];
       unsigned char* m = mask->ptr<unsigned char>(y);
-      if (left) std::fill(m + r.a, m + x, static_cast<unsigned char>(0));
-      else std::fill(m + x + 1, m + r.b + 1, static_cast<unsigned char>(0));
+      if (left)
+        std::fill(m + r.a, m + x, static_cast<unsigned char>(0));
+      else
+        std::fill(m + x + 1, m + r.b + 1, static_cast<unsigned char>(0));
     }
   }
 }

@@ -5,12 +5,12 @@
 #include <sstream>
 
 #include <geometry_msgs/TransformStamped.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/package.h>
 #include <sensor_msgs/JointState.h>
 #include <tf2/exceptions.h>
 #include <tf2_geometry_msgs/tf2_geometry_msgs.h>
 #include <yaml-cpp/yaml.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include "massage_cell/ArmState.h"
 #include "typed_param.h"
@@ -68,7 +68,8 @@ void ArmNodelet::readParameters() {
   readParam(pnh, "realtime_priority", &realtime_options_.priority);
   readParam(pnh, "lock_memory", &realtime_options_.lock_memory);
   if (!(publish_rate_ > 0.0)) throw arm::ArmConfigError("publish_rate must be > 0, got " + fmt("%g", publish_rate_));
-  if (!(max_target_age_ > 0.0)) throw arm::ArmConfigError("max_target_age must be > 0, got " + fmt("%g", max_target_age_));
+  if (!(max_target_age_ > 0.0))
+    throw arm::ArmConfigError("max_target_age must be > 0, got " + fmt("%g", max_target_age_));
   if (!(tf_timeout_ >= 0.0)) throw arm::ArmConfigError("tf_timeout must be >= 0");
   if (!(command_timeout_ > 0.0)) throw arm::ArmConfigError("command_timeout must be > 0");
   if (can_interface_.empty()) throw arm::ArmConfigError("can_interface must be 'sim' or an interface name (can0)");
@@ -169,8 +170,8 @@ bool ArmNodelet::openInterface() {
       open_error_ = error;
       if (!again) {
         NODELET_ERROR_STREAM("arm: cannot open the CAN interface '"
-                             << can_interface_ << "': " << error
-                             << ". Check can_interface (node.can_interface in " << config_path_
+                             << can_interface_ << "': " << error << ". Check can_interface (node.can_interface in "
+                             << config_path_
                              << " or ~can_interface; 'sim' runs simulated drives). The node keeps running, refuses "
                                 "every command and retries every 2 s.");
       }
@@ -333,7 +334,8 @@ void ArmNodelet::injectFaultCb(const std_msgs::StringConstPtr& msg) {
     joint = -1;
   }
   if (joint < 0 || code == 0 || code > 0xFFFF) {
-    NODELET_ERROR_STREAM("arm: ~sim/inject_fault wants '<axis> <EMCY code>', e.g. 'Y 0x2310'; got '" << msg->data << "'");
+    NODELET_ERROR_STREAM("arm: ~sim/inject_fault wants '<axis> <EMCY code>', e.g. 'Y 0x2310'; got '" << msg->data
+                                                                                                     << "'");
     return;
   }
   NODELET_WARN_STREAM("arm: simulator: injecting fault " << code_text << " into axis " << axis);
@@ -443,10 +445,12 @@ bool ArmNodelet::massage(massage_cell::Massage::Request& req, massage_cell::Mass
   }
   if (!std::isfinite(req.hold)) return refuse("hold must be a finite number of seconds (0: the default; < 0: none)");
   if (!req.regions.empty() && req.regions.size() != n) {
-    return refuse("regions has " + std::to_string(req.regions.size()) + " entries for " + std::to_string(n) + " targets");
+    return refuse("regions has " + std::to_string(req.regions.size()) + " entries for " + std::to_string(n) +
+                  " targets");
   }
   if (!req.normals.empty() && req.normals.size() != n) {
-    return refuse("normals has " + std::to_string(req.normals.size()) + " entries for " + std::to_string(n) + " targets");
+    return refuse("normals has " + std::to_string(req.normals.size()) + " entries for " + std::to_string(n) +
+                  " targets");
   }
   arm::PressRequest press;
   if (req.technique.empty() || req.technique == "press") {
@@ -468,7 +472,8 @@ bool ArmNodelet::massage(massage_cell::Massage::Request& req, massage_cell::Mass
     std::string error;
     if (i < req.frames.size()) {
       const std::string& frame = req.frames[i];
-      if (!lookup(frame, ros::Time(0), &t, &error)) return refuse("target " + std::to_string(i + 1) + ": the frame " + error);
+      if (!lookup(frame, ros::Time(0), &t, &error))
+        return refuse("target " + std::to_string(i + 1) + ": the frame " + error);
       target.name = frame.rfind(acupoint_prefix_, 0) == 0 ? frame.substr(acupoint_prefix_.size()) : frame;
       target.point = {t.transform.translation.x, t.transform.translation.y, t.transform.translation.z};
       target.region = config_.regionOf(target.name);

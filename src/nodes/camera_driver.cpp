@@ -56,10 +56,14 @@ std::string calibrationPath(const std::string& url_in, const std::string& camera
 std::string encodingOf(const cv::Mat& image) {
   namespace enc = sensor_msgs::image_encodings;
   switch (image.type()) {
-    case CV_8UC3: return enc::BGR8;
-    case CV_8UC1: return enc::MONO8;
-    case CV_16UC1: return enc::MONO16;
-    default: return "";
+    case CV_8UC3:
+      return enc::BGR8;
+    case CV_8UC1:
+      return enc::MONO8;
+    case CV_16UC1:
+      return enc::MONO16;
+    default:
+      return "";
   }
 }
 
@@ -139,7 +143,8 @@ void CameraDriver::readParameters() {
   }
 
   views_.clear();
-  const std::vector<std::string> labels = stereo ? std::vector<std::string>{"left", "right"} : std::vector<std::string>{""};
+  const std::vector<std::string> labels =
+      stereo ? std::vector<std::string>{"left", "right"} : std::vector<std::string>{""};
   for (const auto& label : labels) {
     View v;
     v.label = label;
@@ -164,7 +169,8 @@ void CameraDriver::setUpView(View& v) {
     std::string name_in_file;
     sensor_msgs::CameraInfo info;
     if (!camera_calibration_parsers::readCalibration(path, name_in_file, info)) {
-      throw ConfigError(which + " calibration '" + path + "' is malformed (camera_calibration_parsers cannot parse it)");
+      throw ConfigError(which + " calibration '" + path +
+                        "' is malformed (camera_calibration_parsers cannot parse it)");
     }
   } else if (!v.info_url.empty()) {
     ROS_WARN_STREAM("[" << pnh_.getNamespace() << "] " << which << " calibration '" << path
@@ -180,7 +186,8 @@ void CameraDriver::checkCalibrations() {
   std::vector<camera::CameraCalibration> calibs;
   for (auto& v : views_) {
     calibs.push_back(toCalibration(v.info_manager->getCameraInfo()));
-    const auto problems = camera::checkCalibration(calibs.back(), size, v.label.empty() ? "camera" : v.label + " camera");
+    const auto problems =
+        camera::checkCalibration(calibs.back(), size, v.label.empty() ? "camera" : v.label + " camera");
     if (!problems.empty()) throw ConfigError(problems.front());
   }
   if (calibs.size() == 2) {
@@ -212,7 +219,8 @@ void CameraDriver::start() {
       view_count_ == 2 ? "image pairs" : "images", updater_,
       diagnostic_updater::FrequencyStatusParam(&expected_rate_, &expected_rate_, 0.1, 10));
   updater_.add("source", this, &CameraDriver::diagnose);
-  diagnostics_timer_ = nh_.createWallTimer(ros::WallDuration(0.5), [this](const ros::WallTimerEvent&) { updater_.update(); });
+  diagnostics_timer_ =
+      nh_.createWallTimer(ros::WallDuration(0.5), [this](const ros::WallTimerEvent&) { updater_.update(); });
 
   ROS_INFO_STREAM("[" << pnh_.getNamespace() << "] publishing " << source_->describe() << " in frame " << frame_id_
                       << (rectified_ ? " (declared rectified)" : ""));
@@ -234,7 +242,8 @@ void CameraDriver::captureLoop() {
   std::chrono::system_clock::time_point last_capture{};
   if (!live && start_delay_ > 0.0) {  // give subscribers (e.g. rosbag record) time to connect
     setState("waiting to start");
-    const auto start = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(start_delay_));
+    const auto start =
+        Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(start_delay_));
     while (running_ && ros::ok() && Clock::now() < start) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   auto next = Clock::now();

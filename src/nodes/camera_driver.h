@@ -38,7 +38,7 @@ class CameraDriver {
 
  private:
   struct View {
-    std::string label;                 // "left", "right" or "" (mono)
+    std::string label;  // "left", "right" or "" (mono)
     std::string camera_name;
     std::string info_url;
     ros::NodeHandle nh;

@@ -8,13 +8,13 @@
 
 #include <cv_bridge/cv_bridge.h>
 #include <geometry_msgs/TransformStamped.h>
-#include <opencv2/imgproc.hpp>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/package.h>
 #include <sensor_msgs/image_encodings.h>
 #include <tf2/exceptions.h>
 #include <tf2_geometry_msgs/tf2_geometry_msgs.h>
 #include <visualization_msgs/MarkerArray.h>
+#include <opencv2/imgproc.hpp>
+#include <pluginlib/class_list_macros.hpp>
 
 #include "calibration_msg.h"
 #include "massage_cell/AcupointArray.h"
@@ -238,9 +238,8 @@ void CectNodelet::configCb(Config& config, uint32_t /*level*/) {
   // Combinations the ranges of cfg/CECT.cfg cannot rule out are rejected
   // here: the previous values stay, and the server publishes them back.
   if (config.max_disparity != 0.0 && config.max_disparity <= config.min_disparity) {
-    NODELET_ERROR_STREAM("rejected max_disparity = " << config.max_disparity
-                                                     << " <= min_disparity = " << config.min_disparity
-                                                     << " (0 means from min_depth): keeping "
+    NODELET_ERROR_STREAM("rejected max_disparity = " << config.max_disparity << " <= min_disparity = "
+                                                     << config.min_disparity << " (0 means from min_depth): keeping "
                                                      << config_.min_disparity << ".." << config_.max_disparity);
     config.min_disparity = config_.min_disparity;
     config.max_disparity = config_.max_disparity;
@@ -255,17 +254,19 @@ void CectNodelet::configCb(Config& config, uint32_t /*level*/) {
   config_ = config;
   auto bound = [](double px, const char* otherwise) {
     std::ostringstream s;
-    if (px > 0) s << px;
-    else s << otherwise;
+    if (px > 0)
+      s << px;
+    else
+      s << otherwise;
     return s.str();
   };
   NODELET_INFO_STREAM("seed_step " << config.seed_step << ", ncc_radius " << config.ncc_radius << ", seed_search "
                                    << config.seed_search << ", query_search " << config.query_search << ", min_ncc "
                                    << config.min_ncc << ", depths " << config.min_depth << ".." << config.max_depth
                                    << " m, disparities " << bound(config.min_disparity, "from max_depth") << ".."
-                                   << bound(config.max_disparity, "from min_depth") << ", filter alpha " << config.alpha << " gate "
-                                   << config.gate << " m reacquire_after " << config.reacquire_after << " max_age "
-                                   << config.max_age << " s");
+                                   << bound(config.max_disparity, "from min_depth") << ", filter alpha " << config.alpha
+                                   << " gate " << config.gate << " m reacquire_after " << config.reacquire_after
+                                   << " max_age " << config.max_age << " s");
 }
 
 // ------------------------------------------------------------- worker --
@@ -294,33 +295,25 @@ void CectNodelet::badPair(const std::string& problem) {
 }
 
 void CectNodelet::updateGeometry(const CameraInfo& left, const CameraInfo& right) {
-  std::vector<double> key;
-  appendCalibrationKey(key, left);
-  appendCalibrationKey(key, right);
-  if (key != geometry_key_) {
-    geometry_key_ = key;
-    geometry_.reset();
-    geometry_error_.clear();
-    try {
-      decimation_ = camera::Decimation::toWidth(cv::Size(left.width, left.height), max_width_);
-      geometry_ = std::make_shared<const cect::StereoGeometry>(decimation_.apply(toCalibration(left)),
-                                                               decimation_.apply(toCalibration(right)));
-    } catch (const std::invalid_argument& e) {  // uncalibrated, sizes differ, not a horizontal pair, ...
-      geometry_error_ = std::string("unusable calibration: ") + e.what();
-    }
-    if (geometry_) {
-      std::ostringstream summary;
-      summary << sizeText(left.width, left.height) << (geometry_->identity() ? ", rectified input" : ", rectified here")
-              << ", f " << geometry_->fx() << " px, baseline " << geometry_->baseline() << " m";
-      if (!decimation_.identity())
-        summary << "; processed at " << sizeText(decimation_.size().width, decimation_.size().height) << " (~max_width "
-                << max_width_ << ")";
-      NODELET_INFO_STREAM("calibration: " << summary.str());
-      std::lock_guard<std::mutex> lock(status_mutex_);
-      geometry_summary_ = summary.str();
-    }
-  }
-  if (!geometry_) throw BadInput(geometry_error_);
+  const camera::Decimation decimation = camera::Decimation::toWidth(cv::Size(left.width, left.height), max_width_);
+  bool rebuilt = false;
+  geometry_ = model_cache_.get(
+      left, right, max_width_,
+      [&](const camera::CameraCalibration& l, const camera::CameraCalibration& r) {
+        return camera::StereoModel(decimation.apply(l), decimation.apply(r));
+      },
+      &rebuilt);
+  decimation_ = decimation;
+  if (!rebuilt) return;
+  std::ostringstream summary;
+  summary << sizeText(left.width, left.height) << (geometry_->identity() ? ", rectified input" : ", rectified here")
+          << ", f " << geometry_->fx() << " px, baseline " << geometry_->baseline() << " m";
+  if (!decimation_.identity())
+    summary << "; processed at " << sizeText(decimation_.size().width, decimation_.size().height) << " (~max_width "
+            << max_width_ << ")";
+  NODELET_INFO_STREAM("calibration: " << summary.str());
+  std::lock_guard<std::mutex> lock(status_mutex_);
+  geometry_summary_ = summary.str();
 }
 
 void CectNodelet::process(const StereoPair& pair, const Config& config) {
@@ -336,7 +329,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
   const camera::Decimation decimation = decimation_;
   const cv::Mat left = decimation.apply(toBgr(pair.left_image, "left"));
   const cv::Mat right = decimation.apply(toBgr(pair.right_image, "right"));
-  const cect::StereoGeometry& geometry = *geometry_;
+  const camera::StereoModel& geometry = *geometry_;
 
   std_msgs::Header header;
   header.stamp = pair.left_image->header.stamp;
@@ -375,8 +368,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
   const std::string frame_problem = located.reason;  // non-empty: the pair gives no acupoint at all
   const double stamp = header.stamp.toSec();
   int measured = 0;
-  const double body_angle =
-      located.valid ? located.landmarks.body_angle_deg : std::numeric_limits<double>::quiet_NaN();
+  const double body_angle = located.valid ? located.landmarks.body_angle_deg : std::numeric_limits<double>::quiet_NaN();
   for (std::size_t i = 0; i < results.size() && i < located.points.size(); ++i) {
     const cect::LocatedAcupoint& p = located.points[i];
     PointResult& r = results[i];

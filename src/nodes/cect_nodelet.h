@@ -20,8 +20,8 @@
 // Threading (StereoPairInput, stereo_pair_input.h): the synchroniser
 // callback only drops the pair into a one-pair slot (replacing, and counting
 // as dropped, a pair the worker has not taken yet); a worker thread analyses
-// the newest pair. The services read what the worker left behind (the latest frame, the published estimates) under their
-// own mutexes, so neither blocks the other for long.
+// the newest pair. The services read what the worker left behind (the latest frame, the published estimates) under
+// their own mutexes, so neither blocks the other for long.
 //
 // Unlike the hbds nodelet the inputs are subscribed from the start: the tf
 // frames and the services are outputs nobody "subscribes" to.
@@ -34,8 +34,6 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
-#include <boost/thread/recursive_mutex.hpp>
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <image_transport/image_transport.h>
@@ -47,14 +45,16 @@
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
+#include <Eigen/Core>
+#include <boost/thread/recursive_mutex.hpp>
 
 #include "massage_cell/CECTConfig.h"
 #include "massage_cell/GetAcupoint.h"
 #include "massage_cell/LocalizePixels.h"
 #include "massage_cell/camera/calibration.h"
+#include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
-#include "massage_cell/cect/stereo_geometry.h"
 #include "massage_cell/cect/temporal_filter.h"
 #include "stereo_pair_input.h"
 
@@ -133,11 +133,10 @@ class CectNodelet : public nodelet::Nodelet {
   Config config_;  // the accepted configuration, guarded by config_mutex_
 
   // Worker-thread state.
-  std::vector<double> geometry_key_;  ///< the calibration geometry_ (or geometry_error_) is for
-  std::shared_ptr<const cect::StereoGeometry> geometry_;  ///< of the decimated images
-  int max_width_ = 0;                                     ///< ~max_width: images wider are decimated (0: never)
-  camera::Decimation decimation_;                         ///< of the current calibration
-  std::string geometry_error_;  ///< why the calibration of geometry_key_ is unusable
+  StereoModelCache model_cache_;                         ///< the model of the current calibration and max_width
+  std::shared_ptr<const camera::StereoModel> geometry_;  ///< of the decimated images
+  int max_width_ = 0;                                    ///< ~max_width: images wider are decimated (0: never)
+  camera::Decimation decimation_;                        ///< of the current calibration
   cect::TemporalFilter filter_;
   ros::Time last_stamp_;
   ProblemThrottle log_throttle_;  // per-problem log throttling
@@ -158,7 +157,7 @@ class CectNodelet : public nodelet::Nodelet {
   int last_valid_ = 0, last_measured_ = 0;
   int rejected_outliers_ = 0;
   double last_cect_ms_ = 0.0;
-  double last_scale_ = 1.0;  ///< the last valid pair's view scale (auto_scale)
+  double last_scale_ = 1.0;                   ///< the last valid pair's view scale (auto_scale)
   cv::Vec2d last_disparity_range_{0.0, 0.0};  ///< the disparities the last pair searched
   double last_body_angle_ = 0.0;  ///< the last pair's body turn against the image columns (landmarks), degrees
   std::string last_landmarks_;    ///< which landmarks the last pair measured and which it inferred

@@ -8,14 +8,15 @@
 #include <stdexcept>
 
 #include <cv_bridge/cv_bridge.h>
-#include <opencv2/calib3d.hpp>
-#include <opencv2/imgproc.hpp>
-#include <pluginlib/class_list_macros.hpp>
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/image_encodings.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <stereo_msgs/DisparityImage.h>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+#include <pluginlib/class_list_macros.hpp>
 
+#include "calibration_msg.h"
 #include "massage_cell/stereo/pipeline.h"
 #include "start_parameters.h"
 #include "typed_param.h"
@@ -30,60 +31,35 @@ std::string refinementName(std::string value) {
   return value;
 }
 
-bool validRefinement(const std::string& value) {
-  try {
-    massage_cell::stereo::parseRefinement(refinementName(value));
-    return true;
-  } catch (const std::invalid_argument&) {
-    return false;
-  }
+/// The library's parameters of a configuration (the disparity range is set per pair). Throws
+/// std::invalid_argument for an unknown cost, refine or subpixel name.
+stereo::StereoParams paramsOf(const HBDSConfig& config) {
+  stereo::StereoParams params;
+  params.cost.data_term = stereo::parseDataTerm(config.cost);
+  params.cost.eta = static_cast<float>(config.eta);
+  params.cost.ncc_window = config.ncc_window;
+  params.cost.gradient_saturation = static_cast<float>(config.gradient_saturation);
+  params.cost.threads = config.threads;
+  params.smooth.tau = static_cast<float>(config.tau);
+  params.smooth.u_min = static_cast<float>(config.u_min);
+  params.smooth.u_max = static_cast<float>(config.u_max);
+  params.threads = config.threads;
+  params.polish_window = config.polish_window;
+  params.hbds_overlap = config.overlap;
+  params.hbds_coarse = config.coarse;
+  params.refine = stereo::parseRefinement(refinementName(config.refine));
+  params.refine_params.window = config.refine_window;
+  params.refine_params.threads = config.threads;
+  params.subpixel = config.subpixel != "none";
+  if (params.subpixel) params.subpixel_params.fit = stereo::parseSubpixelFit(config.subpixel);
+  params.lr_check = config.lr_check;
+  params.lr_tolerance = static_cast<float>(config.lr_tolerance);
+  return params;
 }
 
 namespace enc = sensor_msgs::image_encodings;
 
 constexpr double kErrorLogPeriod = 5.0;  // s between two ERRORs naming the same problem
-
-// ------------------------------------------------------ camera_info checks --
-
-bool allZero(const double* values, std::size_t n) {
-  return std::all_of(values, values + n, [](double v) { return v == 0.0; });
-}
-
-/// Already rectified: no distortion, R = I and K = the left 3x3 of P (what
-/// the stereo driver's `rectified` declaration and the simulator publish).
-bool isRectified(const sensor_msgs::CameraInfo& info) {
-  const double eps = 1e-9;
-  if (!std::all_of(info.D.begin(), info.D.end(), [&](double d) { return std::abs(d) < eps; })) return false;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) {
-      if (std::abs(info.R[3 * r + c] - (r == c ? 1.0 : 0.0)) > eps) return false;
-      if (std::abs(info.K[3 * r + c] - info.P[4 * r + c]) > eps * std::max(1.0, std::abs(info.K[3 * r + c]))) return false;
-    }
-  }
-  return true;
-}
-
-/// Throws BadInput naming what makes `info` unusable for `image`.
-void checkInfo(const sensor_msgs::CameraInfo& info, const sensor_msgs::Image& image, const std::string& which) {
-  if (allZero(info.K.data(), 9)) {
-    throw BadInput(which + " camera_info is uncalibrated (K is all zero): calibrate the camera first");
-  }
-  if (!(info.K[0] > 0.0) || !(info.K[4] > 0.0) || !(info.P[0] > 0.0) || !(info.P[5] > 0.0) || info.P[10] != 1.0) {
-    throw BadInput(which + " camera_info has no valid focal length (K[0], K[4], P[0], P[5] > 0 and P[10] = 1 needed)");
-  }
-  checkImageSize(info, image, which);
-  auto finite = [&](const auto& values, const char* name) {
-    if (!std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); })) {
-      throw BadInput(which + " camera_info " + name + " holds a non-finite value");
-    }
-  };
-  finite(info.K, "K");
-  finite(info.D, "D");
-  finite(info.R, "R");
-  finite(info.P, "P");
-  const cv::Matx33d R(info.R.data());
-  if (std::abs(cv::determinant(R) - 1.0) > 1e-3) throw BadInput(which + " camera_info R is not a rotation");
-}
 
 /// The pair's images as 8-bit BGR or grey cv::Mats (shared with the messages
 /// when possible); rgb8 is converted, mono16 and the rest are refused.
@@ -107,64 +83,6 @@ cv::Mat toMat(const sensor_msgs::ImageConstPtr& msg, const std::string& which) {
   return cv_image->image;
 }
 
-/// Undistort-and-rectify maps of one view into the frame of its P.
-void rectificationMaps(const sensor_msgs::CameraInfo& info, const std::string& which, cv::Mat& map1, cv::Mat& map2) {
-  const cv::Matx33d K(info.K.data()), R(info.R.data());
-  const cv::Matx33d new_K(info.P[0], info.P[1], info.P[2], info.P[4], info.P[5], info.P[6], info.P[8], info.P[9],
-                          info.P[10]);
-  const cv::Size size(static_cast<int>(info.width), static_cast<int>(info.height));
-  const std::string& model = info.distortion_model;
-  if (model == "equidistant") {
-    if (info.D.size() != 4) throw BadInput(which + " camera_info: equidistant distortion needs 4 coefficients");
-    cv::fisheye::initUndistortRectifyMap(K, cv::Mat(info.D), R, new_K, size, CV_16SC2, map1, map2);
-    return;
-  }
-  const std::size_t n = info.D.size();
-  if (model != "plumb_bob" && model != "rational_polynomial" && !(model.empty() && n == 0)) {
-    throw BadInput(which + " camera_info distortion model '" + model +
-                   "' is not supported (plumb_bob, rational_polynomial, equidistant)");
-  }
-  if (n != 0 && n != 4 && n != 5 && n != 8 && n != 12 && n != 14) {
-    throw BadInput(which + " camera_info has " + std::to_string(n) + " distortion coefficients (0, 4, 5, 8, 12 or 14)");
-  }
-  cv::initUndistortRectifyMap(K, n == 0 ? cv::Mat() : cv::Mat(info.D), R, new_K, size, CV_16SC2, map1, map2);
-}
-
-/// Pinhole geometry of the rectified pair at the processing resolution.
-struct Geometry {
-  double fx = 0, fy = 0, cx_left = 0, cx_right = 0, cy = 0;
-  double baseline = 0;  ///< metres, from the right P: Tx = -fx B
-  int width = 0, height = 0;
-  double offset() const { return cx_left - cx_right; }  ///< d_published = (x_l - x_r) - offset
-};
-
-/// Pixel centres are kept in place by cv::resize(INTER_AREA): x_s = (x + 0.5) s - 0.5.
-double scaleCentre(double c, double s) { return (c + 0.5) * s - 0.5; }
-
-/// The rectified left camera_info at the processing resolution (depth/camera_info).
-sensor_msgs::CameraInfo rectifiedLeftInfo(const sensor_msgs::CameraInfo& left, const std_msgs::Header& header,
-                                          int width, int height) {
-  const double sx = static_cast<double>(width) / left.width, sy = static_cast<double>(height) / left.height;
-  sensor_msgs::CameraInfo out;
-  out.header = header;
-  out.width = width;
-  out.height = height;
-  out.distortion_model = "plumb_bob";
-  out.D.assign(5, 0.0);
-  out.P = left.P;
-  for (int c = 0; c < 4; ++c) {
-    out.P[c] *= sx;
-    out.P[4 + c] *= sy;
-  }
-  out.P[2] = scaleCentre(left.P[2], sx);
-  out.P[6] = scaleCentre(left.P[6], sy);
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) out.K[3 * r + c] = out.P[4 * r + c];
-  }
-  out.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-  return out;
-}
-
 std::uint32_t packRgb(const cv::Mat& image, int x, int y) {
   if (image.channels() == 1) {
     const std::uint32_t g = image.at<std::uint8_t>(y, x);
@@ -172,6 +90,33 @@ std::uint32_t packRgb(const cv::Mat& image, int x, int y) {
   }
   const cv::Vec3b& bgr = image.at<cv::Vec3b>(y, x);
   return (static_cast<std::uint32_t>(bgr[2]) << 16) | (static_cast<std::uint32_t>(bgr[1]) << 8) | bgr[0];
+}
+
+/// Organised cloud `x y z rgb` of the model's points (CV_32FC3, NaN where unknown) coloured by the rectified left
+/// image (REP 103: the left optical frame).
+sensor_msgs::PointCloud2Ptr pointCloud(const std_msgs::Header& header, const cv::Mat& points, const cv::Mat& colours) {
+  auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
+  cloud->header = header;
+  cloud->height = points.rows;
+  cloud->width = points.cols;
+  sensor_msgs::PointCloud2Modifier modifier(*cloud);
+  modifier.setPointCloud2Fields(4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
+                                "z", 1, sensor_msgs::PointField::FLOAT32, "rgb", 1, sensor_msgs::PointField::FLOAT32);
+  cloud->is_dense = false;
+  cloud->is_bigendian = false;
+  sensor_msgs::PointCloud2Iterator<float> it(*cloud, "x");
+  for (int y = 0; y < points.rows; ++y) {
+    const cv::Vec3f* p = points.ptr<cv::Vec3f>(y);
+    for (int x = 0; x < points.cols; ++x, ++it) {
+      float* out = &it[0];
+      out[0] = p[x][0];
+      out[1] = p[x][1];
+      out[2] = p[x][2];
+      const std::uint32_t rgb = packRgb(colours, x, y);
+      std::memcpy(&out[3], &rgb, sizeof(rgb));
+    }
+  }
+  return cloud;
 }
 
 }  // namespace
@@ -189,7 +134,6 @@ void HbdsNodelet::onInit() {
 }
 
 void HbdsNodelet::init() {
-  stereo::retainFreedMemory();  // every pair allocates and frees its cost volume and graphs
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& pnh = getPrivateNodeHandle();
 
@@ -232,55 +176,34 @@ void HbdsNodelet::init() {
     points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points2", 1, connect, connect);
     confidence_pub_ = it.advertise("confidence", 1, it_connect, it_connect);
   }
-  NODELET_INFO_STREAM("dense stereo on " << nh.resolveName("left/image_raw") << " + " << nh.resolveName("right/image_raw")
+  NODELET_INFO_STREAM("dense stereo on " << nh.resolveName("left/image_raw") << " + "
+                                         << nh.resolveName("right/image_raw")
                                          << (sync.approximate ? " (approximate sync)" : " (exact sync)")
                                          << (rectify_ ? "" : ", images taken as rectified"));
 }
 
 void HbdsNodelet::configCb(Config& config, uint32_t /*level*/) {
-  // Runs with config_mutex_ held (dynamic_reconfigure::Server locks it).
-  // Values the ranges of cfg/HBDS.cfg cannot rule out are rejected here: the
-  // previous value stays, and the server publishes it back.
-  auto reject = [this](const std::string& what) { NODELET_ERROR_STREAM("rejected " << what); };
+  // Runs with config_mutex_ held (dynamic_reconfigure::Server locks it). A configuration the library or the node
+  // refuses is rejected whole: the previous one stays, and the server publishes it back.
+  std::vector<std::string> problems;
   if (config.method != "hbds" && config.method != "sgbm" && config.method != "wta") {
-    reject("method '" + config.method + "' (hbds, sgbm or wta): keeping '" + config_.method + "'");
-    config.method = config_.method;
-  }
-  if (config.cost != "thesis" && config.cost != "census" && config.cost != "ad-census") {
-    reject("cost '" + config.cost + "' (thesis, census or ad-census): keeping '" + config_.cost + "'");
-    config.cost = config_.cost;
-  }
-  if (!validRefinement(config.refine)) {
-    reject("refine '" + config.refine +
-           "' (none, mdc, ffd_mdc, 2dbf, ffd_2dbf, 3dbf, ffd_3dbf, wmf or ffd_wmf): keeping '" + config_.refine + "'");
-    config.refine = config_.refine;
-  }
-  if (config.subpixel != "none" && config.subpixel != "parabola" && config.subpixel != "equiangular") {
-    reject("subpixel '" + config.subpixel + "' (none, parabola or equiangular): keeping '" + config_.subpixel + "'");
-    config.subpixel = config_.subpixel;
-  }
-  if (config.refine_window % 2 == 0) {
-    reject("refine_window = " + std::to_string(config.refine_window) + ": it must be odd; keeping " +
-           std::to_string(config_.refine_window));
-    config.refine_window = config_.refine_window;
-  }
-  if (config.ncc_window % 2 == 0) {
-    reject("ncc_window = " + std::to_string(config.ncc_window) + ": it must be odd; keeping " +
-           std::to_string(config_.ncc_window));
-    config.ncc_window = config_.ncc_window;
-  }
-  if (config.u_min > config.u_max) {
-    std::ostringstream s;
-    s << "u_min = " << config.u_min << " > u_max = " << config.u_max << ": keeping u_min = " << config_.u_min
-      << ", u_max = " << config_.u_max;
-    reject(s.str());
-    config.u_min = config_.u_min;
-    config.u_max = config_.u_max;
+    problems.push_back("method '" + config.method + "' (hbds, sgbm or wta)");
   }
   if (config.downsample != 1 && config.downsample != 2 && config.downsample != 4) {
-    reject("downsample = " + std::to_string(config.downsample) + " (1, 2 or 4): keeping " +
-           std::to_string(config_.downsample));
-    config.downsample = config_.downsample;
+    problems.push_back("downsample = " + std::to_string(config.downsample) + " (1, 2 or 4)");
+  }
+  try {
+    for (const stereo::ParamProblem& p : stereo::checkParams(paramsOf(config))) {
+      problems.push_back(p.name + " " + p.problem);
+    }
+  } catch (const std::invalid_argument& e) {  // an unknown cost, refine or subpixel name
+    problems.push_back(e.what());
+  }
+  if (!problems.empty()) {
+    for (const std::string& problem : problems)
+      NODELET_ERROR_STREAM("rejected " << problem << ": keeping the previous parameters");
+    config = config_;
+    return;
   }
   config_ = config;
   NODELET_INFO_STREAM("method " << config.method << ", disparities " << config.min_disparity << ".."
@@ -344,234 +267,165 @@ void HbdsNodelet::badPair(const std::string& problem) {
     NODELET_ERROR_STREAM("skipped a stereo pair: " << problem << " (" << bad << " bad pairs so far)");
 }
 
-void HbdsNodelet::updateRectification(const CameraInfo& left, const CameraInfo& right) {
-  std::vector<double> key{rectify_ ? 1.0 : 0.0};
-  appendCalibrationKey(key, left);
-  appendCalibrationKey(key, right);
-  if (key == rectification_.key) return;
-  Rectification r;
-  r.key = key;
-  r.identity = !rectify_ || (isRectified(left) && isRectified(right));
-  if (!r.identity) {
-    rectificationMaps(left, "left", r.map1[0], r.map2[0]);
-    rectificationMaps(right, "right", r.map1[1], r.map2[1]);
+const camera::StereoModel& HbdsNodelet::updateModel(const CameraInfo& left, const CameraInfo& right) {
+  // ~rectify false: the images are rectified whatever camera_info says (declared so: D = 0, R = I, K = P).
+  bool rebuilt = false;
+  model_ = model_cache_.get(
+      left, right, rectify_ ? 1.0 : 0.0,
+      [this](const camera::CameraCalibration& l, const camera::CameraCalibration& r) {
+        return rectify_ ? camera::StereoModel(l, r)
+                        : camera::StereoModel(camera::declareRectified(l), camera::declareRectified(r));
+      },
+      &rebuilt);
+  if (rebuilt) {
+    NODELET_INFO_STREAM("calibration " << sizeText(left.width, left.height) << ": "
+                                       << (model_->identity() ? "images used as they are (rectified)"
+                                                              : "rectifying both views (maps cached)"));
   }
-  rectification_ = std::move(r);
-  NODELET_INFO_STREAM("calibration " << sizeText(left.width, left.height) << ": "
-                                     << (rectification_.identity ? "images used as they are (rectified)"
-                                                                 : "rectifying both views (maps cached)"));
+  return *model_;
+}
+
+HbdsNodelet::Views HbdsNodelet::prepareViews(const StereoPair& pair, int downsample) {
+  const CameraInfo& li = *pair.left_info;
+  const CameraInfo& ri = *pair.right_info;
+  checkImageSize(li, *pair.left_image, "left");
+  checkImageSize(ri, *pair.right_image, "right");
+  const camera::StereoModel& full = updateModel(li, ri);
+  const long processed_pixels = static_cast<long>(li.width / downsample) * static_cast<long>(li.height / downsample);
+  if (max_pixels_ > 0 && processed_pixels > max_pixels_) {  // before minutes of work and gigabytes of cost volume
+    throw BadInput("images of " + sizeText(li.width, li.height) + " at downsample " + std::to_string(downsample) +
+                   " are " + std::to_string(processed_pixels) + " pixels, above ~max_pixels " +
+                   std::to_string(max_pixels_) + ": raise downsample or max_pixels");
+  }
+  if (static_cast<int>(li.width) / downsample < 8 || static_cast<int>(li.height) / downsample < 8) {
+    throw BadInput("images of " + sizeText(li.width, li.height) + " are too small for downsample " +
+                   std::to_string(downsample));
+  }
+  Views v;
+  v.images[0] = toMat(pair.left_image, "left");
+  v.images[1] = toMat(pair.right_image, "right");
+  if (v.images[0].channels() != v.images[1].channels()) {  // mixed mono / colour: match in grey
+    for (auto& image : v.images) {
+      if (image.channels() == 3) cv::cvtColor(image, image, cv::COLOR_BGR2GRAY);
+    }
+  }
+  full.rectify(v.images[0], v.images[1], &v.images[0], &v.images[1]);
+  v.model = downsample > 1 ? full.downsampled(downsample) : full;
+  const camera::Decimation decimation(full.size(), downsample);
+  for (auto& image : v.images) image = decimation.apply(image);
+  v.scale = static_cast<double>(v.model.size().width) / full.size().width;
+  return v;
+}
+
+stereo::StereoParams HbdsNodelet::matchParams(const Config& config, const Views& v) {
+  // The range is set in full-resolution pixels; at 1/s resolution the searched range is the smallest one covering it.
+  const int full_dmax = config.min_disparity + config.disparity_range - 1;
+  stereo::StereoParams params = paramsOf(config);
+  params.cost.dmin = static_cast<int>(std::floor(config.min_disparity * v.scale));
+  params.cost.dmax = static_cast<int>(std::ceil(full_dmax * v.scale));
+  if (params.cost.dmax >= v.model.size().width) {
+    throw BadInput("disparity range " + std::to_string(config.min_disparity) + ".." + std::to_string(full_dmax) +
+                   (config.downsample > 1
+                        ? " (" + std::to_string(params.cost.dmin) + ".." + std::to_string(params.cost.dmax) +
+                              " at downsample " + std::to_string(config.downsample) + ")"
+                        : std::string()) +
+                   " is wider than the image (width " + std::to_string(v.model.size().width) + ")");
+  }
+  return params;
 }
 
 void HbdsNodelet::process(const StereoPair& pair, const Config& config, const Outputs& wanted) {
   const auto start = Clock::now();
-  const CameraInfo& li = *pair.left_info;
-  const CameraInfo& ri = *pair.right_info;
-
-  // 1. Input checks: every problem names itself and skips the pair.
-  checkInfo(li, *pair.left_image, "left");
-  checkInfo(ri, *pair.right_image, "right");
-  if (li.width != ri.width || li.height != ri.height) {
-    throw BadInput("left images are " + sizeText(li.width, li.height) + ", right ones " + sizeText(ri.width, ri.height) +
-                   ": both views must have one size");
-  }
-  if (!(ri.P[3] < 0.0)) {
-    throw BadInput("right camera_info P[3] = Tx = " + std::to_string(ri.P[3]) +
-                   " must be -fx * baseline < 0 (a calibrated horizontal pair, right camera on the right)");
-  }
-  if (li.P[7] != 0.0 || ri.P[7] != 0.0) throw BadInput("vertical stereo (P[7] != 0) is not supported");
-  const double eps = 1e-6 * li.P[0];
-  if (std::abs(li.P[0] - ri.P[0]) > eps || std::abs(li.P[5] - ri.P[5]) > eps || std::abs(li.P[6] - ri.P[6]) > eps) {
-    throw BadInput("left and right P differ in fx, fy or cy: the calibration is not of a rectified stereo pair");
-  }
-  const long processed_pixels =
-      static_cast<long>(li.width / config.downsample) * static_cast<long>(li.height / config.downsample);
-  if (max_pixels_ > 0 && processed_pixels > max_pixels_) {  // before minutes of work and gigabytes of cost volume
-    throw BadInput("images of " + sizeText(li.width, li.height) + " at downsample " +
-                   std::to_string(config.downsample) + " are " + std::to_string(processed_pixels) +
-                   " pixels, above ~max_pixels " + std::to_string(max_pixels_) + ": raise downsample or max_pixels");
-  }
-  cv::Mat views[2] = {toMat(pair.left_image, "left"), toMat(pair.right_image, "right")};
-  if (views[0].channels() != views[1].channels()) {  // mixed mono / colour: match in grey
-    for (auto& v : views) {
-      if (v.channels() == 3) cv::cvtColor(v, v, cv::COLOR_BGR2GRAY);
-    }
-  }
-
-  // 2. Rectify (maps cached per calibration), then downsample.
-  updateRectification(li, ri);
-  if (!rectification_.identity) {
-    for (int i = 0; i < 2; ++i) {
-      cv::Mat rectified;
-      cv::remap(views[i], rectified, rectification_.map1[i], rectification_.map2[i], cv::INTER_LINEAR);
-      views[i] = rectified;
-    }
-  }
-  const int s = config.downsample;
-  Geometry g;
-  g.width = static_cast<int>(li.width) / s;
-  g.height = static_cast<int>(li.height) / s;
-  if (g.width < 8 || g.height < 8) {
-    throw BadInput("images of " + sizeText(li.width, li.height) + " are too small for downsample " + std::to_string(s));
-  }
-  const double sx = static_cast<double>(g.width) / li.width, sy = static_cast<double>(g.height) / li.height;
-  if (s > 1) {
-    for (auto& v : views) {
-      cv::Mat small;
-      cv::resize(v, small, cv::Size(g.width, g.height), 0, 0, cv::INTER_AREA);
-      v = small;
-    }
-  }
-  g.fx = li.P[0] * sx;
-  g.fy = li.P[5] * sy;
-  g.cx_left = scaleCentre(li.P[2], sx);
-  g.cx_right = scaleCentre(ri.P[2], sx);
-  g.cy = scaleCentre(li.P[6], sy);
-  g.baseline = -ri.P[3] / ri.P[0];  // image_geometry: Tx = -fx B
-
-  // 3. Match. The range is set in full-resolution pixels; at 1/s resolution
-  // the searched range is the smallest one covering it.
-  const int full_dmax = config.min_disparity + config.disparity_range - 1;
-  stereo::StereoParams params;
-  params.cost.dmin = static_cast<int>(std::floor(config.min_disparity * sx));
-  params.cost.dmax = static_cast<int>(std::ceil(full_dmax * sx));
-  if (params.cost.dmax >= g.width) {
-    throw BadInput("disparity range " + std::to_string(config.min_disparity) + ".." + std::to_string(full_dmax) +
-                   (s > 1 ? " (" + std::to_string(params.cost.dmin) + ".." + std::to_string(params.cost.dmax) +
-                                " at downsample " + std::to_string(s) + ")"
-                          : std::string()) +
-                   " is wider than the image (width " + std::to_string(g.width) + ")");
-  }
-  params.cost.data_term = stereo::parseDataTerm(config.cost);
-  params.cost.eta = static_cast<float>(config.eta);
-  params.cost.ncc_window = config.ncc_window;
-  params.cost.gradient_saturation = static_cast<float>(config.gradient_saturation);
-  params.cost.threads = config.threads;
-  params.smooth.tau = static_cast<float>(config.tau);
-  params.smooth.u_min = static_cast<float>(config.u_min);
-  params.smooth.u_max = static_cast<float>(config.u_max);
-  params.threads = config.threads;
-  params.polish_window = config.polish_window;
-  params.hbds_overlap = config.overlap;
-  params.hbds_coarse = config.coarse;
-  params.refine = stereo::parseRefinement(refinementName(config.refine));
-  params.refine_params.window = config.refine_window;
-  params.refine_params.threads = config.threads;
-  params.subpixel = config.subpixel != "none";
-  if (params.subpixel) params.subpixel_params.fit = stereo::parseSubpixelFit(config.subpixel);
-  params.lr_check = config.lr_check;
-  params.lr_tolerance = static_cast<float>(config.lr_tolerance);
+  // 1. Inputs: every problem names itself and skips the pair. Rectified (maps cached per calibration), downsampled.
+  const Views v = prepareViews(pair, config.downsample);
+  // 2. Match.
+  const stereo::StereoParams params = matchParams(config, v);
   const stereo::Method method = stereo::parseMethod(config.method);
-  const stereo::MatchResult result = stereo::match(views[0], views[1], method, params);
-
-  // 4. Disparity as stereo_msgs/DisparityImage defines it: d = x_l - x_r -
-  // (cx_l - cx_r). Invalid pixels hold min_disparity - 1 (below the searched
-  // range, as the message defines and stereo_image_proc does): those the
-  // method leaves empty (NaN); without the left-right check the left band
-  // x < dmax, whose search ran off the right image's edge; with it and
-  // lr_fill off, the pixels the right view does not confirm (with lr_fill on
-  // they hold the background's disparity and ~confidence marks them).
+  const stereo::MatchResult result = stereo::match(v.images[0], v.images[1], method, params);
+  // 3. Outputs.
   std_msgs::Header header = pair.left_image->header;
-  if (header.frame_id.empty()) header.frame_id = li.header.frame_id;
-  const float offset = static_cast<float>(g.offset());
-  const float min_disparity = static_cast<float>(params.cost.dmin) - offset;
-  const float max_disparity = static_cast<float>(params.cost.dmax) - offset;
-  const float invalid = min_disparity - 1.0f;
-  const int valid_x0 = params.lr_check ? 0 : params.cost.dmax;
-  const cv::Mat keep = params.lr_check && !config.lr_fill ? result.consistent : cv::Mat();
-
-  auto disparity_msg = boost::make_shared<stereo_msgs::DisparityImage>();
-  disparity_msg->header = header;
-  disparity_msg->f = static_cast<float>(g.fx);
-  disparity_msg->T = static_cast<float>(g.baseline);
-  disparity_msg->min_disparity = min_disparity;
-  disparity_msg->max_disparity = max_disparity;
-  disparity_msg->delta_d = method == stereo::Method::kSgbm || params.subpixel ? 1.0f / 16.0f : 1.0f;
-  disparity_msg->valid_window.x_offset = valid_x0;
-  disparity_msg->valid_window.y_offset = 0;
-  disparity_msg->valid_window.width = g.width - valid_x0;
-  disparity_msg->valid_window.height = g.height;
-  sensor_msgs::Image& dimage = disparity_msg->image;
-  dimage.header = header;
-  dimage.width = g.width;
-  dimage.height = g.height;
-  dimage.encoding = enc::TYPE_32FC1;
-  dimage.step = g.width * sizeof(float);
-  dimage.data.resize(static_cast<std::size_t>(dimage.step) * g.height);
-  cv::Mat disparity(g.height, g.width, CV_32F, dimage.data.data(), dimage.step);
-  for (int y = 0; y < g.height; ++y) {
-    const float* in = result.disparity.ptr<float>(y);
-    float* out = disparity.ptr<float>(y);
-    const unsigned char* k = keep.empty() ? nullptr : keep.ptr<unsigned char>(y);
-    for (int x = 0; x < g.width; ++x) {
-      const bool valid = x >= valid_x0 && std::isfinite(in[x]) && (k == nullptr || k[x] != 0);
-      out[x] = valid ? in[x] - offset : invalid;
-    }
-  }
-  if (wanted.disparity) disparity_pub_.publish(disparity_msg);
-  if (wanted.confidence) {
-    // mono8: 255 where the right view confirms the disparity, 0 elsewhere;
-    // without the left-right check, 255 wherever the disparity is valid.
-    cv::Mat confidence = params.lr_check ? result.consistent.clone() : cv::Mat(disparity >= min_disparity);
-    confidence_pub_.publish(cv_bridge::CvImage(header, enc::MONO8, confidence).toImageMsg());
-  }
-
-  // 5. Depth (REP 118: metres, NaN where unknown) = f T / d; d <= 0 is at or
-  // beyond infinity and also NaN.
-  const float fT = static_cast<float>(g.fx * g.baseline);
-  const float nan = std::numeric_limits<float>::quiet_NaN();
-  cv::Mat depth(g.height, g.width, CV_32F);
-  for (int y = 0; y < g.height; ++y) {
-    const float* d = disparity.ptr<float>(y);
-    float* z = depth.ptr<float>(y);
-    for (int x = 0; x < g.width; ++x) z[x] = (d[x] >= min_disparity && d[x] > 0.0f) ? fT / d[x] : nan;
-  }
-  if (wanted.depth) {
-    depth_pub_.publish(cv_bridge::CvImage(header, enc::TYPE_32FC1, depth).toImageMsg());
-    depth_info_pub_.publish(rectifiedLeftInfo(li, header, g.width, g.height));
-  }
-
-  // 6. Organised point cloud in the left optical frame (REP 103: x right,
-  // y down, z forward), colour from the rectified left image.
-  if (wanted.points) {
-    auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
-    cloud->header = header;
-    cloud->height = g.height;
-    cloud->width = g.width;
-    sensor_msgs::PointCloud2Modifier modifier(*cloud);
-    modifier.setPointCloud2Fields(4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
-                                  "z", 1, sensor_msgs::PointField::FLOAT32, "rgb", 1, sensor_msgs::PointField::FLOAT32);
-    cloud->is_dense = false;
-    cloud->is_bigendian = false;
-    sensor_msgs::PointCloud2Iterator<float> it(*cloud, "x");
-    for (int y = 0; y < g.height; ++y) {
-      const float* z = depth.ptr<float>(y);
-      for (int x = 0; x < g.width; ++x, ++it) {
-        float* p = &it[0];
-        if (std::isfinite(z[x])) {
-          p[0] = static_cast<float>((x - g.cx_left) / g.fx) * z[x];
-          p[1] = static_cast<float>((y - g.cy) / g.fy) * z[x];
-          p[2] = z[x];
-        } else {
-          p[0] = p[1] = p[2] = nan;
-        }
-        const std::uint32_t rgb = packRgb(views[0], x, y);
-        std::memcpy(&p[3], &rgb, sizeof(rgb));
-      }
-    }
-    points_pub_.publish(cloud);
-  }
-
-  // 7. Status.
+  if (header.frame_id.empty()) header.frame_id = pair.left_info->header.frame_id;
+  publish(header, config, v, params, result, wanted);
+  // 4. Status.
   const double elapsed = msSince(start);
+  const CameraInfo& li = *pair.left_info;
   std::ostringstream geometry;
-  geometry << sizeText(li.width, li.height) << (s > 1 ? " processed at " + sizeText(g.width, g.height) : "")
-           << (rectification_.identity ? ", rectified input" : ", rectified here") << ", f " << g.fx << " px, baseline "
-           << g.baseline << " m, disparities " << params.cost.dmin << ".." << params.cost.dmax;
+  geometry << sizeText(li.width, li.height)
+           << (config.downsample > 1 ? " processed at " + sizeText(v.model.size().width, v.model.size().height)
+                                     : std::string())
+           << (model_->identity() ? ", rectified input" : ", rectified here") << ", f " << v.model.fx()
+           << " px, baseline " << v.model.baseline() << " m, disparities " << params.cost.dmin << ".."
+           << params.cost.dmax;
   std::lock_guard<std::mutex> lock(status_mutex_);
   stats_.processedOne(elapsed);
   last_matcher_ms_ = result.total_ms();
   if (geometry_summary_.empty()) NODELET_INFO_STREAM("first pair: " << geometry.str() << ", " << elapsed << " ms");
   geometry_summary_ = geometry.str();
+}
+
+void HbdsNodelet::publish(const std_msgs::Header& header, const Config& config, const Views& v,
+                          const stereo::StereoParams& params, const stereo::MatchResult& result,
+                          const Outputs& wanted) {
+  // Disparity as stereo_msgs/DisparityImage defines it: d = x_l - x_r - (cx_l - cx_r). Invalid pixels hold
+  // min_disparity - 1 (below the searched range, as the message defines and stereo_image_proc does): those the
+  // method leaves empty (NaN); without the left-right check the left band x < dmax, whose search ran off the right
+  // image's edge; with it and lr_fill off, the pixels the right view does not confirm (with lr_fill on they hold the
+  // background's disparity and ~confidence marks them).
+  const camera::StereoModel& model = v.model;
+  const int width = model.size().width, height = model.size().height;
+  const float offset = static_cast<float>(model.offset());
+  const float min_disparity = static_cast<float>(params.cost.dmin) - offset;
+  const float invalid = min_disparity - 1.0f;
+  const int valid_x0 = params.lr_check ? 0 : params.cost.dmax;
+  const cv::Mat keep = params.lr_check && !config.lr_fill ? result.consistent : cv::Mat();
+  cv::Mat valid(height, width, CV_32F);      // x_l - x_r where valid, NaN elsewhere
+  cv::Mat valid_mask(height, width, CV_8U);  // 255 where valid
+  for (int y = 0; y < height; ++y) {
+    const float* in = result.disparity.ptr<float>(y);
+    float* out = valid.ptr<float>(y);
+    unsigned char* mask = valid_mask.ptr<unsigned char>(y);
+    const unsigned char* k = keep.empty() ? nullptr : keep.ptr<unsigned char>(y);
+    for (int x = 0; x < width; ++x) {
+      const bool ok = x >= valid_x0 && std::isfinite(in[x]) && (k == nullptr || k[x] != 0);
+      out[x] = ok ? in[x] : std::numeric_limits<float>::quiet_NaN();
+      mask[x] = ok ? 255 : 0;
+    }
+  }
+  if (wanted.disparity) {
+    auto msg = boost::make_shared<stereo_msgs::DisparityImage>();
+    msg->header = header;
+    msg->f = static_cast<float>(model.fx());
+    msg->T = static_cast<float>(model.baseline());
+    msg->min_disparity = min_disparity;
+    msg->max_disparity = static_cast<float>(params.cost.dmax) - offset;
+    msg->delta_d = config.method == "sgbm" || params.subpixel ? 1.0f / 16.0f : 1.0f;
+    msg->valid_window.x_offset = valid_x0;
+    msg->valid_window.width = width - valid_x0;
+    msg->valid_window.height = height;
+    cv::Mat published = valid - offset;
+    cv::patchNaNs(published, invalid);
+    msg->image = *cv_bridge::CvImage(header, enc::TYPE_32FC1, published).toImageMsg();
+    disparity_pub_.publish(msg);
+  }
+  if (wanted.confidence) {
+    // mono8: 255 where the right view confirms the disparity, 0 elsewhere; without the left-right check, 255
+    // wherever the disparity is valid.
+    const cv::Mat confidence = params.lr_check ? result.consistent.clone() : valid_mask;
+    confidence_pub_.publish(cv_bridge::CvImage(header, enc::MONO8, confidence).toImageMsg());
+  }
+  if (!wanted.depth && !wanted.points) return;
+  // Depth (REP 118: metres along the rectified optical axis, NaN where unknown or at / beyond infinity).
+  const cv::Mat depth = model.depth(valid);
+  if (wanted.depth) {
+    depth_pub_.publish(cv_bridge::CvImage(header, enc::TYPE_32FC1, depth).toImageMsg());
+    sensor_msgs::CameraInfo info;
+    info.header = header;
+    info.width = width;
+    info.height = height;
+    fromCalibration(model.rectifiedLeft(), info);
+    depth_info_pub_.publish(info);
+  }
+  if (wanted.points) points_pub_.publish(pointCloud(header, model.points(depth), v.images[0]));
 }
 
 // -------------------------------------------------------- diagnostics --
@@ -596,7 +450,7 @@ void HbdsNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) 
   }
   status.add("method", config.method);
   status.add("disparities (full resolution)", std::to_string(config.min_disparity) + ".." +
-                                                   std::to_string(config.min_disparity + config.disparity_range - 1));
+                                                  std::to_string(config.min_disparity + config.disparity_range - 1));
   status.add("downsample", config.downsample);
   status.add("input", geometry_summary_);
   stats_.addCounts(status, input);

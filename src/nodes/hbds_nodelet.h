@@ -17,17 +17,19 @@
 #include <string>
 #include <vector>
 
-#include <boost/thread/recursive_mutex.hpp>
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <image_transport/image_transport.h>
 #include <nodelet/nodelet.h>
-#include <opencv2/core.hpp>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <boost/thread/recursive_mutex.hpp>
+#include <opencv2/core.hpp>
 
 #include "massage_cell/HBDSConfig.h"
+#include "massage_cell/camera/stereo_model.h"
+#include "massage_cell/stereo/pipeline.h"
 #include "stereo_pair_input.h"
 
 namespace massage_cell::nodes {
@@ -47,11 +49,11 @@ class HbdsNodelet : public nodelet::Nodelet {
     bool any() const { return disparity || depth || points || confidence; }
   };
 
-  /// Rectification maps of both views, kept until the calibration changes.
-  struct Rectification {
-    std::vector<double> key;  ///< the calibration the maps were made from
-    bool identity = true;     ///< both views already rectified: no remap
-    cv::Mat map1[2], map2[2];
+  /// A pair rectified and downsampled, with the model of the processed images.
+  struct Views {
+    cv::Mat images[2];
+    camera::StereoModel model;  ///< of the processed (rectified, downsampled) images
+    double scale = 1.0;         ///< processed / full-resolution width
   };
 
   void onInit() override;  ///< init(); a parameter of the wrong type: FATAL, the node exits 1
@@ -61,7 +63,11 @@ class HbdsNodelet : public nodelet::Nodelet {
   Outputs wantedOutputs();
   void onPair(const StereoPair& pair);  // the input's worker thread
   void process(const StereoPair& pair, const Config& config, const Outputs& wanted);
-  void updateRectification(const CameraInfo& left, const CameraInfo& right);
+  const camera::StereoModel& updateModel(const CameraInfo& left, const CameraInfo& right);
+  Views prepareViews(const StereoPair& pair, int downsample);
+  stereo::StereoParams matchParams(const Config& config, const Views& views);
+  void publish(const std_msgs::Header& header, const Config& config, const Views& views,
+               const stereo::StereoParams& params, const stereo::MatchResult& result, const Outputs& wanted);
   void badPair(const std::string& problem);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
 
@@ -69,7 +75,7 @@ class HbdsNodelet : public nodelet::Nodelet {
   // thread (stopped first in the destructor).
   std::unique_ptr<StereoPairInput> input_;
   int max_pixels_ = 1200000;  ///< ~max_pixels: larger processed pairs are refused (0: no limit)
-  bool rectify_ = true;  ///< ~rectify: false when the images are rectified already whatever camera_info says
+  bool rectify_ = true;       ///< ~rectify: false when the images are rectified already whatever camera_info says
 
   // Outputs.
   std::mutex connect_mutex_;  // guards (un)subscribing the inputs
@@ -82,8 +88,9 @@ class HbdsNodelet : public nodelet::Nodelet {
   Config config_;  // the accepted configuration, guarded by config_mutex_
 
   // Worker-thread state.
-  Rectification rectification_;
-  ProblemThrottle log_throttle_;  // per-problem log throttling
+  StereoModelCache model_cache_;
+  std::shared_ptr<const camera::StereoModel> model_;  ///< of the current calibration, at full resolution
+  ProblemThrottle log_throttle_;                      // per-problem log throttling
 
   // Status for the diagnostics (guarded by status_mutex_).
   std::unique_ptr<diagnostic_updater::Updater> updater_;

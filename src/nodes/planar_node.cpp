@@ -1,5 +1,3 @@
 #include "node_main.h"
 
-int main(int argc, char** argv) {
-  return massage_cell::nodes::runNodelet(argc, argv, "planar", "massage_cell/planar");
-}
+int main(int argc, char** argv) { return massage_cell::nodes::runNodelet(argc, argv, "planar", "massage_cell/planar"); }

@@ -4,8 +4,8 @@
 #include <sstream>
 
 #include <cv_bridge/cv_bridge.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <visualization_msgs/Marker.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include "calibration_msg.h"
 #include "massage_cell/planar/camera_views.h"

@@ -15,11 +15,11 @@
 #include <mutex>
 #include <string>
 
-#include <boost/thread/recursive_mutex.hpp>
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
+#include <boost/thread/recursive_mutex.hpp>
 
 #include "massage_cell/PlanarConfig.h"
 #include "massage_cell/Reconstruct.h"

@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include <boost/any.hpp>
 #include <ros/ros.h>
+#include <boost/any.hpp>
 
 #include "typed_param.h"
 

@@ -83,15 +83,16 @@ class Monitor {
     }
     const double span = (last_stamp_ - first_stamp_).toSec();
     const double rate = pairs_ > 1 && span > 0 ? (pairs_ - 1) / span : 0.0;
-    std::printf("pairs published:        %lu (left images %lu, right images %lu, unmatched %lu)\n", pairs_,
-                left_count_, right_count_, left_count_ + right_count_ - 2 * pairs_);
+    std::printf("pairs published:        %lu (left images %lu, right images %lu, unmatched %lu)\n", pairs_, left_count_,
+                right_count_, left_count_ + right_count_ - 2 * pairs_);
     std::printf("stamps:                 %.6f .. %.6f (%.3f s)\n", first_stamp_.toSec(), last_stamp_.toSec(), span);
     std::printf("rate:                   %.2f Hz (intervals %.1f .. %.1f ms)\n", rate, min_dt_ * 1e3, max_dt_ * 1e3);
     std::printf("image size / encoding:  %ux%u %s\n", width_, height_, encoding_.c_str());
     std::printf("frame id:               %s\n", frame_id_.c_str());
     std::printf("baseline (from right P): %.4f m\n", baseline_);
     std::printf("left/right stamps equal: %s; camera_info stamps equal image stamps: %s; one frame id: %s\n",
-                "yes (exact-time synchronised)", info_mismatch_ == 0 ? "yes" : "NO", frame_mismatch_ == 0 ? "yes" : "NO");
+                "yes (exact-time synchronised)", info_mismatch_ == 0 ? "yes" : "NO",
+                frame_mismatch_ == 0 ? "yes" : "NO");
     if (disparity_sub_) {
       std::printf("%-24s%lu disparity images, %lu point clouds", (products_from_ + ":").c_str(), disparities_, clouds_);
       if (clouds_ > 0) std::printf("; last cloud: %.1f%% valid points, median depth %.4f m", valid_percent_, median_z_);
@@ -103,7 +104,8 @@ class Monitor {
  private:
   using Policy = message_filters::sync_policies::ExactTime<Image, Image, CameraInfo, CameraInfo>;
 
-  void onPair(const ImageConstPtr& l, const ImageConstPtr& r, const CameraInfoConstPtr& li, const CameraInfoConstPtr& ri) {
+  void onPair(const ImageConstPtr& l, const ImageConstPtr& r, const CameraInfoConstPtr& li,
+              const CameraInfoConstPtr& ri) {
     const ros::Time stamp = l->header.stamp;
     if (li->header.stamp != stamp || ri->header.stamp != stamp) ++info_mismatch_;
     if (r->header.frame_id != l->header.frame_id || li->header.frame_id != l->header.frame_id ||
@@ -126,8 +128,8 @@ class Monitor {
     frame_id_ = l->header.frame_id;
     baseline_ = ri->P[0] > 0 ? -ri->P[3] / ri->P[0] : 0.0;
     if (pairs_ % print_every_ == 0) {
-      std::printf("pair %4lu  stamp %.6f  dt %7.1f ms  %ux%u %s  frame %s\n", pairs_, stamp.toSec(), dt * 1e3,
-                  l->width, l->height, l->encoding.c_str(), l->header.frame_id.c_str());
+      std::printf("pair %4lu  stamp %.6f  dt %7.1f ms  %ux%u %s  frame %s\n", pairs_, stamp.toSec(), dt * 1e3, l->width,
+                  l->height, l->encoding.c_str(), l->header.frame_id.c_str());
       std::fflush(stdout);
     }
     ++pairs_;

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <utility>
 
+#include "calibration_msg.h"
 #include "typed_param.h"
 
 namespace massage_cell::nodes {
@@ -94,6 +95,28 @@ void appendCalibrationKey(std::vector<double>& key, const sensor_msgs::CameraInf
   key.insert(key.end(), info.K.begin(), info.K.end());
   key.insert(key.end(), info.R.begin(), info.R.end());
   key.insert(key.end(), info.P.begin(), info.P.end());
+}
+
+std::shared_ptr<const camera::StereoModel> StereoModelCache::get(const sensor_msgs::CameraInfo& left,
+                                                                 const sensor_msgs::CameraInfo& right, double variant,
+                                                                 const Make& make, bool* rebuilt) {
+  std::vector<double> key{variant};
+  appendCalibrationKey(key, left);
+  appendCalibrationKey(key, right);
+  const bool changed = key != key_;
+  if (changed) {
+    key_ = key;
+    model_.reset();
+    error_.clear();
+    try {
+      model_ = std::make_shared<const camera::StereoModel>(make(toCalibration(left), toCalibration(right)));
+    } catch (const std::invalid_argument& e) {  // uncalibrated, sizes differ, not a horizontal pair, ...
+      error_ = std::string("unusable calibration: ") + e.what();
+    }
+  }
+  if (rebuilt != nullptr) *rebuilt = changed && model_ != nullptr;
+  if (!model_) throw BadInput(error_);
+  return model_;
 }
 
 bool ProblemThrottle::due(const std::string& problem) {

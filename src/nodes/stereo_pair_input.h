@@ -39,6 +39,7 @@
 #include <sensor_msgs/Image.h>
 
 #include "massage_cell/camera/latest_worker.h"
+#include "massage_cell/camera/stereo_model.h"
 
 namespace massage_cell::nodes {
 
@@ -123,6 +124,23 @@ void checkImageSize(const sensor_msgs::CameraInfo& info, const sensor_msgs::Imag
 /// changes cheaply by comparing keys.
 void appendCalibrationKey(std::vector<double>& key, const sensor_msgs::CameraInfo& info);
 
+/// The camera::StereoModel of a pair's camera_info, made only when the calibrations (or `variant`: whatever else
+/// `make` depends on, e.g. a processing width) change. An unusable calibration throws BadInput naming the problem
+/// for every pair until the calibration changes. Not thread-safe: the nodelet's worker thread owns it.
+class StereoModelCache {
+ public:
+  using Make = std::function<camera::StereoModel(const camera::CameraCalibration&, const camera::CameraCalibration&)>;
+  /// The model; `rebuilt` (optional) tells whether it was made for this pair.
+  std::shared_ptr<const camera::StereoModel> get(const sensor_msgs::CameraInfo& left,
+                                                 const sensor_msgs::CameraInfo& right, double variant, const Make& make,
+                                                 bool* rebuilt = nullptr);
+
+ private:
+  std::vector<double> key_;
+  std::shared_ptr<const camera::StereoModel> model_;
+  std::string error_;
+};
+
 /// Per-problem log throttling (wall time), so that a second kind of problem
 /// is not hidden by the first. Not thread-safe.
 class ProblemThrottle {
@@ -147,13 +165,13 @@ class PairStats {
   /// A pair processed in `ms` (clears lastPairBad), taken up `waited_ms` after its
   /// camera stamp (NaN: not known; the input's transport and queue).
   void processedOne(double ms, double waited_ms = std::numeric_limits<double>::quiet_NaN());
-  std::uint64_t badOne(const std::string& problem);      ///< a pair skipped; returns the bad pairs so far
+  std::uint64_t badOne(const std::string& problem);  ///< a pair skipped; returns the bad pairs so far
   std::uint64_t processed() const { return processed_; }
   std::uint64_t bad() const { return bad_; }
-  bool lastPairBad() const { return last_pair_bad_; }    ///< the newest pair was skipped
+  bool lastPairBad() const { return last_pair_bad_; }  ///< the newest pair was skipped
   const std::string& lastError() const { return last_error_; }
-  bool recentError() const;                              ///< a pair was skipped within kRateWindow
-  double rate() const;                                   ///< processed pairs a second (0 when stalled)
+  bool recentError() const;  ///< a pair was skipped within kRateWindow
+  double rate() const;       ///< processed pairs a second (0 when stalled)
 
   /// "pairs received", "pairs processed", "dropped pairs", "bad pairs".
   void addCounts(diagnostic_updater::DiagnosticStatusWrapper& status, const StereoPairInput::Counts& input) const;

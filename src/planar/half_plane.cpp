@@ -172,8 +172,7 @@ bool HalfPlaneSearch::grazing(int line, int reference_view, const Plane& plane) 
   return std::abs(plane.n.dot(ray)) < std::sin(params_.grazing_deg * kPi / 180.0);
 }
 
-std::vector<HalfPlaneSearch::RegionPoint> HalfPlaneSearch::regionPoints(int line, int side,
-                                                                        int reference_view) const {
+std::vector<HalfPlaneSearch::RegionPoint> HalfPlaneSearch::regionPoints(int line, int side, int reference_view) const {
   const LineTrack& L = lines_.at(static_cast<std::size_t>(line));
   const Projection& P = views_[static_cast<std::size_t>(reference_view)].P;
   Eigen::Vector2d pa, pb;

@@ -24,9 +24,9 @@ namespace massage_cell::sim {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-constexpr double kStep = 0.005;        // metres between rings
-constexpr double kPressed = 0.008;     // arm and flank pressed into each other when touching
-constexpr double kTableMargin = 0.015; // the hand stays this far inside the table's edge
+constexpr double kStep = 0.005;         // metres between rings
+constexpr double kPressed = 0.008;      // arm and flank pressed into each other when touching
+constexpr double kTableMargin = 0.015;  // the hand stays this far inside the table's edge
 
 struct ArmDims {
   double upper, fore, hand;  // segment lengths
@@ -231,7 +231,8 @@ std::vector<Eigen::Vector2d> raisedPath(const ArmDims& d, int side, const Eigen:
   const Eigen::Vector2d corners[] = {s0, e, w, t};
   for (int k = 0; k < 3; ++k) {
     const int n = std::max(1, static_cast<int>(std::ceil((corners[k + 1] - corners[k]).norm() / 0.002)));
-    for (int i = 0; i < n; ++i) raw.push_back(corners[k] + (corners[k + 1] - corners[k]) * (static_cast<double>(i) / n));
+    for (int i = 0; i < n; ++i)
+      raw.push_back(corners[k] + (corners[k + 1] - corners[k]) * (static_cast<double>(i) / n));
   }
   raw.push_back(t);
   // Round the elbow and wrist: moving average over +-3 cm (ends kept).
@@ -257,9 +258,8 @@ std::vector<TubeRing> armRings(const BackModel& back, const TrunkSurface& trunk,
   const Eigen::Vector3d shoulder = shoulderJoint(back, trunk, side, b0);
   const double chest_x = back.levelX("T8");
   const ArmRest rest{trunk, chest_x, trunk.halfWidth(chest_x)};
-  const std::vector<Eigen::Vector2d> path = pose == ArmPose::kRaised
-                                                ? raisedPath(d, side, shoulder)
-                                                : alongTrunkPath(d, rest, side, shoulder, b0, abduction);
+  const std::vector<Eigen::Vector2d> path =
+      pose == ArmPose::kRaised ? raisedPath(d, side, shoulder) : alongTrunkPath(d, rest, side, shoulder, b0, abduction);
   std::vector<TubeRing> rings;
   const double last = d.end() - 0.45 * armSection(d, d.end()).sum();  // the end cap reaches the fingertips
   for (std::size_t i = 0; i < path.size(); ++i) {

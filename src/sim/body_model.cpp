@@ -60,10 +60,10 @@ constexpr int kL3 = 15;
 constexpr int kL4 = 16;
 constexpr int kL5 = 17;
 
-constexpr double kNeckBaseX = 0.035;      // x_max: the neck base (head side end of the model)
-constexpr double kBelowL4 = 0.12;         // x_min = -(torso_length + kBelowL4): upper buttocks
-constexpr double kNeckCap = 0.02;         // length of the end cap at the neck
-constexpr double kButtockCap = 0.03;      // length of the end cap at the buttocks
+constexpr double kNeckBaseX = 0.035;  // x_max: the neck base (head side end of the model)
+constexpr double kBelowL4 = 0.12;     // x_min = -(torso_length + kBelowL4): upper buttocks
+constexpr double kNeckCap = 0.02;     // length of the end cap at the neck
+constexpr double kButtockCap = 0.03;  // length of the end cap at the buttocks
 
 std::string num(double v) {
   std::ostringstream s;
@@ -83,13 +83,13 @@ double uniform(std::mt19937& rng, double lo, double hi) { return lo + (hi - lo) 
 const std::array<double, kLevelCount - 1>& nominalIntervals() {
   static const std::array<double, kLevelCount - 1> intervals = [] {
     std::array<double, kLevelCount - 1> a{};
-    a[0] = 2.0;                                                      // C7 -> T1
+    a[0] = 2.0;                                                                           // C7 -> T1
     for (int k = 1; k <= 11; ++k) a[static_cast<std::size_t>(k)] = 2.2 + 0.05 * (k - 1);  // T1 -> ... -> T12
-    a[12] = 3.0;                                                     // T12 -> L1
-    a[13] = 3.4;                                                     // L1 -> L2
-    a[14] = 3.5;                                                     // L2 -> L3
-    a[15] = 3.5;                                                     // L3 -> L4
-    a[16] = 3.4;                                                     // L4 -> L5
+    a[12] = 3.0;                                                                          // T12 -> L1
+    a[13] = 3.4;                                                                          // L1 -> L2
+    a[14] = 3.5;                                                                          // L2 -> L3
+    a[15] = 3.5;                                                                          // L3 -> L4
+    a[16] = 3.4;                                                                          // L4 -> L5
     return a;
   }();
   return intervals;
@@ -166,17 +166,17 @@ class Pchip {
 /// The x-only terms of the height at one x (one mesh row).
 struct Row {
   double x = 0.0;
-  double hw = 0.0;         // half-width of the outline
-  double cap = 0.0;        // E(x)
-  double n = 2.0, e = 0.5; // cross-section exponents
-  double crest = 0.0;      // Hc(x): crest height without the local features
-  double buttock = 0.0;    // buttock rise (lateral modulation applied per y)
-  double spine = 0.0;      // weight of the spine groove / paraspinal ridges
-  double shoulder = 0.0;   // weight of the shoulder slope
-  double breath = 0.0;     // breathing rise (metres) at the midline
-  double c7 = 0.0;         // C7 spinous process bump (x part)
-  double spinous = 0.0;    // spinous process bumps T1..L5 (x part)
-  double scap_x = 0.0;     // scapula plate, x part (between superior border and inferior angle)
+  double hw = 0.0;          // half-width of the outline
+  double cap = 0.0;         // E(x)
+  double n = 2.0, e = 0.5;  // cross-section exponents
+  double crest = 0.0;       // Hc(x): crest height without the local features
+  double buttock = 0.0;     // buttock rise (lateral modulation applied per y)
+  double spine = 0.0;       // weight of the spine groove / paraspinal ridges
+  double shoulder = 0.0;    // weight of the shoulder slope
+  double breath = 0.0;      // breathing rise (metres) at the midline
+  double c7 = 0.0;          // C7 spinous process bump (x part)
+  double spinous = 0.0;     // spinous process bumps T1..L5 (x part)
+  double scap_x = 0.0;      // scapula plate, x part (between superior border and inferior angle)
   bool inside = false;
 };
 
@@ -446,8 +446,7 @@ void BodyParameters::validate() const {
   // Obese builds may be a little wider at the waist than across the acromions.
   if (!(waist_width <= 1.1 * shoulder_width)) {
     throw std::invalid_argument("BodyParameters: waist_width = " + num(waist_width) +
-                                " is implausible (more than 1.1 * shoulder_width = " + num(1.1 * shoulder_width) +
-                                ")");
+                                " is implausible (more than 1.1 * shoulder_width = " + num(1.1 * shoulder_width) + ")");
   }
   if (!(neck_width <= 0.6 * shoulder_width)) {
     throw std::invalid_argument("BodyParameters: neck_width = " + num(neck_width) +
@@ -459,9 +458,9 @@ void BodyParameters::validate() const {
                                 ")");
   }
   if (!(scapula_medial_offset <= 0.5 * waist_width - 0.03)) {
-    throw std::invalid_argument("BodyParameters: scapula_medial_offset = " + num(scapula_medial_offset) +
-                                " is implausible (3 cun lateral points would leave the waist_width = " +
-                                num(waist_width) + ")");
+    throw std::invalid_argument(
+        "BodyParameters: scapula_medial_offset = " + num(scapula_medial_offset) +
+        " is implausible (3 cun lateral points would leave the waist_width = " + num(waist_width) + ")");
   }
   if (!(thoracic_curvature + lumbar_curvature + spine_depth <= 0.5 * back_height)) {
     throw std::invalid_argument("BodyParameters: thoracic_curvature + lumbar_curvature + spine_depth = " +
@@ -471,7 +470,7 @@ void BodyParameters::validate() const {
 }
 
 const std::vector<std::string>& vertebralLevels() {
-  static const std::vector<std::string> names = {"C7", "T1", "T2",  "T3",  "T4", "T5", "T6", "T7", "T8",
+  static const std::vector<std::string> names = {"C7", "T1",  "T2",  "T3",  "T4", "T5", "T6", "T7", "T8",
                                                  "T9", "T10", "T11", "T12", "L1", "L2", "L3", "L4", "L5"};
   return names;
 }
@@ -565,7 +564,7 @@ std::map<std::string, Eigen::Vector3d> BackModel::acupoints() const {
     const char* outer;
   };
   static const RowSpec table[] = {
-      {kC7, "GV14", nullptr, nullptr}, {kT1, "GV13", "BL11", "SI14"}, {kT2, nullptr, "BL12", "BL41"},
+      {kC7, "GV14", nullptr, nullptr}, {kT1, "GV13", "BL11", "SI14"},  {kT2, nullptr, "BL12", "BL41"},
       {kT3, "GV12", "BL13", "BL42"},   {kT4, nullptr, "BL14", "BL43"}, {kT5, "GV11", "BL15", "BL44"},
       {kT6, "GV10", "BL16", "BL45"},   {kT7, "GV9", "BL17", "BL46"},   {9, "GV8", "BL18", "BL47"},
       {10, "GV7", "BL19", "BL48"},     {kT11, "GV6", "BL20", "BL49"},  {kT12, nullptr, "BL21", "BL50"},
@@ -623,8 +622,8 @@ double rowError(const Shape& shape, const Row& a, const Row& b, const std::vecto
 void refineRows(const Shape& shape, const Row& a, const Row& b, double tol, double max_dy, int depth,
                 std::vector<Row>& out) {
   if (depth > 0 && (b.x - a.x) > 2e-5) {
-    static const std::vector<double> probes = {0.0,  0.2,  0.4,   0.55,  0.7,   0.8,   0.88,  0.94,
-                                               0.97, 0.985, 0.993, 0.997, 0.999, 0.9997};
+    static const std::vector<double> probes = {0.0,  0.2,  0.4,   0.55,  0.7,   0.8,   0.88,
+                                               0.94, 0.97, 0.985, 0.993, 0.997, 0.999, 0.9997};
     const Row m = shape.row(0.5 * (a.x + b.x));
     // Chord of the outline vs the outline: the mesh border misses the true
     // outline by dy there; the surface within dy of the outline must be low.

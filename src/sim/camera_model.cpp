@@ -149,7 +149,7 @@ void validateRig(const RigParameters& rig) {
       throw std::invalid_argument("makeStereoPair: toe_in must be in 0 .. 0.3 rad, got " + num(rig.toe_in));
     }
     const std::pair<const char*, const Eigen::Vector3d*> rotations[] = {{"left_rotation", &rig.left_rotation},
-                                                                          {"right_rotation", &rig.right_rotation}};
+                                                                        {"right_rotation", &rig.right_rotation}};
     for (const auto& [name, r] : rotations) {
       if (!r->allFinite() || !(r->norm() < 0.2)) {
         throw std::invalid_argument(std::string("makeStereoPair: ") + name +
@@ -308,8 +308,8 @@ StereoPairModel makeStereoPair(const RigParameters& rig) {
   cv::stereoRectify(K_cv, D_cv, K_cv, D_cv, cv::Size(rig.width, rig.height), R_cv, T_cv, R1, R2, P1, P2, Q,
                     cv::CALIB_ZERO_DISPARITY, 0.0);
   if (!(P2.at<double>(0, 3) < 0.0)) {
-    throw std::runtime_error("makeStereoPair: cv::stereoRectify gave a right projection with Tx = " +
-                             num(P2.at<double>(0, 3)) + " >= 0");
+    throw std::runtime_error(
+        "makeStereoPair: cv::stereoRectify gave a right projection with Tx = " + num(P2.at<double>(0, 3)) + " >= 0");
   }
 
   pair.left_info = baseInfo(pair.left);
@@ -332,8 +332,7 @@ RigParameters frameRig(const RigParameters& rig, double x_top, double x_bottom, 
     throw std::invalid_argument("frameRig: x_top, x_bottom and surface_z must be finite");
   }
   if (!(x_top > x_bottom)) {
-    throw std::invalid_argument("frameRig: x_top = " + num(x_top) + " must lie above (> ) x_bottom = " +
-                                num(x_bottom));
+    throw std::invalid_argument("frameRig: x_top = " + num(x_top) + " must lie above (> ) x_bottom = " + num(x_bottom));
   }
   RigParameters out = rig;
   out.shift = 0.0;

@@ -164,11 +164,10 @@ Material clothMaterial(const Cloth& cloth, std::uint32_t seed) {
 
 const std::vector<std::pair<std::string, Eigen::Vector3f>>& clothColours() {
   static const std::vector<std::pair<std::string, Eigen::Vector3f>> colours = {
-      {"white", {0.82f, 0.82f, 0.80f}},     {"light_blue", {0.42f, 0.60f, 0.78f}},
-      {"green", {0.22f, 0.46f, 0.28f}},     {"grey", {0.38f, 0.38f, 0.39f}},
-      {"beige", {0.70f, 0.57f, 0.42f}},     {"peach", {0.84f, 0.55f, 0.43f}},
-      {"pink", {0.86f, 0.50f, 0.56f}},      {"dark_blue", {0.05f, 0.09f, 0.24f}},
-      {"black", {0.03f, 0.03f, 0.035f}},    {"default_sheet", {0.62f, 0.66f, 0.70f}}};
+      {"white", {0.82f, 0.82f, 0.80f}},        {"light_blue", {0.42f, 0.60f, 0.78f}}, {"green", {0.22f, 0.46f, 0.28f}},
+      {"grey", {0.38f, 0.38f, 0.39f}},         {"beige", {0.70f, 0.57f, 0.42f}},      {"peach", {0.84f, 0.55f, 0.43f}},
+      {"pink", {0.86f, 0.50f, 0.56f}},         {"dark_blue", {0.05f, 0.09f, 0.24f}},  {"black", {0.03f, 0.03f, 0.035f}},
+      {"default_sheet", {0.62f, 0.66f, 0.70f}}};
   return colours;
 }
 
@@ -202,11 +201,16 @@ HairColour hairColourFromName(const std::string& name) {
 
 Eigen::Vector3f hairAlbedo(HairColour colour) {
   switch (colour) {
-    case HairColour::kBlack: return {0.018f, 0.015f, 0.013f};
-    case HairColour::kBrown: return {0.09f, 0.05f, 0.028f};
-    case HairColour::kBlond: return {0.52f, 0.40f, 0.22f};
-    case HairColour::kGrey: return {0.40f, 0.39f, 0.38f};
-    case HairColour::kRed: return {0.33f, 0.10f, 0.04f};
+    case HairColour::kBlack:
+      return {0.018f, 0.015f, 0.013f};
+    case HairColour::kBrown:
+      return {0.09f, 0.05f, 0.028f};
+    case HairColour::kBlond:
+      return {0.52f, 0.40f, 0.22f};
+    case HairColour::kGrey:
+      return {0.40f, 0.39f, 0.38f};
+    case HairColour::kRed:
+      return {0.33f, 0.10f, 0.04f};
   }
   return {0.09f, 0.05f, 0.028f};
 }

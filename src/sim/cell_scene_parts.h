@@ -23,7 +23,7 @@ std::vector<Mesh> cradleMeshes(const HeadLayout& layout, const std::optional<Clo
 /// A towel whose cranial edge lies at x = edge_x + tan(tilt) y, draped over
 /// `trunk`, hanging over the flanks and the table's sides; tucked under the
 /// arms, or draped over them too when `over_arms`.
-Mesh towelMesh(const TrunkSurface& trunk, const std::vector<std::vector<TubeRing>>& arms, bool over_arms,
-               double edge_x, double tilt, const Cloth& cloth, std::uint32_t seed);
+Mesh towelMesh(const TrunkSurface& trunk, const std::vector<std::vector<TubeRing>>& arms, bool over_arms, double edge_x,
+               double tilt, const Cloth& cloth, std::uint32_t seed);
 
 }  // namespace massage_cell::sim

@@ -30,8 +30,8 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kSpacing = 0.004;
 constexpr double kReach = 0.08;
-constexpr double kSpan = 0.04;       // bridging: a gap of width w sags by w^2 / (8 kSpan)
-constexpr double kSpanWindow = 0.06; // widest gap bridged
+constexpr double kSpan = 0.04;        // bridging: a gap of width w sags by w^2 / (8 kSpan)
+constexpr double kSpanWindow = 0.06;  // widest gap bridged
 constexpr double kHangSlope = 2.2;
 constexpr double kHangStart = 0.005;
 constexpr double kGap = 0.003;
@@ -40,9 +40,12 @@ constexpr double kOverhang = 0.08;   // the towel reaches this far beyond the ta
 
 double thickness(Weave w) {
   switch (w) {
-    case Weave::kTerry: return 0.005;
-    case Weave::kWaffle: return 0.003;
-    case Weave::kFine: return 0.0015;
+    case Weave::kTerry:
+      return 0.005;
+    case Weave::kWaffle:
+      return 0.003;
+    case Weave::kFine:
+      return 0.0015;
   }
   return 0.002;
 }
@@ -201,7 +204,8 @@ struct Folds {
   }
   double operator()(double x, double y, double hanging) const {
     double z = 0.0;
-    for (const auto& w : waves) z += 0.0006 * std::sin(2.0 * kPi * (x * std::cos(w[1]) + y * std::sin(w[1])) / w[0] + w[2]);
+    for (const auto& w : waves)
+      z += 0.0006 * std::sin(2.0 * kPi * (x * std::cos(w[1]) + y * std::sin(w[1])) / w[0] + w[2]);
     const double fold = std::sin(2.0 * kPi * (x / wavelength + 0.2 * std::sin(2.0 * kPi * y / 0.23)) + phase);
     return z + 0.004 * hanging * fold;
   }
@@ -268,8 +272,8 @@ void addTopAndEdge(Mesh& mesh, const Grid& g, const std::vector<double>& top, do
 
 }  // namespace
 
-Mesh towelMesh(const TrunkSurface& trunk, const std::vector<std::vector<TubeRing>>& arms, bool over_arms,
-               double edge_x, double tilt, const Cloth& cloth, std::uint32_t seed) {
+Mesh towelMesh(const TrunkSurface& trunk, const std::vector<std::vector<TubeRing>>& arms, bool over_arms, double edge_x,
+               double tilt, const Cloth& cloth, std::uint32_t seed) {
   Grid g;
   g.edge_x = edge_x;
   g.tan_tilt = std::tan(tilt);

@@ -25,11 +25,16 @@ std::string outsideReason(const CameraModel& c, const Eigen::Vector2d& px, const
 
 std::string coverReason(std::uint8_t label) {
   switch (label) {
-    case kLabelTowel: return "under the towel";
-    case kLabelArm: return "under an arm";
-    case kLabelHair: return "under the hair";
-    case kLabelBackground: return "nothing rendered at its pixel";
-    default: return std::string("covered by the ") + labelName(label);
+    case kLabelTowel:
+      return "under the towel";
+    case kLabelArm:
+      return "under an arm";
+    case kLabelHair:
+      return "under the hair";
+    case kLabelBackground:
+      return "nothing rendered at its pixel";
+    default:
+      return std::string("covered by the ") + labelName(label);
   }
 }
 
@@ -71,7 +76,8 @@ std::map<std::string, PointTruth> acupointTruth(const std::map<std::string, Eige
     if (reason.empty() && !in_front) reason = "behind the right camera";
     if (reason.empty() && !inside(pair.right, rp)) reason = outsideReason(pair.right, rp, "the right image");
     if (reason.empty()) {
-      const int u = static_cast<int>(std::lround(t.left_pixel.x())), v = static_cast<int>(std::lround(t.left_pixel.y()));
+      const int u = static_cast<int>(std::lround(t.left_pixel.x())),
+                v = static_cast<int>(std::lround(t.left_pixel.y()));
       if (frame.left_visible.at<std::uint8_t>(std::clamp(v, 0, pair.left.height - 1),
                                               std::clamp(u, 0, pair.left.width - 1)) == 0) {
         reason = "hidden from the right camera";

@@ -177,8 +177,7 @@ bool markerInView(const StereoPairModel& pair, const Eigen::Vector3d& tip_in_bas
     for (const auto& [x, y] : {std::make_pair(0.0, 0.0), {w, 0.0}, {w, h}, {0.0, h}}) {
       Eigen::Vector2d px;
       if (!cam->project(table_from_board * Eigen::Vector3d(x, y, 0.0), &px)) return false;
-      if (px.x() < margin || px.y() < margin || px.x() > cam->width - 1 - margin ||
-          px.y() > cam->height - 1 - margin) {
+      if (px.x() < margin || px.y() < margin || px.x() > cam->width - 1 - margin || px.y() > cam->height - 1 - margin) {
         return false;
       }
     }
@@ -203,8 +202,8 @@ std::vector<Eigen::Vector3d> spreadTipPositions(int count, const Eigen::Vector3d
   }
   if (static_cast<int>(candidates.size()) < count) {
     throw std::invalid_argument("spreadTipPositions: only " + std::to_string(candidates.size()) +
-                                " workspace positions show the whole marker to both cameras, " +
-                                std::to_string(count) + " asked for");
+                                " workspace positions show the whole marker to both cameras, " + std::to_string(count) +
+                                " asked for");
   }
   const Eigen::Vector3d centre = 0.5 * (lo + hi);
   std::vector<double> distance(candidates.size(), std::numeric_limits<double>::infinity());
@@ -223,9 +222,8 @@ std::vector<Eigen::Vector3d> spreadTipPositions(int count, const Eigen::Vector3d
   return chosen;
 }
 
-MarkerPose renderMarkerPose(const StereoPairModel& pair, const Eigen::Vector3d& tip_in_base,
-                            const MarkerMount& mount, const RenderOptions& options, std::uint32_t seed,
-                            double blur_sigma) {
+MarkerPose renderMarkerPose(const StereoPairModel& pair, const Eigen::Vector3d& tip_in_base, const MarkerMount& mount,
+                            const RenderOptions& options, std::uint32_t seed, double blur_sigma) {
   if (!(blur_sigma >= 0.0) || blur_sigma > 5.0) {
     throw std::invalid_argument("renderMarkerPose: blur_sigma must be in 0..5 px");
   }
@@ -235,8 +233,8 @@ MarkerPose renderMarkerPose(const StereoPairModel& pair, const Eigen::Vector3d& 
   const Renderer renderer(scene);
   MarkerPose pose;
   pose.tip_in_base = tip_in_base;
-  pose.marker_in_camera = pair.left.world_from_camera.inverse() * table_from_board *
-                          calib::referencePointInBoard(mount.spec);
+  pose.marker_in_camera =
+      pair.left.world_from_camera.inverse() * table_from_board * calib::referencePointInBoard(mount.spec);
   RenderOptions clean = options;
   clean.noise_sigma = 0.0f;
   cv::RNG rng(static_cast<std::uint64_t>(options.noise_seed) * 7919u + seed);

@@ -14,8 +14,8 @@
 #include <random>
 #include <vector>
 
-#include "massage_cell/sim/cell_scene.h"
 #include "cell_scene_parts.h"
+#include "massage_cell/sim/cell_scene.h"
 #include "shape_math.h"
 
 namespace massage_cell::sim {

@@ -51,7 +51,7 @@ LowerBody::LowerBody(const BackModel& back) {
   }
   join_profile_.back() = 0.0;
   const BodyParameters& b = back.body();
-  peak_rise_ = 0.06 + 0.6 * b.buttock_height;   // buttocks' peak above the join, relative
+  peak_rise_ = 0.06 + 0.6 * b.buttock_height;  // buttocks' peak above the join, relative
   cleft_depth_ = 0.012 + 0.2 * b.buttock_height;
 }
 
@@ -95,7 +95,8 @@ double LowerBody::height(double x, double y) const {
 }
 
 Mesh LowerBody::mesh(const Material& skin, double spacing) const {
-  if (!(spacing >= 0.0005 && spacing <= 0.05)) throw std::invalid_argument("LowerBody::mesh: spacing not in 0.0005 .. 0.05 m");
+  if (!(spacing >= 0.0005 && spacing <= 0.05))
+    throw std::invalid_argument("LowerBody::mesh: spacing not in 0.0005 .. 0.05 m");
   const double x0 = x_start_ + kOverlap, x1 = x_end_;
   const int rows = std::max(2, static_cast<int>(std::ceil((x0 - x1) / spacing)) + 1);
   const double max_hw = hw_join_ * 1.08;

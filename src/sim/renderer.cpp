@@ -18,8 +18,8 @@
 #include <vector>
 
 #include <embree3/rtcore.h>
-#include <xmmintrin.h>
 #include <pmmintrin.h>
+#include <xmmintrin.h>
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
@@ -42,13 +42,20 @@ std::string num(double v) {
 
 const char* errorName(RTCError code) {
   switch (code) {
-    case RTC_ERROR_NONE: return "RTC_ERROR_NONE";
-    case RTC_ERROR_UNKNOWN: return "RTC_ERROR_UNKNOWN";
-    case RTC_ERROR_INVALID_ARGUMENT: return "RTC_ERROR_INVALID_ARGUMENT";
-    case RTC_ERROR_INVALID_OPERATION: return "RTC_ERROR_INVALID_OPERATION";
-    case RTC_ERROR_OUT_OF_MEMORY: return "RTC_ERROR_OUT_OF_MEMORY";
-    case RTC_ERROR_UNSUPPORTED_CPU: return "RTC_ERROR_UNSUPPORTED_CPU";
-    case RTC_ERROR_CANCELLED: return "RTC_ERROR_CANCELLED";
+    case RTC_ERROR_NONE:
+      return "RTC_ERROR_NONE";
+    case RTC_ERROR_UNKNOWN:
+      return "RTC_ERROR_UNKNOWN";
+    case RTC_ERROR_INVALID_ARGUMENT:
+      return "RTC_ERROR_INVALID_ARGUMENT";
+    case RTC_ERROR_INVALID_OPERATION:
+      return "RTC_ERROR_INVALID_OPERATION";
+    case RTC_ERROR_OUT_OF_MEMORY:
+      return "RTC_ERROR_OUT_OF_MEMORY";
+    case RTC_ERROR_UNSUPPORTED_CPU:
+      return "RTC_ERROR_UNSUPPORTED_CPU";
+    case RTC_ERROR_CANCELLED:
+      return "RTC_ERROR_CANCELLED";
   }
   return "RTC_ERROR (unrecognised code)";
 }
@@ -98,8 +105,8 @@ void validateMesh(const Mesh& mesh, std::size_t index) {
     for (int k = 0; k < 3; ++k) {
       const int idx = mesh.triangles[t][k];
       if (idx < 0 || static_cast<std::size_t>(idx) >= nv) {
-        throw std::invalid_argument(who + "triangle " + std::to_string(t) + " has vertex index " +
-                                    std::to_string(idx) + " out of range [0, " + std::to_string(nv) + ")");
+        throw std::invalid_argument(who + "triangle " + std::to_string(t) + " has vertex index " + std::to_string(idx) +
+                                    " out of range [0, " + std::to_string(nv) + ")");
       }
     }
   }
@@ -120,8 +127,8 @@ void validateMesh(const Mesh& mesh, std::size_t index) {
     if (!mesh.uv[i].allFinite()) throw std::invalid_argument(who + "uv " + std::to_string(i) + " is not finite");
   }
   if (!mesh.triangle_labels.empty() && mesh.triangle_labels.size() != nt) {
-    throw std::invalid_argument(who + "has " + std::to_string(mesh.triangle_labels.size()) +
-                                " triangle labels for " + std::to_string(nt) + " triangles (must be 0 or equal)");
+    throw std::invalid_argument(who + "has " + std::to_string(mesh.triangle_labels.size()) + " triangle labels for " +
+                                std::to_string(nt) + " triangles (must be 0 or equal)");
   }
   if (!mesh.material.albedo.allFinite() || !std::isfinite(mesh.material.specular) ||
       !std::isfinite(mesh.material.shininess)) {
@@ -146,8 +153,8 @@ Eigen::Vector3f validLightDirection(const Lighting& l) {
     throw std::invalid_argument("Lighting: direction_to_light must be finite and non-zero");
   }
   if (!std::isfinite(l.intensity) || l.intensity < 0.0f || !std::isfinite(l.ambient) || l.ambient < 0.0f) {
-    throw std::invalid_argument("Lighting: intensity and ambient must be finite and >= 0, got " +
-                                num(l.intensity) + " and " + num(l.ambient));
+    throw std::invalid_argument("Lighting: intensity and ambient must be finite and >= 0, got " + num(l.intensity) +
+                                " and " + num(l.ambient));
   }
   return l.direction_to_light.normalized();
 }
@@ -238,8 +245,8 @@ struct Renderer::Impl {
     {
       std::lock_guard<std::mutex> lock(grid_mutex);
       for (auto it = grid_cache.begin(); it != grid_cache.end(); ++it) {
-        if (it->width == camera.width && it->height == camera.height && it->K == camera.K &&
-            it->rotation == rotation && it->D == camera.D) {
+        if (it->width == camera.width && it->height == camera.height && it->K == camera.K && it->rotation == rotation &&
+            it->D == camera.D) {
           GridEntry hit = std::move(*it);
           grid_cache.erase(it);
           grid_cache.push_back(std::move(hit));
@@ -588,9 +595,8 @@ ViewRender Renderer::render(const CameraModel& camera, const Lighting& lighting,
 
         // Ground truth of the exact pixel-centre ray (for odd n the middle
         // sub-sample is exactly (x, y)).
-        const std::size_t kc = centre_is_sample
-                                   ? (static_cast<std::size_t>(middle) * W + x) * n + middle
-                                   : static_cast<std::size_t>(samples_per_row + x);
+        const std::size_t kc = centre_is_sample ? (static_cast<std::size_t>(middle) * W + x) * n + middle
+                                                : static_cast<std::size_t>(samples_per_row + x);
         const RTCRayHit& rh = rays[kc];
         if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
           dep[x] = kNaN;

@@ -114,7 +114,13 @@ Eigen::Vector3f clamp01(const Eigen::Vector3f& c) { return c.cwiseMax(0.0f).cwis
 
 // Pattern ids used to decorrelate the noise fields of different patterns.
 enum : std::uint32_t {
-  kSaltSkin = 1, kSaltCloth = 2, kSaltTexture = 3, kSaltTerry = 4, kSaltWaffle = 5, kSaltHair = 6, kSaltPrint = 7
+  kSaltSkin = 1,
+  kSaltCloth = 2,
+  kSaltTexture = 3,
+  kSaltTerry = 4,
+  kSaltWaffle = 5,
+  kSaltHair = 6,
+  kSaltPrint = 7
 };
 
 Eigen::Vector3f skinAlbedo(const Material& m, const Eigen::Vector2f& uv) {
@@ -159,8 +165,8 @@ Eigen::Vector3f textureAlbedo(const Material& m, const Eigen::Vector2f& uv) {
   constexpr float kGain = 3.6f;
   Eigen::Vector3f n = Eigen::Vector3f::Zero();
   for (std::size_t k = 0; k < kScales.size(); ++k) {
-    n += kWeights[k] * (2.0f * colourNoise(uv, fs * kScales[k], salt(m.seed, kSaltTexture, k, 0)) -
-                        Eigen::Vector3f::Ones());
+    n += kWeights[k] *
+         (2.0f * colourNoise(uv, fs * kScales[k], salt(m.seed, kSaltTexture, k, 0)) - Eigen::Vector3f::Ones());
   }
   n = (kGain * n).cwiseMax(-1.0f).cwiseMin(1.0f);
   return clamp01(m.albedo.cwiseProduct(Eigen::Vector3f::Ones() + m.contrast * n));
@@ -353,18 +359,30 @@ Mesh makeQuad(const std::string& name, const Eigen::Vector3f& c0, const Eigen::V
 
 const char* labelName(std::uint8_t label) {
   switch (label) {
-    case kLabelBackground: return "background";
-    case kLabelBack: return "back";
-    case kLabelTable: return "table";
-    case kLabelFloor: return "floor";
-    case kLabelArm: return "arm";
-    case kLabelNeck: return "neck";
-    case kLabelHead: return "head";
-    case kLabelHair: return "hair";
-    case kLabelTowel: return "towel";
-    case kLabelPlane: return "plane";
-    case kLabelCradle: return "face cradle";
-    default: return label >= kLabelBoxFace ? "box face" : "unknown";
+    case kLabelBackground:
+      return "background";
+    case kLabelBack:
+      return "back";
+    case kLabelTable:
+      return "table";
+    case kLabelFloor:
+      return "floor";
+    case kLabelArm:
+      return "arm";
+    case kLabelNeck:
+      return "neck";
+    case kLabelHead:
+      return "head";
+    case kLabelHair:
+      return "hair";
+    case kLabelTowel:
+      return "towel";
+    case kLabelPlane:
+      return "plane";
+    case kLabelCradle:
+      return "face cradle";
+    default:
+      return label >= kLabelBoxFace ? "box face" : "unknown";
   }
 }
 

@@ -156,9 +156,9 @@ EfficiencySet makeEfficiencySet(bool gradient, int width, int height, double fx,
     const float x1 = static_cast<float>(set.z_near * (height / 2.0) / fx);
     const float slope = rise / (x1 - x0);
     const float xa = x0 - 0.5f, xb = x1 + 0.5f;
-    set.scene.meshes.push_back(makeQuad("gradient", {xa, -hy - 0.4f, slope * (xa - x0)}, {xb, -hy - 0.4f, slope * (xb - x0)},
-                                        {xb, hy, slope * (xb - x0)}, {xa, hy, slope * (xa - x0)}, boxMaterial(rng),
-                                        kLabelPlane));
+    set.scene.meshes.push_back(makeQuad("gradient", {xa, -hy - 0.4f, slope * (xa - x0)},
+                                        {xb, -hy - 0.4f, slope * (xb - x0)}, {xb, hy, slope * (xb - x0)},
+                                        {xa, hy, slope * (xa - x0)}, boxMaterial(rng), kLabelPlane));
     set.z_near = kHeight - slope * (x1 - x0);
   }
   const double span = 1.0 / set.z_near - 1.0 / set.z_far;

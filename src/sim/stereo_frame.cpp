@@ -17,7 +17,8 @@ cv::Mat disparityFromDepth(const cv::Mat& depth, double fx, double baseline) {
   for (int y = 0; y < depth.rows; ++y) {
     const float* z = depth.ptr<float>(y);
     float* d = disparity.ptr<float>(y);
-    for (int x = 0; x < depth.cols; ++x) d[x] = std::isfinite(z[x]) && z[x] > 0.0f ? static_cast<float>(fb / z[x]) : nan;
+    for (int x = 0; x < depth.cols; ++x)
+      d[x] = std::isfinite(z[x]) && z[x] > 0.0f ? static_cast<float>(fb / z[x]) : nan;
   }
   return disparity;
 }

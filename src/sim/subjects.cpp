@@ -70,9 +70,8 @@ void applyShape(const Build& b, double d_bmi, BodyParameters& p) {
 
 Eigen::Vector3f fitzpatrickAlbedo(int skin_type) {
   static const std::array<Eigen::Vector3f, 6> tones = {
-      Eigen::Vector3f(0.87f, 0.68f, 0.60f), Eigen::Vector3f(0.80f, 0.59f, 0.49f),
-      Eigen::Vector3f(0.67f, 0.46f, 0.34f), Eigen::Vector3f(0.50f, 0.32f, 0.21f),
-      Eigen::Vector3f(0.30f, 0.17f, 0.10f), Eigen::Vector3f(0.14f, 0.08f, 0.05f)};
+      Eigen::Vector3f(0.87f, 0.68f, 0.60f), Eigen::Vector3f(0.80f, 0.59f, 0.49f), Eigen::Vector3f(0.67f, 0.46f, 0.34f),
+      Eigen::Vector3f(0.50f, 0.32f, 0.21f), Eigen::Vector3f(0.30f, 0.17f, 0.10f), Eigen::Vector3f(0.14f, 0.08f, 0.05f)};
   if (skin_type < 1 || skin_type > 6) {
     throw std::invalid_argument("Fitzpatrick skin type " + std::to_string(skin_type) + " is not in 1..6");
   }
@@ -87,7 +86,8 @@ void Build::validate() const {
   if (skin_type < 1 || skin_type > 6) {
     throw std::invalid_argument("Build: skin_type = " + std::to_string(skin_type) + " is not in 1..6");
   }
-  if (moles < 0 || moles > 64) throw std::invalid_argument("Build: moles = " + std::to_string(moles) + " is not in 0..64");
+  if (moles < 0 || moles > 64)
+    throw std::invalid_argument("Build: moles = " + std::to_string(moles) + " is not in 0..64");
 }
 
 BodyParameters bodyFromBuild(const Build& build) {

@@ -146,10 +146,9 @@ cv::Vec3f textureColour(std::uint64_t seed, double u, double v) {
 
   // Hue: a coarse, independent field choosing a colour along the palette.
   const std::uint64_t hue_seed = seed * 4 + 3;
-  const double hue_noise =
-      (2.0 * valueNoise(hue_seed, u * (1.0 / 12.0) + 17.3, v * (1.0 / 12.0) - 5.1) +
-       valueNoise(hue_seed, v * 0.2, -u * 0.2)) *
-      (1.0 / 3.0);
+  const double hue_noise = (2.0 * valueNoise(hue_seed, u * (1.0 / 12.0) + 17.3, v * (1.0 / 12.0) - 5.1) +
+                            valueNoise(hue_seed, v * 0.2, -u * 0.2)) *
+                           (1.0 / 3.0);
   const double hue = std::clamp(2.0 * (hue_noise - 0.5) + 0.5, 0.0, 1.0) * (kPalette.size() - 1);
   const auto i = std::min(static_cast<std::size_t>(hue), kPalette.size() - 2);
   const float t = static_cast<float>(hue - static_cast<double>(i));
@@ -253,8 +252,8 @@ StereoRender renderStereo(const StereoRig& rig, const TexturedPlane& plane, int 
                           std::uint32_t noise_seed) {
   validateRig(rig);
   validatePlane(plane);
-  if (supersample < 1) throw std::invalid_argument("renderStereo: supersample must be >= 1, got " +
-                                                   std::to_string(supersample));
+  if (supersample < 1)
+    throw std::invalid_argument("renderStereo: supersample must be >= 1, got " + std::to_string(supersample));
   if (!(noise_sigma >= 0.0) || !std::isfinite(noise_sigma)) {
     throw std::invalid_argument("renderStereo: noise_sigma must be >= 0 and finite, got " + num(noise_sigma));
   }

@@ -66,11 +66,11 @@ std::vector<Frame> tubeFrames(const std::string& name, const std::vector<TubeRin
 struct RowSpec {
   Eigen::Vector3d centre;
   Frame frame;
-  double a, b;        // semi-axes of the row
-  double da, db;      // their derivatives along the path (main rings)
-  double cap = 0.0;   // cap rows: sin(alpha) of the half-ellipsoid (+ toward the path's end), 0 on the main body
+  double a, b;       // semi-axes of the row
+  double da, db;     // their derivatives along the path (main rings)
+  double cap = 0.0;  // cap rows: sin(alpha) of the half-ellipsoid (+ toward the path's end), 0 on the main body
   double cap_len = 0.0;
-  double u = 0.0;     // arc length coordinate
+  double u = 0.0;  // arc length coordinate
 };
 
 void appendRow(Mesh& mesh, const RowSpec& r, const TubeOptions& o, double v_scale) {
@@ -97,8 +97,7 @@ void appendRow(Mesh& mesh, const RowSpec& r, const TubeOptions& o, double v_scal
 }
 
 /// Cap rows at one end: from the end ring (excluded) to the apex, or the reverse.
-void appendCap(Mesh& mesh, const RowSpec& end, double direction, bool to_apex, const TubeOptions& o,
-               double v_scale) {
+void appendCap(Mesh& mesh, const RowSpec& end, double direction, bool to_apex, const TubeOptions& o, double v_scale) {
   const double len = 0.45 * (end.a + end.b);
   for (int k = 1; k <= kCapRows; ++k) {
     const int kk = to_apex ? k : kCapRows + 1 - k;
@@ -155,8 +154,15 @@ Mesh makeTube(const std::string& name, const std::vector<TubeRing>& rings, const
   auto spec = [&](std::size_t i) {
     const std::size_t lo = i == 0 ? 0 : i - 1, hi = i + 1 == n ? n - 1 : i + 1;
     const double ds = arc[hi] - arc[lo];
-    return RowSpec{rings[i].centre, frames[i], rings[i].a, rings[i].b, (rings[hi].a - rings[lo].a) / ds,
-                   (rings[hi].b - rings[lo].b) / ds, 0.0, 0.0, arc[i]};
+    return RowSpec{rings[i].centre,
+                   frames[i],
+                   rings[i].a,
+                   rings[i].b,
+                   (rings[hi].a - rings[lo].a) / ds,
+                   (rings[hi].b - rings[lo].b) / ds,
+                   0.0,
+                   0.0,
+                   arc[i]};
   };
 
   Mesh mesh;

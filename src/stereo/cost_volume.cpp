@@ -167,7 +167,8 @@ WindowStats windowStats(const cv::Mat& padded_u8, int W, int H, int n) {
       const double sum2 = q1[x + n] - q0[x + n] - q1[x] + q0[x];
       const double var_num = N * sum2 - sum * sum;  // exact integer
       ws.sum[static_cast<std::size_t>(y) * W + x] = sum;
-      ws.inv_sd[static_cast<std::size_t>(y) * W + x] = var_num > 0.5 ? static_cast<float>(1.0 / std::sqrt(var_num)) : 0.0f;
+      ws.inv_sd[static_cast<std::size_t>(y) * W + x] =
+          var_num > 0.5 ? static_cast<float>(1.0 / std::sqrt(var_num)) : 0.0f;
     }
   }
   return ws;
@@ -225,8 +226,8 @@ int combineSimd(const Inputs& in, const RowPtrs& p, const float* box, int len) {
   int i = 0;
 #if CV_SIMD128 && CV_SIMD128_64F
   const cv::v_float32x4 z = cv::v_setzero_f32(), one = cv::v_setall_f32(1.0f), mone = cv::v_setall_f32(-1.0f),
-                        half = cv::v_setall_f32(0.5f), vic = cv::v_setall_f32(in.inv_ch), veta = cv::v_setall_f32(in.eta),
-                        vie = cv::v_setall_f32(in.inv_eta);
+                        half = cv::v_setall_f32(0.5f), vic = cv::v_setall_f32(in.inv_ch),
+                        veta = cv::v_setall_f32(in.eta), vie = cv::v_setall_f32(in.inv_eta);
   const cv::v_float64x2 vN = cv::v_setall_f64(static_cast<double>(in.n) * in.n);
   const float *lv[CH], *llo[CH], *lhi[CH], *rv[CH], *rlo[CH], *rhi[CH];
   for (int c = 0; c < CH; ++c) {
@@ -346,7 +347,8 @@ void computeSlices(const Inputs& in, CostVolume& vol, int d0, int d1) {
       p.out = orow + x0;
 
       int i = 0;
-      if constexpr (kSimd) i = in.ch == 3 ? combineSimd<3>(in, p, box.data(), len) : combineSimd<1>(in, p, box.data(), len);
+      if constexpr (kSimd)
+        i = in.ch == 3 ? combineSimd<3>(in, p, box.data(), len) : combineSimd<1>(in, p, box.data(), len);
       combineScalar(in, p, box.data(), i, len);
     }
   }
@@ -557,7 +559,8 @@ int breakPoint(const std::vector<double>& histogram, int lo, int hi) {
   long long arg = a;
   for (long long T = a; T <= b; ++T) {
     const double c = histogram[static_cast<std::size_t>(T)], cb = histogram[static_cast<std::size_t>(arg)];
-    if (c < cb || (c == cb && std::abs(static_cast<double>(T) - mid) < std::abs(static_cast<double>(arg) - mid) - 1e-12))
+    if (c < cb ||
+        (c == cb && std::abs(static_cast<double>(T) - mid) < std::abs(static_cast<double>(arg) - mid) - 1e-12))
       arg = T;
   }
   return clampPsi(static_cast<long long>(lo) + arg);

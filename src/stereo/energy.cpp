@@ -73,8 +73,8 @@ Energy labellingEnergy(const CostVolume& volume, const PairwiseWeights& weights,
   auto label = [&](float v, int x, int y) {
     if (!std::isfinite(v) || v != std::floor(v) || v < dmin || v > dmax)
       throw std::invalid_argument("labellingEnergy: disparity at (" + std::to_string(x) + ", " + std::to_string(y) +
-                                  ") = " + std::to_string(v) + " is not an integer in [" + std::to_string(dmin) +
-                                  ", " + std::to_string(dmax) + "]");
+                                  ") = " + std::to_string(v) + " is not an integer in [" + std::to_string(dmin) + ", " +
+                                  std::to_string(dmax) + "]");
     return static_cast<int>(v);
   };
   auto dist = [&](int a, int b) {

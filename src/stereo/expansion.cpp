@@ -144,8 +144,8 @@ std::vector<int> initialLabels(const Problem& pb, const cv::Mat& initial) {
       const float v = row[x];
       if (!std::isfinite(v) || v != std::floor(v) || v < pb.dmin || v > pb.dmax)
         throw std::invalid_argument("graph cuts: initial labelling at (" + std::to_string(x) + ", " +
-                                    std::to_string(y) + ") is not an integer in [" + std::to_string(pb.dmin) +
-                                    ", " + std::to_string(pb.dmax) + "]");
+                                    std::to_string(y) + ") is not an integer in [" + std::to_string(pb.dmin) + ", " +
+                                    std::to_string(pb.dmax) + "]");
       lab[static_cast<std::size_t>(y) * pb.w + x] = static_cast<int>(v);
     }
   }
@@ -415,7 +415,8 @@ OptimizerResult alphaBetaSwap(const CostVolume& volume, const PairwiseWeights& w
   const int levels = volume.levels();
   // Pixels per label, kept up to date after every accepted swap.
   std::vector<std::vector<int>> bucket(static_cast<std::size_t>(levels));
-  for (int p = 0; p < pb.n; ++p) bucket[static_cast<std::size_t>(mover.labels()[static_cast<std::size_t>(p)] - pb.dmin)].push_back(p);
+  for (int p = 0; p < pb.n; ++p)
+    bucket[static_cast<std::size_t>(mover.labels()[static_cast<std::size_t>(p)] - pb.dmin)].push_back(p);
   const int pairs = levels * (levels - 1) / 2;
   std::vector<std::int64_t> failed_at(static_cast<std::size_t>(pairs), -1);
   std::int64_t accepted = 0;

@@ -163,11 +163,11 @@ struct NodeOutput {
 
 // Per-worker buffers reused across nodes.
 struct Scratch {
-  std::vector<float> best;   // min over the whole set [lo, hi]
-  std::vector<int> arg;      // its argmin (ties: smaller d): the within-set WTA
+  std::vector<float> best;          // min over the whole set [lo, hi]
+  std::vector<int> arg;             // its argmin (ties: smaller d): the within-set WTA
   std::vector<float> min_b, min_f;  // D(B), D(F) of Eq. 2.4: min over [lo, b_hi] / [f_lo, hi]
   std::vector<int> arg_b, arg_f;    // their argmins (ties: smaller d)
-  std::vector<int> pending;  // node-local indices needing a pass over B, then over F
+  std::vector<int> pending;         // node-local indices needing a pass over B, then over F
   std::vector<double> hist;
   std::vector<double> cost_b, cost_f;  // unary of each label: Eq. 2.4 plus the boundary pairs
   std::vector<std::uint8_t> side;      // the cut's answer per node pixel: 1 = B (source)

@@ -47,8 +47,7 @@ struct MaxFlow::Impl {
 namespace {
 
 [[noreturn]] __attribute__((noinline, cold)) void badCapacity(double c, const char* what) {
-  throw std::invalid_argument(std::string("MaxFlow: ") + what + " must be finite and >= 0, got " +
-                              std::to_string(c));
+  throw std::invalid_argument(std::string("MaxFlow: ") + what + " must be finite and >= 0, got " + std::to_string(c));
 }
 
 inline void checkCapacity(double c, const char* what) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <map>
 #include <stdexcept>
@@ -20,16 +21,14 @@
 #include "massage_cell/stereo/filters.h"
 #include "massage_cell/stereo/optimizers.h"
 
-#ifndef MASSAGE_CELL_SOURCE_DIR
-#define MASSAGE_CELL_SOURCE_DIR "."
-#endif
-
 namespace massage_cell::stereo {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point start) { return std::chrono::duration<double, std::milli>(Clock::now() - start).count(); }
+double msSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
 
 /// Integer labelling for the energy: rounded, clamped into the volume's range (NaN -> dmin).
 cv::Mat toLabelling(const cv::Mat& disparity, int dmin, int dmax) {
@@ -154,13 +153,54 @@ cv::Mat applyRefinement(const cv::Mat& left, const cv::Mat& disparity, const Ste
 
 std::string toString(Method method) {
   switch (method) {
-    case Method::kHbds: return "hbds";
-    case Method::kExpansion: return "expansion";
-    case Method::kSwap: return "swap";
-    case Method::kWta: return "wta";
-    case Method::kSgbm: return "sgbm";
+    case Method::kHbds:
+      return "hbds";
+    case Method::kExpansion:
+      return "expansion";
+    case Method::kSwap:
+      return "swap";
+    case Method::kWta:
+      return "wta";
+    case Method::kSgbm:
+      return "sgbm";
   }
   return "?";
+}
+
+std::vector<ParamProblem> checkParams(const StereoParams& p) {
+  std::vector<ParamProblem> problems;
+  auto require = [&](bool ok, const char* name, const char* problem) {
+    if (!ok) problems.push_back({name, problem});
+  };
+  auto nested = [&](const char* name, const std::function<void()>& validate_one) {
+    try {
+      validate_one();
+    } catch (const std::invalid_argument& e) {
+      problems.push_back({name, e.what()});
+    }
+  };
+  require(p.cost.eta > 0.0f && std::isfinite(p.cost.eta), "eta", "must be > 0");
+  require(p.cost.census_lambda > 0.0f && std::isfinite(p.cost.census_lambda), "census_lambda", "must be > 0");
+  require(p.cost.ad_lambda > 0.0f && std::isfinite(p.cost.ad_lambda), "ad_lambda", "must be > 0");
+  require(p.cost.ncc_window >= 1 && p.cost.ncc_window % 2 == 1, "ncc_window", "must be odd and >= 1");
+  require(p.cost.gradient_saturation >= 0.0f && std::isfinite(p.cost.gradient_saturation), "gradient_saturation",
+          "must be >= 0");
+  require(p.cost.threads >= 0, "threads", "must be >= 0");
+  require(p.smooth.tau > 0.0f && std::isfinite(p.smooth.tau), "tau", "must be > 0");
+  require(p.smooth.u_min >= 0.0f && std::isfinite(p.smooth.u_min), "u_min", "must be >= 0");
+  require(p.smooth.u_max >= p.smooth.u_min && std::isfinite(p.smooth.u_max), "u_max", "must be >= u_min");
+  require(p.smooth.truncation >= 0.0f, "truncation", "must be >= 0");
+  require(p.max_cycles >= 1, "max_cycles", "must be >= 1");
+  require(p.hbds_overlap >= 0, "overlap", "must be >= 0");
+  require(p.hbds_coarse >= 1 && p.hbds_coarse <= 8, "coarse", "must be in 1..8");
+  require(p.polish_window >= 0, "polish_window", "must be >= 0");
+  require(p.polish_cycles >= 1, "polish_cycles", "must be >= 1");
+  nested("refine_window", [&] { validate(p.refine_params); });
+  nested("filter", [&] { validate(p.filter_params); });
+  nested("subpixel_window", [&] { validate(p.subpixel_params); });
+  require(p.lr_tolerance >= 0.0f && std::isfinite(p.lr_tolerance), "lr_tolerance", "must be >= 0");
+  require(p.threads >= 0, "threads", "must be >= 0");
+  return problems;
 }
 
 void retainFreedMemory() {
@@ -248,11 +288,9 @@ MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, cons
 
 namespace {
 
-std::string dataFolder(const char* variable, const char* folder) {
+std::string dataFolder(const char* variable, const std::string& shared_data, const char* folder) {
   if (const char* env = std::getenv(variable)) return env;
-  return (std::filesystem::path(MASSAGE_CELL_SOURCE_DIR) / ".." / "shared" / "data" / folder)
-      .lexically_normal()
-      .string();
+  return (std::filesystem::path(shared_data) / folder).lexically_normal().string();
 }
 
 /// Pixels within 4 of a ground-truth jump of more than 2 px (a 9x9 window, as Middlebury's disc masks),
@@ -304,9 +342,13 @@ const std::map<std::string, SceneFacts>& sceneFacts() {
 
 }  // namespace
 
-std::string middleburyRoot() { return dataFolder("MASSAGE_CELL_MIDDLEBURY", "middlebury2003"); }
+std::string middleburyRoot(const std::string& shared_data) {
+  return dataFolder("MASSAGE_CELL_MIDDLEBURY", shared_data, "middlebury2003");
+}
 
-std::string middlebury2005Root() { return dataFolder("MASSAGE_CELL_MIDDLEBURY2005", "middlebury2005"); }
+std::string middlebury2005Root(const std::string& shared_data) {
+  return dataFolder("MASSAGE_CELL_MIDDLEBURY2005", shared_data, "middlebury2005");
+}
 
 const std::vector<std::string>& middleburyScenes() {
   static const std::vector<std::string> scenes{"tsukuba", "venus", "teddy", "cones"};
@@ -329,7 +371,8 @@ MiddleburyScene loadMiddleburyScene(const std::string& root, const std::string& 
     throw std::runtime_error("unknown Middlebury scene '" + name + "' (tsukuba, venus, teddy, cones, art, dolls)");
   }
   const std::filesystem::path dir = std::filesystem::path(root) / name;
-  if (!std::filesystem::is_directory(dir)) throw std::runtime_error("missing Middlebury scene folder '" + dir.string() + "'");
+  if (!std::filesystem::is_directory(dir))
+    throw std::runtime_error("missing Middlebury scene folder '" + dir.string() + "'");
   MiddleburyScene scene;
   scene.name = name;
   scene.dmax = fact->second.dmax;

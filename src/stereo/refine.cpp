@@ -147,9 +147,12 @@ cv::Mat detectFattening(const cv::Mat& left, const cv::Mat& disparity, const Ref
       int v = l[x];
       if (v == std::numeric_limits<int>::min()) {
         const int a = left_valid[x], b = right_valid[x];
-        if (a == std::numeric_limits<int>::min()) v = b;
-        else if (b == std::numeric_limits<int>::min()) v = a;
-        else v = std::min(a, b);
+        if (a == std::numeric_limits<int>::min())
+          v = b;
+        else if (b == std::numeric_limits<int>::min())
+          v = a;
+        else
+          v = std::min(a, b);
         if (v == std::numeric_limits<int>::min()) v = lo;  // whole row invalid
       }
       // Offset by lo and saturate: Sobel on CV_16S saturates, jumps stay edges.
@@ -163,8 +166,10 @@ cv::Mat detectFattening(const cv::Mat& left, const cv::Mat& disparity, const Ref
 
   // Superpixels of the reference image.
   cv::Mat seg_input;
-  if (left.channels() == 3) cv::cvtColor(left, seg_input, cv::COLOR_BGR2Lab);
-  else seg_input = left;
+  if (left.channels() == 3)
+    cv::cvtColor(left, seg_input, cv::COLOR_BGR2Lab);
+  else
+    seg_input = left;
   // OpenCV's SEEDS and SLIC read out of bounds or loop forever when a
   // superpixel is too large for the image (found by fuzz_stereo_match):
   // superpixels of at most a third (SEEDS) / half (SLIC) of the smaller
@@ -343,7 +348,8 @@ cv::Mat recoverDisparity(const cv::Mat& left, const cv::Mat& disparity, const cv
   checkImage("recoverDisparity", left, disparity);
   if (!fattening_mask.empty()) {
     if (fattening_mask.type() != CV_8UC1) fail("recoverDisparity", "fattening mask must be CV_8UC1");
-    if (fattening_mask.size() != disparity.size()) fail("recoverDisparity", "fattening mask and disparity map sizes differ");
+    if (fattening_mask.size() != disparity.size())
+      fail("recoverDisparity", "fattening mask and disparity map sizes differ");
   }
   validate(params);
   const int W = disparity.cols, H = disparity.rows;
@@ -372,8 +378,10 @@ cv::Mat recoverDisparity(const cv::Mat& left, const cv::Mat& disparity, const cv
   }
   const int r = params.window / 2;
   const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(params.window, params.window));
-  cv::erode(vmin, vmin, kernel, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(std::numeric_limits<float>::max()));
-  cv::dilate(vmax, vmax, kernel, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(-std::numeric_limits<float>::max()));
+  cv::erode(vmin, vmin, kernel, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT,
+            cv::Scalar(std::numeric_limits<float>::max()));
+  cv::dilate(vmax, vmax, kernel, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT,
+             cv::Scalar(-std::numeric_limits<float>::max()));
 
   cv::Mat lab[3];
   labPlanes(left, lab);
@@ -382,95 +390,103 @@ cv::Mat recoverDisparity(const cv::Mat& left, const cv::Mat& disparity, const cv
   constexpr float kSteps = 64.0f;
   const int table_size = static_cast<int>(88.0f * kSteps) + 1;
   std::vector<float> colour_weight(table_size);
-  for (int i = 0; i < table_size; ++i) colour_weight[i] = static_cast<float>(std::exp(-i / static_cast<double>(kSteps)));
+  for (int i = 0; i < table_size; ++i)
+    colour_weight[i] = static_cast<float>(std::exp(-i / static_cast<double>(kSteps)));
   colour_weight.back() = 0.0f;
   const float to_index = kSteps / params.gamma_c;
   const int side = params.window;
   std::vector<float> spatial(static_cast<std::size_t>(side) * side);
   for (int j = -r; j <= r; ++j)
     for (int i = -r; i <= r; ++i)
-      spatial[(j + r) * side + (i + r)] = static_cast<float>(std::exp(-std::sqrt(double(i * i + j * j)) / params.gamma_g));
+      spatial[(j + r) * side + (i + r)] =
+          static_cast<float>(std::exp(-std::sqrt(double(i * i + j * j)) / params.gamma_g));
 
-  cv::parallel_for_(cv::Range(0, H), [&](const cv::Range& rows) {
-    std::vector<float> score(nlevels, 0.0f);
-    std::vector<int> stamp(nlevels, -1), touched;
-    std::vector<int> index(side + 8);
-    touched.reserve(std::min(nlevels, side * side));
-    for (int y = rows.start; y < rows.end; ++y) {
-      const float* dmin_row = vmin.ptr<float>(y);
-      const float* dmax_row = vmax.ptr<float>(y);
-      const float* din = disparity.ptr<float>(y);
-      const int* own_row = levels.ptr<int>(y);
-      float* dout = result.ptr<float>(y);
-      const int y0 = std::max(0, y - r), y1 = std::min(H - 1, y + r);
-      for (int x = 0; x < W; ++x) {
-        const int own = own_row[x] == invalid ? -1 : own_row[x] - lo;
-        int winner;
-        if (dmin_row[x] == std::numeric_limits<float>::max()) {
-          continue;  // no voter: keep d(p)
-        } else if (dmin_row[x] == dmax_row[x]) {
-          winner = static_cast<int>(dmin_row[x]);
-        } else {
-          const int pixel_id = y * W + x;
-          touched.clear();
-          const float Lp = lab[0].ptr<float>(y)[x], ap = lab[1].ptr<float>(y)[x], bp = lab[2].ptr<float>(y)[x];
-          const int x0 = std::max(0, x - r), x1 = std::min(W - 1, x + r), n = x1 - x0 + 1;
-          for (int yy = y0; yy <= y1; ++yy) {
-            const float* Lq = lab[0].ptr<float>(yy) + x0;
-            const float* aq = lab[1].ptr<float>(yy) + x0;
-            const float* bq = lab[2].ptr<float>(yy) + x0;
-            const int* vq = voter.ptr<int>(yy) + x0;
-            const float* sw = spatial.data() + (yy - y + r) * side + (x0 - x + r);
-            int i = 0;
+  cv::parallel_for_(
+      cv::Range(0, H),
+      [&](const cv::Range& rows) {
+        std::vector<float> score(nlevels, 0.0f);
+        std::vector<int> stamp(nlevels, -1), touched;
+        std::vector<int> index(side + 8);
+        touched.reserve(std::min(nlevels, side * side));
+        for (int y = rows.start; y < rows.end; ++y) {
+          const float* dmin_row = vmin.ptr<float>(y);
+          const float* dmax_row = vmax.ptr<float>(y);
+          const float* din = disparity.ptr<float>(y);
+          const int* own_row = levels.ptr<int>(y);
+          float* dout = result.ptr<float>(y);
+          const int y0 = std::max(0, y - r), y1 = std::min(H - 1, y + r);
+          for (int x = 0; x < W; ++x) {
+            const int own = own_row[x] == invalid ? -1 : own_row[x] - lo;
+            int winner;
+            if (dmin_row[x] == std::numeric_limits<float>::max()) {
+              continue;  // no voter: keep d(p)
+            } else if (dmin_row[x] == dmax_row[x]) {
+              winner = static_cast<int>(dmin_row[x]);
+            } else {
+              const int pixel_id = y * W + x;
+              touched.clear();
+              const float Lp = lab[0].ptr<float>(y)[x], ap = lab[1].ptr<float>(y)[x], bp = lab[2].ptr<float>(y)[x];
+              const int x0 = std::max(0, x - r), x1 = std::min(W - 1, x + r), n = x1 - x0 + 1;
+              for (int yy = y0; yy <= y1; ++yy) {
+                const float* Lq = lab[0].ptr<float>(yy) + x0;
+                const float* aq = lab[1].ptr<float>(yy) + x0;
+                const float* bq = lab[2].ptr<float>(yy) + x0;
+                const int* vq = voter.ptr<int>(yy) + x0;
+                const float* sw = spatial.data() + (yy - y + r) * side + (x0 - x + r);
+                int i = 0;
 #if CV_SIMD128
-            const cv::v_float32x4 vL = cv::v_setall_f32(Lp), va = cv::v_setall_f32(ap), vb = cv::v_setall_f32(bp);
-            const cv::v_float32x4 vscale = cv::v_setall_f32(to_index);
-            const cv::v_int32x4 vlast = cv::v_setall_s32(table_size - 1);
-            for (; i + 4 <= n; i += 4) {
-              const cv::v_float32x4 dL = cv::v_load(Lq + i) - vL, da = cv::v_load(aq + i) - va,
-                                    db = cv::v_load(bq + i) - vb;
-              const cv::v_float32x4 dc = cv::v_sqrt(dL * dL + da * da + db * db) * vscale;
-              cv::v_store(index.data() + i, cv::v_min(cv::v_round(dc), vlast));
-            }
+                const cv::v_float32x4 vL = cv::v_setall_f32(Lp), va = cv::v_setall_f32(ap), vb = cv::v_setall_f32(bp);
+                const cv::v_float32x4 vscale = cv::v_setall_f32(to_index);
+                const cv::v_int32x4 vlast = cv::v_setall_s32(table_size - 1);
+                for (; i + 4 <= n; i += 4) {
+                  const cv::v_float32x4 dL = cv::v_load(Lq + i) - vL, da = cv::v_load(aq + i) - va,
+                                        db = cv::v_load(bq + i) - vb;
+                  const cv::v_float32x4 dc = cv::v_sqrt(dL * dL + da * da + db * db) * vscale;
+                  cv::v_store(index.data() + i, cv::v_min(cv::v_round(dc), vlast));
+                }
 #endif
-            for (; i < n; ++i) {
-              const float dL = Lq[i] - Lp, da = aq[i] - ap, db = bq[i] - bp;
-              index[i] = std::min(static_cast<int>(std::lround(std::sqrt(dL * dL + da * da + db * db) * to_index)),
-                                  table_size - 1);
-            }
-            for (i = 0; i < n; ++i) {
-              const int v = vq[i];
-              if (v < 0) continue;
-              if (stamp[v] != pixel_id) {
-                stamp[v] = pixel_id;
-                score[v] = 0.0f;
-                touched.push_back(v);
+                for (; i < n; ++i) {
+                  const float dL = Lq[i] - Lp, da = aq[i] - ap, db = bq[i] - bp;
+                  index[i] = std::min(static_cast<int>(std::lround(std::sqrt(dL * dL + da * da + db * db) * to_index)),
+                                      table_size - 1);
+                }
+                for (i = 0; i < n; ++i) {
+                  const int v = vq[i];
+                  if (v < 0) continue;
+                  if (stamp[v] != pixel_id) {
+                    stamp[v] = pixel_id;
+                    score[v] = 0.0f;
+                    touched.push_back(v);
+                  }
+                  score[v] += colour_weight[index[i]] * sw[i];
+                }
               }
-              score[v] += colour_weight[index[i]] * sw[i];
+              // argmax; ties: own level, else the smallest level.
+              winner = -1;
+              float best = -1.0f;
+              for (const int v : touched) {
+                const float s = score[v];
+                if (s > best || (s == best && v != winner && (winner != own && (v == own || v < winner)))) {
+                  best = s;
+                  winner = v;
+                }
+              }
             }
-          }
-          // argmax; ties: own level, else the smallest level.
-          winner = -1;
-          float best = -1.0f;
-          for (const int v : touched) {
-            const float s = score[v];
-            if (s > best || (s == best && v != winner && (winner != own && (v == own || v < winner)))) {
-              best = s;
-              winner = v;
-            }
+            if (winner != own)
+              dout[x] = static_cast<float>(winner + lo);
+            else
+              dout[x] = din[x];
           }
         }
-        if (winner != own) dout[x] = static_cast<float>(winner + lo);
-        else dout[x] = din[x];
-      }
-    }
-  }, stripes(params.threads, H));
+      },
+      stripes(params.threads, H));
   return result;
 }
 
 cv::Mat refineDisparity(const cv::Mat& left, const cv::Mat& disparity, const RefineParams& params, cv::Mat* fattening) {
   cv::Mat mask;
-  if (params.detect_fattening) mask = detectFattening(left, disparity, params);
+  if (params.detect_fattening)
+    mask = detectFattening(left, disparity, params);
   else {
     checkImage("refineDisparity", left, disparity);
     validate(params);

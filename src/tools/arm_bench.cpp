@@ -13,10 +13,7 @@
 
 #include "cli.h"
 #include "massage_cell/arm/sim_cell.h"
-
-#ifndef MASSAGE_CELL_SOURCE_DIR
-#define MASSAGE_CELL_SOURCE_DIR "."
-#endif
+#include "package_paths.h"
 
 namespace {
 
@@ -25,7 +22,8 @@ using namespace massage_cell::tools;
 using Clock = std::chrono::steady_clock;
 using Ms = std::chrono::duration<double, std::milli>;
 
-const char* const kUsage = R"(Usage: arm_bench [--duration S] [--estops N] [--moves N] [--config FILE] [--seed N] [--rt-priority P] [--lock-memory] [--csv]
+const char* const kUsage =
+    R"(Usage: arm_bench [--duration S] [--estops N] [--moves N] [--config FILE] [--seed N] [--rt-priority P] [--lock-memory] [--csv]
 
 Runs the arm controller on simulated CiA 402 drives (in-process virtual bus,
 real clock; master and drives in their own threads, as the arm node's
@@ -39,7 +37,7 @@ can_interface "sim"), homes it (drives configured to home in place), then:
                    stand after N moves of up to 0.15 m per axis (max)
   --duration S  default 60          --estops N  default 20
   --moves N     default 20          --seed N    default 1
-  --config FILE default config/arm.yaml of the source tree
+  --config FILE default the package's config/arm.yaml
   --rt-priority P  run the master and drive threads under SCHED_FIFO priority P
                 (1..99; 0 = normal scheduling, the default), as the arm node's
                 realtime_priority does (same library code); a refusal (no
@@ -53,7 +51,7 @@ struct Options {
   double duration = 60.0;
   int estops = 20;
   int moves = 20;
-  std::string config = std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/arm.yaml";
+  std::string config;  // default: the package's config/arm.yaml
   std::uint32_t seed = 1;
   int rt_priority = 0;
   bool lock_memory = false;
@@ -97,7 +95,7 @@ Eigen::Vector3d randomPoint(const arm::ArmConfig& c, std::mt19937& rng, const Ei
 }
 
 void bench(const Options& o) {
-  arm::ArmConfig config = arm::loadArmConfig(o.config);
+  arm::ArmConfig config = arm::loadArmConfig(o.config.empty() ? packageFile("config/arm.yaml") : o.config);
   // Home in place (method 37): the bench measures the controller, not homing runs.
   for (can::AxisConfig& a : config.can.axes) a.homing_method = 37;
   const double period_ms = config.can.sync_period_us / 1000.0;
@@ -161,9 +159,11 @@ void bench(const Options& o) {
   std::vector<double> jitter;
   {
     std::lock_guard<std::mutex> lock(cycle_mutex);
-    for (std::size_t i = 1; i < cycles.size(); ++i) jitter.push_back(std::abs(Ms(cycles[i] - cycles[i - 1]).count() - period_ms));
+    for (std::size_t i = 1; i < cycles.size(); ++i)
+      jitter.push_back(std::abs(Ms(cycles[i] - cycles[i - 1]).count() - period_ms));
   }
-  if (jitter.size() < 10) throw std::runtime_error("too few controller cycles recorded (" + std::to_string(jitter.size()) + ")");
+  if (jitter.size() < 10)
+    throw std::runtime_error("too few controller cycles recorded (" + std::to_string(jitter.size()) + ")");
 
   // 2. E-stop -> quick-stop RPDO1 on the bus, and -> every drive stopping.
   std::vector<double> frame_ms, drive_ms;
@@ -184,11 +184,13 @@ void bench(const Options& o) {
       if (cw == can::cw::kQuickStop) frame = Ms(f->stamp - pressed).count();
     }
     frame_ms.push_back(frame);
-    waitFor([&] {
-      for (int i = 0; i < 3; ++i)
-        if (cell.drive(i).state() == can::Cia402State::kOperationEnabled) return false;
-      return true;
-    }, 1.0, "the drives to leave operation enabled");
+    waitFor(
+        [&] {
+          for (int i = 0; i < 3; ++i)
+            if (cell.drive(i).state() == can::Cia402State::kOperationEnabled) return false;
+          return true;
+        },
+        1.0, "the drives to leave operation enabled");
     drive_ms.push_back(Ms(Clock::now() - pressed).count());
     waitFor([&] { return c.result(a.id).done; }, 1.0, "the move to end");
     c.setEstop(false);
@@ -221,7 +223,8 @@ void bench(const Options& o) {
        "SCHED_FIFO priority of the threads (0: normal)"},
       {"estop_latency_ms", percentile(frame_ms, 1.0), "ms", "e-stop -> quick-stop RPDO1, max (target <= 10)"},
       {"estop_latency_p50_ms", percentile(frame_ms, 0.5), "ms", "e-stop -> quick-stop RPDO1, p50"},
-      {"estop_to_drives_stopping_ms", percentile(drive_ms, 1.0), "ms", "e-stop -> every drive out of operation enabled, max"},
+      {"estop_to_drives_stopping_ms", percentile(drive_ms, 1.0), "ms",
+       "e-stop -> every drive out of operation enabled, max"},
       {"move_error_mm", percentile(error_mm, 1.0), "mm", "move end error, max (target <= 0.1)"},
   };
   if (o.csv) {
@@ -229,9 +232,10 @@ void bench(const Options& o) {
     for (const Row& r : rows) std::printf("%s,%.4f,%s\n", r.name, r.value, r.unit);
     return;
   }
-  std::printf("arm_bench: %.0f s at %.0f Hz SYNC, %d e-stops, %d moves (simulated drives, virtual bus, real clock; %s)\n",
-              o.duration, 1000.0 / period_ms, o.estops, o.moves,
-              realtime.error.empty() ? realtime.describe().c_str() : "real-time refused: see the warning");
+  std::printf(
+      "arm_bench: %.0f s at %.0f Hz SYNC, %d e-stops, %d moves (simulated drives, virtual bus, real clock; %s)\n",
+      o.duration, 1000.0 / period_ms, o.estops, o.moves,
+      realtime.error.empty() ? realtime.describe().c_str() : "real-time refused: see the warning");
   for (const Row& r : rows) std::printf("  %-52s %10.4f %s\n", r.label, r.value, r.unit);
 }
 

@@ -25,10 +25,7 @@
 #include "massage_cell/can/sim_drive.h"
 #include "massage_cell/can/socketcan_bus.h"
 #include "massage_cell/can/virtual_bus.h"
-
-#ifndef MASSAGE_CELL_SOURCE_DIR
-#define MASSAGE_CELL_SOURCE_DIR "."
-#endif
+#include "package_paths.h"
 
 namespace {
 
@@ -36,7 +33,8 @@ using namespace massage_cell::can;
 using namespace massage_cell::tools;
 using Ms = std::chrono::duration<double, std::milli>;
 
-const char* const kUsage = R"(Usage: can_bench [--samples N] [--faults N] [--sync-ms N] [--config FILE] [--interface IFACE]
+const char* const kUsage =
+    R"(Usage: can_bench [--samples N] [--faults N] [--sync-ms N] [--config FILE] [--interface IFACE]
                  [--sdo-timeout-ms N] [--heartbeat-timeout-ms N] [--max-p99-ms X] [--csv]
 
 Times the CAN stack on the in-process virtual bus (or, with --interface, over
@@ -51,7 +49,7 @@ the master (its own thread) and the first axis of FILE as a simulated drive
   fault -> axis       injected drive fault to the axis reporting 'fault' (TPDO1)
   --samples N   default 500        --faults N   default 20
   --sync-ms N   SYNC period, default 10
-  --config FILE default config/can_axes.yaml of the source tree
+  --config FILE default the package's config/can_axes.yaml
   --interface IFACE  run over this SocketCAN interface (e.g. vcan0) instead
   --sdo-timeout-ms N        SDO timeout (default: the config's bus.sdo_timeout_ms)
   --heartbeat-timeout-ms N  the master's consumer timeout of the drive's heartbeat
@@ -87,7 +85,7 @@ int main(int argc, char** argv) {
   double max_p99_ms = 0.0;
   bool csv = false;
   std::string interface;
-  std::string config_path = std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/can_axes.yaml";
+  std::string config_path;  // default: the package's config/can_axes.yaml
   return runTool(
       "can_bench",
       [&] {
@@ -122,198 +120,206 @@ int main(int argc, char** argv) {
         return parseArguments(argc, argv, t, kUsage);
       },
       [&] {
-       try {
-        CanConfig config = loadCanConfig(config_path);
-        config.axes.resize(1);
-        config.sync_period_us = static_cast<std::uint32_t>(sync_ms) * 1000u;
-        if (sdo_timeout_ms > 0) config.sdo_timeout_ms = static_cast<std::uint32_t>(sdo_timeout_ms);
-        if (heartbeat_timeout_ms > 0) {
-          if (static_cast<std::uint32_t>(heartbeat_timeout_ms) <= config.axes[0].heartbeat_ms) {
-            throw std::runtime_error("--heartbeat-timeout-ms " + std::to_string(heartbeat_timeout_ms) +
-                                     ": must be longer than the drive's heartbeat_ms (" +
-                                     std::to_string(config.axes[0].heartbeat_ms) + ")");
-          }
-          config.axes[0].heartbeat_timeout_ms = static_cast<std::uint32_t>(heartbeat_timeout_ms);
-        }
-        validate(config, config_path);
-        const AxisConfig& a = config.axes[0];
-        const Clock& clock = SteadyClock::instance();
-        VirtualBus vbus(clock, 1 << 16);
-        std::shared_ptr<Bus> mep, dep, sniff;
-        if (interface.empty()) {
-          mep = vbus.open("master");
-          dep = vbus.open("drive");
-          sniff = vbus.open("sniffer");
-        } else {
-          SocketCanOptions o;
-          o.interface = interface;
-          mep = std::make_shared<SocketCanBus>(o);
-          dep = std::make_shared<SocketCanBus>(o);
-          sniff = std::make_shared<SocketCanBus>(o);
-        }
-        Master master(*mep, clock, config);
-        Cia402Axis axis(master, a);
-        SimDrive drive(*dep, clock, a);
-        std::atomic<bool> stop{false};
-        std::thread drive_thread([&] { drive.run(stop, std::chrono::microseconds(500)); });
-        struct Joiner {  // a failure below must not leave the threads running (std::terminate)
-          Master& master;
-          std::atomic<bool>& stop;
-          std::thread& thread;
-          ~Joiner() {
-            master.stop();
-            stop = true;
-            if (thread.joinable()) thread.join();
-          }
-        } joiner{master, stop, drive_thread};
-        drive.powerOn();
-        master.start();
-        master.bringUp();
-        if (!master.waitUntil([&] { return master.allOperational() && axis.valid(); }, std::chrono::seconds(5))) {
-          throw std::runtime_error("the simulated drive did not come up within 5 s (node " +
-                                   std::string(toString(master.nodeState(a.node_id))) + ")");
-        }
-
-        // SDO round trip.
-        std::vector<double> sdo;
-        for (int i = 0; i < samples; ++i) {
-          std::promise<std::chrono::steady_clock::time_point> done;
-          auto fut = done.get_future();
-          const auto t0 = std::chrono::steady_clock::now();
-          master.sdoUpload(a.node_id, 0x6041, 0, [&](const SdoResult& r) {
-            if (r.ok) done.set_value(std::chrono::steady_clock::now());
-            else done.set_exception(std::make_exception_ptr(std::runtime_error(r.error)));
-          });
-          sdo.push_back(Ms(fut.get() - t0).count());
-        }
-
-        // SYNC period and SYNC -> TPDO1 (bus stamps of the sniffer endpoint). The
-        // drive answers every SYNC with one TPDO1 (transmission type 1), so the
-        // k-th TPDO1 after a SYNC belongs to the k-th SYNC still unanswered, even
-        // when an answer takes longer than a SYNC period.
-        while (sniff->receive(Duration::zero())) {
-        }
-        std::vector<double> period, latency, heartbeat;
-        std::optional<TimePoint> last_sync, last_heartbeat;
-        std::deque<TimePoint> unanswered;
-        const canid_t tpdo = kTpdoBase[0] + a.node_id;
-        const canid_t own_heartbeat = kHeartbeatBase + config.master_node_id;
-        while (static_cast<int>(period.size()) < samples) {
-          auto f = sniff->receive(std::chrono::seconds(1));
-          if (!f) throw std::runtime_error("no SYNC on the bus for 1 s");
-          if (f->frame.can_id == kSyncCobId) {
-            if (last_sync) period.push_back(Ms(f->stamp - *last_sync).count());
-            last_sync = f->stamp;
-            unanswered.push_back(f->stamp);
-          } else if (f->frame.can_id == tpdo && !unanswered.empty()) {
-            latency.push_back(Ms(f->stamp - unanswered.front()).count());
-            unanswered.pop_front();
-          } else if (f->frame.can_id == own_heartbeat) {
-            if (last_heartbeat) heartbeat.push_back(Ms(f->stamp - *last_heartbeat).count());
-            last_heartbeat = f->stamp;
-          }
-        }
-        // A SYNC the drive never answered stays unanswered; more than the last few means lost TPDO1s.
-        if (unanswered.size() > 3 || static_cast<int>(latency.size()) < samples - 3) {
-          throw std::runtime_error(std::to_string(samples + 1) + " SYNCs but only " + std::to_string(latency.size()) +
-                                   " TPDO1 answers");
-        }
-        if (config.master_heartbeat_ms > 0 && heartbeat.empty()) {
-          char cob[16];
-          std::snprintf(cob, sizeof cob, "0x%03X", static_cast<unsigned>(own_heartbeat));
-          throw std::runtime_error(std::string("no heartbeat of the master (COB-ID ") + cob + ") during " +
-                                   std::to_string(samples) + " SYNC periods");
-        }
-
-        // Injected fault -> EMCY event / axis fault state.
-        std::mutex m;
-        std::condition_variable cv;
-        std::optional<std::chrono::steady_clock::time_point> emcy_at;
-        master.setEventCallback([&](const Event& e) {
-          if (e.type == EventType::kEmcy && e.emcy_code == 0x2310) {
-            std::lock_guard<std::mutex> l(m);
-            emcy_at = std::chrono::steady_clock::now();
-            cv.notify_all();
-          }
-        });
-        std::vector<double> to_emcy, to_state;
-        for (int i = 0; i < faults; ++i) {
-          {
-            std::lock_guard<std::mutex> l(m);
-            emcy_at.reset();
-          }
-          const auto t0 = std::chrono::steady_clock::now();
-          drive.injectFault(0x2310);
-          if (!master.waitUntil([&] { return axis.state() == Cia402State::kFault; }, std::chrono::seconds(2))) {
-            throw std::runtime_error("the axis did not report the injected fault");
-          }
-          to_state.push_back(Ms(std::chrono::steady_clock::now() - t0).count());
-          {
-            std::unique_lock<std::mutex> l(m);
-            if (!cv.wait_for(l, std::chrono::seconds(2), [&] { return emcy_at.has_value(); })) {
-              throw std::runtime_error("no EMCY event for the injected fault");
+        try {
+          if (config_path.empty()) config_path = packageFile("config/can_axes.yaml");
+          CanConfig config = loadCanConfig(config_path);
+          config.axes.resize(1);
+          config.sync_period_us = static_cast<std::uint32_t>(sync_ms) * 1000u;
+          if (sdo_timeout_ms > 0) config.sdo_timeout_ms = static_cast<std::uint32_t>(sdo_timeout_ms);
+          if (heartbeat_timeout_ms > 0) {
+            if (static_cast<std::uint32_t>(heartbeat_timeout_ms) <= config.axes[0].heartbeat_ms) {
+              throw std::runtime_error("--heartbeat-timeout-ms " + std::to_string(heartbeat_timeout_ms) +
+                                       ": must be longer than the drive's heartbeat_ms (" +
+                                       std::to_string(config.axes[0].heartbeat_ms) + ")");
             }
-            to_emcy.push_back(Ms(*emcy_at - t0).count());
+            config.axes[0].heartbeat_timeout_ms = static_cast<std::uint32_t>(heartbeat_timeout_ms);
           }
-          axis.faultReset();
-          if (!master.waitUntil([&] { return axis.status() != Cia402Axis::Status::kRunning; }, std::chrono::seconds(2)) ||
-              axis.status() != Cia402Axis::Status::kSucceeded) {
-            throw std::runtime_error("fault reset failed: " + axis.error());
+          validate(config, config_path);
+          const AxisConfig& a = config.axes[0];
+          const Clock& clock = SteadyClock::instance();
+          VirtualBus vbus(clock, 1 << 16);
+          std::shared_ptr<Bus> mep, dep, sniff;
+          if (interface.empty()) {
+            mep = vbus.open("master");
+            dep = vbus.open("drive");
+            sniff = vbus.open("sniffer");
+          } else {
+            SocketCanOptions o;
+            o.interface = interface;
+            mep = std::make_shared<SocketCanBus>(o);
+            dep = std::make_shared<SocketCanBus>(o);
+            sniff = std::make_shared<SocketCanBus>(o);
           }
-        }
-        master.setEventCallback({});
-        master.stop();
-        stop = true;
-        drive_thread.join();
+          Master master(*mep, clock, config);
+          Cia402Axis axis(master, a);
+          SimDrive drive(*dep, clock, a);
+          std::atomic<bool> stop{false};
+          std::thread drive_thread([&] { drive.run(stop, std::chrono::microseconds(500)); });
+          struct Joiner {  // a failure below must not leave the threads running (std::terminate)
+            Master& master;
+            std::atomic<bool>& stop;
+            std::thread& thread;
+            ~Joiner() {
+              master.stop();
+              stop = true;
+              if (thread.joinable()) thread.join();
+            }
+          } joiner{master, stop, drive_thread};
+          drive.powerOn();
+          master.start();
+          master.bringUp();
+          if (!master.waitUntil([&] { return master.allOperational() && axis.valid(); }, std::chrono::seconds(5))) {
+            throw std::runtime_error("the simulated drive did not come up within 5 s (node " +
+                                     std::string(toString(master.nodeState(a.node_id))) + ")");
+          }
 
-        struct Row {
-          const char* key;
-          const char* label;
-          Stats s;
-        };
-        const Row rows[] = {
-            {"sdo_round_trip", "SDO expedited upload round trip", stats(sdo)},
-            {"sync_period", "SYNC period", stats(period)},
-            {"sync_to_tpdo1", "SYNC -> TPDO1 on the bus", stats(latency)},
-            {"heartbeat_period", "master heartbeat period", stats(heartbeat)},
-            {"fault_to_emcy_event", "injected fault -> master EMCY event", stats(to_emcy)},
-            {"fault_to_axis_fault", "injected fault -> axis state 'fault'", stats(to_state)},
-        };
-        std::string over;
-        if (max_p99_ms > 0) {
-          for (const Row* r : {&rows[0], &rows[2], &rows[4]}) {
-            if (r->s.p99 > max_p99_ms) over += std::string(" ") + r->label + " p99 " + std::to_string(r->s.p99) + " ms;";
+          // SDO round trip.
+          std::vector<double> sdo;
+          for (int i = 0; i < samples; ++i) {
+            std::promise<std::chrono::steady_clock::time_point> done;
+            auto fut = done.get_future();
+            const auto t0 = std::chrono::steady_clock::now();
+            master.sdoUpload(a.node_id, 0x6041, 0, [&](const SdoResult& r) {
+              if (r.ok)
+                done.set_value(std::chrono::steady_clock::now());
+              else
+                done.set_exception(std::make_exception_ptr(std::runtime_error(r.error)));
+            });
+            sdo.push_back(Ms(fut.get() - t0).count());
           }
-          if (std::fabs(rows[1].s.p50 - sync_ms) > 0.1 * sync_ms) {
-            over += " SYNC period median " + std::to_string(rows[1].s.p50) + " ms, configured " + std::to_string(sync_ms) + " ms;";
+
+          // SYNC period and SYNC -> TPDO1 (bus stamps of the sniffer endpoint). The
+          // drive answers every SYNC with one TPDO1 (transmission type 1), so the
+          // k-th TPDO1 after a SYNC belongs to the k-th SYNC still unanswered, even
+          // when an answer takes longer than a SYNC period.
+          while (sniff->receive(Duration::zero())) {
           }
-        }
-        if (csv) {
-          std::printf("metric,value,unit\n");
+          std::vector<double> period, latency, heartbeat;
+          std::optional<TimePoint> last_sync, last_heartbeat;
+          std::deque<TimePoint> unanswered;
+          const canid_t tpdo = kTpdoBase[0] + a.node_id;
+          const canid_t own_heartbeat = kHeartbeatBase + config.master_node_id;
+          while (static_cast<int>(period.size()) < samples) {
+            auto f = sniff->receive(std::chrono::seconds(1));
+            if (!f) throw std::runtime_error("no SYNC on the bus for 1 s");
+            if (f->frame.can_id == kSyncCobId) {
+              if (last_sync) period.push_back(Ms(f->stamp - *last_sync).count());
+              last_sync = f->stamp;
+              unanswered.push_back(f->stamp);
+            } else if (f->frame.can_id == tpdo && !unanswered.empty()) {
+              latency.push_back(Ms(f->stamp - unanswered.front()).count());
+              unanswered.pop_front();
+            } else if (f->frame.can_id == own_heartbeat) {
+              if (last_heartbeat) heartbeat.push_back(Ms(f->stamp - *last_heartbeat).count());
+              last_heartbeat = f->stamp;
+            }
+          }
+          // A SYNC the drive never answered stays unanswered; more than the last few means lost TPDO1s.
+          if (unanswered.size() > 3 || static_cast<int>(latency.size()) < samples - 3) {
+            throw std::runtime_error(std::to_string(samples + 1) + " SYNCs but only " + std::to_string(latency.size()) +
+                                     " TPDO1 answers");
+          }
+          if (config.master_heartbeat_ms > 0 && heartbeat.empty()) {
+            char cob[16];
+            std::snprintf(cob, sizeof cob, "0x%03X", static_cast<unsigned>(own_heartbeat));
+            throw std::runtime_error(std::string("no heartbeat of the master (COB-ID ") + cob + ") during " +
+                                     std::to_string(samples) + " SYNC periods");
+          }
+
+          // Injected fault -> EMCY event / axis fault state.
+          std::mutex m;
+          std::condition_variable cv;
+          std::optional<std::chrono::steady_clock::time_point> emcy_at;
+          master.setEventCallback([&](const Event& e) {
+            if (e.type == EventType::kEmcy && e.emcy_code == 0x2310) {
+              std::lock_guard<std::mutex> l(m);
+              emcy_at = std::chrono::steady_clock::now();
+              cv.notify_all();
+            }
+          });
+          std::vector<double> to_emcy, to_state;
+          for (int i = 0; i < faults; ++i) {
+            {
+              std::lock_guard<std::mutex> l(m);
+              emcy_at.reset();
+            }
+            const auto t0 = std::chrono::steady_clock::now();
+            drive.injectFault(0x2310);
+            if (!master.waitUntil([&] { return axis.state() == Cia402State::kFault; }, std::chrono::seconds(2))) {
+              throw std::runtime_error("the axis did not report the injected fault");
+            }
+            to_state.push_back(Ms(std::chrono::steady_clock::now() - t0).count());
+            {
+              std::unique_lock<std::mutex> l(m);
+              if (!cv.wait_for(l, std::chrono::seconds(2), [&] { return emcy_at.has_value(); })) {
+                throw std::runtime_error("no EMCY event for the injected fault");
+              }
+              to_emcy.push_back(Ms(*emcy_at - t0).count());
+            }
+            axis.faultReset();
+            if (!master.waitUntil([&] { return axis.status() != Cia402Axis::Status::kRunning; },
+                                  std::chrono::seconds(2)) ||
+                axis.status() != Cia402Axis::Status::kSucceeded) {
+              throw std::runtime_error("fault reset failed: " + axis.error());
+            }
+          }
+          master.setEventCallback({});
+          master.stop();
+          stop = true;
+          drive_thread.join();
+
+          struct Row {
+            const char* key;
+            const char* label;
+            Stats s;
+          };
+          const Row rows[] = {
+              {"sdo_round_trip", "SDO expedited upload round trip", stats(sdo)},
+              {"sync_period", "SYNC period", stats(period)},
+              {"sync_to_tpdo1", "SYNC -> TPDO1 on the bus", stats(latency)},
+              {"heartbeat_period", "master heartbeat period", stats(heartbeat)},
+              {"fault_to_emcy_event", "injected fault -> master EMCY event", stats(to_emcy)},
+              {"fault_to_axis_fault", "injected fault -> axis state 'fault'", stats(to_state)},
+          };
+          std::string over;
+          if (max_p99_ms > 0) {
+            for (const Row* r : {&rows[0], &rows[2], &rows[4]}) {
+              if (r->s.p99 > max_p99_ms)
+                over += std::string(" ") + r->label + " p99 " + std::to_string(r->s.p99) + " ms;";
+            }
+            if (std::fabs(rows[1].s.p50 - sync_ms) > 0.1 * sync_ms) {
+              over += " SYNC period median " + std::to_string(rows[1].s.p50) + " ms, configured " +
+                      std::to_string(sync_ms) + " ms;";
+            }
+          }
+          if (csv) {
+            std::printf("metric,value,unit\n");
+            for (const Row& r : rows) {
+              std::printf("%s_p50,%.4f,ms\n%s_p99,%.4f,ms\n%s_max,%.4f,ms\n%s_samples,%zu,count\n", r.key, r.s.p50,
+                          r.key, r.s.p99, r.key, r.s.max, r.key, r.s.n);
+            }
+            if (!over.empty()) throw std::runtime_error("over the limits:" + over);
+            return;
+          }
+          std::printf(
+              "can_bench: %s, master + simulated drive (node %d) in threads, SYNC %d ms, real clock; "
+              "SDO timeout %u ms, heartbeat consumer %u ms\n",
+              interface.empty() ? "virtual bus" : ("SocketCAN " + interface).c_str(), a.node_id, sync_ms,
+              config.sdo_timeout_ms, a.heartbeatTimeoutMs());
+          std::printf("%-40s %7s %10s %10s %10s\n", "", "n", "p50 ms", "p99 ms", "max ms");
           for (const Row& r : rows) {
-            std::printf("%s_p50,%.4f,ms\n%s_p99,%.4f,ms\n%s_max,%.4f,ms\n%s_samples,%zu,count\n", r.key, r.s.p50, r.key,
-                        r.s.p99, r.key, r.s.max, r.key, r.s.n);
+            std::printf("%-40s %7zu %10.3f %10.3f %10.3f\n", r.label, r.s.n, r.s.p50, r.s.p99, r.s.max);
           }
-          if (!over.empty()) throw std::runtime_error("over the limits:" + over);
-          return;
-        }
-        std::printf("can_bench: %s, master + simulated drive (node %d) in threads, SYNC %d ms, real clock; "
-                    "SDO timeout %u ms, heartbeat consumer %u ms\n",
-                    interface.empty() ? "virtual bus" : ("SocketCAN " + interface).c_str(), a.node_id, sync_ms,
-                    config.sdo_timeout_ms, a.heartbeatTimeoutMs());
-        std::printf("%-40s %7s %10s %10s %10s\n", "", "n", "p50 ms", "p99 ms", "max ms");
-        for (const Row& r : rows) {
-          std::printf("%-40s %7zu %10.3f %10.3f %10.3f\n", r.label, r.s.n, r.s.p50, r.s.p99, r.s.max);
-        }
-        if (!over.empty()) throw std::runtime_error("over the limits (--max-p99-ms " + std::to_string(max_p99_ms) + "):" + over);
-        std::printf("CAN_BENCH OK\n");
-        std::fflush(stdout);
-       } catch (const std::exception& e) {
-        if (!csv) {
-          std::printf("CAN_BENCH FAIL: %s\n", e.what());
+          if (!over.empty())
+            throw std::runtime_error("over the limits (--max-p99-ms " + std::to_string(max_p99_ms) + "):" + over);
+          std::printf("CAN_BENCH OK\n");
           std::fflush(stdout);
+        } catch (const std::exception& e) {
+          if (!csv) {
+            std::printf("CAN_BENCH FAIL: %s\n", e.what());
+            std::fflush(stdout);
+          }
+          throw;
         }
-        throw;
-       }
       });
 }

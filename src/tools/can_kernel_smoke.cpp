@@ -46,8 +46,8 @@
 #include <linux/can.h>
 #include <linux/can/error.h>
 #include <linux/can/raw.h>
-#include <net/if_arp.h>  // glibc header: linux/if_arp.h clashes with net/if.h
 #include <net/if.h>
+#include <net/if_arp.h>  // glibc header: linux/if_arp.h clashes with net/if.h
 #include <poll.h>
 #include <signal.h>
 #include <sys/ioctl.h>
@@ -85,7 +85,9 @@ class Socket {
       fail(errnoText("socket(PF_CAN, SOCK_RAW, CAN_RAW)"));
     }
   }
-  ~Socket() { if (fd_ >= 0) ::close(fd_); }
+  ~Socket() {
+    if (fd_ >= 0) ::close(fd_);
+  }
   Socket(const Socket&) = delete;
   Socket& operator=(const Socket&) = delete;
   int fd() const { return fd_; }
@@ -223,7 +225,9 @@ struct Percentiles {
 
 Percentiles percentiles(std::vector<double> us) {
   std::sort(us.begin(), us.end());
-  auto pct = [&](double p) { return us[std::min(us.size() - 1, static_cast<size_t>(p * static_cast<double>(us.size())))]; };
+  auto pct = [&](double p) {
+    return us[std::min(us.size() - 1, static_cast<size_t>(p * static_cast<double>(us.size())))];
+  };
   return {pct(0.50), pct(0.99), us.back()};
 }
 
@@ -243,7 +247,10 @@ void serve(const Options& opt) {
     if (tries >= 100) fail("serve: no interface " + opt.iface);
     ::usleep(100000);
   }
-  if (int e = s.bindTo(ifindex)) { errno = e; fail(errnoText("serve: bind")); }
+  if (int e = s.bindTo(ifindex)) {
+    errno = e;
+    fail(errnoText("serve: bind"));
+  }
   std::printf("can_kernel_smoke: serving 0x%03X -> 0x%03X on %s\n", kRequestId, kReplyId, opt.iface.c_str());
   std::fflush(stdout);
   long served = 0;
@@ -269,7 +276,10 @@ void serve(const Options& opt) {
 void peerCheck(const Options& opt, int ifindex) {
   Socket s;
   s.setFilters({{kReplyId, CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG}});
-  if (int e = s.bindTo(ifindex)) { errno = e; fail(errnoText("peer: bind")); }
+  if (int e = s.bindTo(ifindex)) {
+    errno = e;
+    fail(errnoText("peer: bind"));
+  }
   // Wait for the responder (it may still be starting): one request every 100 ms, 10 s.
   Received r;
   bool up = false;
@@ -278,7 +288,8 @@ void peerCheck(const Options& opt, int ifindex) {
     up = receive(s, 100, &r);
   }
   if (!up) fail("peer: no reply on 0x7E8 within 10 s (is a 'can_kernel_smoke --serve' process running?)");
-  while (receive(s, 50, &r)) {}  // late replies to the probes
+  while (receive(s, 50, &r)) {
+  }  // late replies to the probes
   std::vector<double> us;
   for (int i = 0; i < opt.peer; ++i) {
     can_frame f = makeFrame(kRequestId, 8, static_cast<uint8_t>(i));
@@ -292,8 +303,10 @@ void peerCheck(const Options& opt, int ifindex) {
     if (!sameFrame(r.frame, expect)) fail("peer: reply " + std::to_string(i) + " out of order or corrupted");
   }
   const Percentiles p = percentiles(us);
-  std::printf("can_kernel_smoke: round trip with another process over %d requests: p50 %.1f us, p99 %.1f us, "
-              "max %.1f us\n", opt.peer, p.p50, p.p99, p.max);
+  std::printf(
+      "can_kernel_smoke: round trip with another process over %d requests: p50 %.1f us, p99 %.1f us, "
+      "max %.1f us\n",
+      opt.peer, p.p50, p.p99, p.max);
 }
 
 // 6. Error frames written by a socket, delivered by af_can through the error masks.
@@ -301,12 +314,16 @@ void errorFrameCheck(int ifindex) {
   Socket inj, all, busoffOnly, none;
   inj.setFilters({});  // the writer receives nothing itself
   all.setFilters({});  // no data frames: error frames go through the error mask only
-  all.setOpt(SOL_CAN_RAW, CAN_RAW_ERR_FILTER, static_cast<can_err_mask_t>(CAN_ERR_MASK), "setsockopt(CAN_RAW_ERR_FILTER)");
+  all.setOpt(SOL_CAN_RAW, CAN_RAW_ERR_FILTER, static_cast<can_err_mask_t>(CAN_ERR_MASK),
+             "setsockopt(CAN_RAW_ERR_FILTER)");
   busoffOnly.setOpt(SOL_CAN_RAW, CAN_RAW_ERR_FILTER, static_cast<can_err_mask_t>(CAN_ERR_BUSOFF),
                     "setsockopt(CAN_RAW_ERR_FILTER)");
   // `none` keeps the defaults: every data frame, error mask 0.
   for (Socket* s : {&inj, &all, &busoffOnly, &none}) {
-    if (int e = s->bindTo(ifindex)) { errno = e; fail(errnoText("error frames: bind")); }
+    if (int e = s->bindTo(ifindex)) {
+      errno = e;
+      fail(errnoText("error frames: bind"));
+    }
   }
   can_frame busoff{};
   busoff.can_id = CAN_ERR_FLAG | CAN_ERR_BUSOFF;
@@ -327,8 +344,8 @@ void errorFrameCheck(int ifindex) {
       fail(std::string("error frames: the ") + who + " socket did not receive the " + what + " error frame within 1 s");
     if (!sameFrame(r.frame, want)) {
       char buf[96];
-      std::snprintf(buf, sizeof buf, "can_id 0x%08" PRIX32 " dlc %d data[1] 0x%02X", static_cast<uint32_t>(r.frame.can_id),
-                    r.frame.can_dlc, r.frame.data[1]);
+      std::snprintf(buf, sizeof buf, "can_id 0x%08" PRIX32 " dlc %d data[1] 0x%02X",
+                    static_cast<uint32_t>(r.frame.can_id), r.frame.can_dlc, r.frame.data[1]);
       fail(std::string("error frames: the ") + who + " socket got " + buf + " instead of the " + what + " error frame");
     }
   };
@@ -343,15 +360,16 @@ void errorFrameCheck(int ifindex) {
   Received r;
   if (!receive(busoffOnly, 1000, &r)) fail("error frames: the sentinel data frame did not arrive");
   if (!sameFrame(r.frame, sentinel))
-    fail("error frames: the CAN_ERR_BUSOFF-only socket received a frame of another error class (" + idText(r.frame.can_id) +
-         ") before the sentinel");
+    fail("error frames: the CAN_ERR_BUSOFF-only socket received a frame of another error class (" +
+         idText(r.frame.can_id) + ") before the sentinel");
   if (!receive(none, 1000, &r)) fail("error frames: the sentinel data frame did not reach the error-mask-0 socket");
   if (!sameFrame(r.frame, sentinel))
     fail("error frames: a socket with error mask 0 (and an accept-all data filter) received an error frame");
   expectNothing(inj, 100, "error frames: the writer (RECV_OWN_MSGS off)");
   expectNothing(all, 50, "error frames: the CAN_ERR_MASK socket after both error frames");
-  std::printf("can_kernel_smoke: error frames OK (written CAN_ERR_BUSOFF and CAN_ERR_CRTL/tx-passive delivered "
-              "through CAN_RAW_ERR_FILTER by class, not to error mask 0 nor to the writer)\n");
+  std::printf(
+      "can_kernel_smoke: error frames OK (written CAN_ERR_BUSOFF and CAN_ERR_CRTL/tx-passive delivered "
+      "through CAN_RAW_ERR_FILTER by class, not to error mask 0 nor to the writer)\n");
 }
 
 void run(const Options& opt) {
@@ -363,17 +381,24 @@ void run(const Options& opt) {
   // --- 2. loopback semantics ------------------------------------------------
   {
     Socket tx, rx;
-    if (int e = tx.bindTo(ifindex)) { errno = e; fail(errnoText("bind tx")); }
-    if (int e = rx.bindTo(ifindex)) { errno = e; fail(errnoText("bind rx")); }
+    if (int e = tx.bindTo(ifindex)) {
+      errno = e;
+      fail(errnoText("bind tx"));
+    }
+    if (int e = rx.bindTo(ifindex)) {
+      errno = e;
+      fail(errnoText("bind rx"));
+    }
     int loopback = -1, recvOwn = -1;
     socklen_t len = sizeof loopback;
-    if (::getsockopt(tx.fd(), SOL_CAN_RAW, CAN_RAW_LOOPBACK, &loopback, &len) != 0) fail(errnoText("getsockopt(LOOPBACK)"));
+    if (::getsockopt(tx.fd(), SOL_CAN_RAW, CAN_RAW_LOOPBACK, &loopback, &len) != 0)
+      fail(errnoText("getsockopt(LOOPBACK)"));
     len = sizeof recvOwn;
     if (::getsockopt(tx.fd(), SOL_CAN_RAW, CAN_RAW_RECV_OWN_MSGS, &recvOwn, &len) != 0)
       fail(errnoText("getsockopt(RECV_OWN_MSGS)"));
     if (loopback != 1 || recvOwn != 0)
-      fail("default CAN_RAW_LOOPBACK=" + std::to_string(loopback) + " CAN_RAW_RECV_OWN_MSGS=" + std::to_string(recvOwn) +
-           ", expected 1 and 0");
+      fail("default CAN_RAW_LOOPBACK=" + std::to_string(loopback) +
+           " CAN_RAW_RECV_OWN_MSGS=" + std::to_string(recvOwn) + ", expected 1 and 0");
 
     const can_frame f = makeFrame(0x321, 4, 0x40);
     tx.send(f);
@@ -390,23 +415,33 @@ void run(const Options& opt) {
     if (!receive(rx, 1000, &r) || !sameFrame(r.frame, f)) fail("RECV_OWN_MSGS on: the other socket lost the frame");
 
     Socket quiet;
-    if (int e = quiet.bindTo(ifindex)) { errno = e; fail(errnoText("bind quiet")); }
+    if (int e = quiet.bindTo(ifindex)) {
+      errno = e;
+      fail(errnoText("bind quiet"));
+    }
     quiet.setOpt(SOL_CAN_RAW, CAN_RAW_LOOPBACK, 0, "setsockopt(LOOPBACK)");
     quiet.send(f);
     expectNothing(rx, 100, "LOOPBACK off: other socket");
-    std::printf("can_kernel_smoke: loopback semantics OK (LOOPBACK=1, RECV_OWN_MSGS=0 defaults; MSG_CONFIRM on own frames)\n");
+    std::printf(
+        "can_kernel_smoke: loopback semantics OK (LOOPBACK=1, RECV_OWN_MSGS=0 defaults; MSG_CONFIRM on own frames)\n");
   }
 
   // --- 3. filters, order, timestamps, DLC ----------------------------------
   {
     Socket tx, rx;
-    if (int e = tx.bindTo(ifindex)) { errno = e; fail(errnoText("bind tx")); }
+    if (int e = tx.bindTo(ifindex)) {
+      errno = e;
+      fail(errnoText("bind tx"));
+    }
     // Standard ids 0x100..0x1FF (EFF flag in the mask: extended frames do not match),
     // and exactly the extended id 0x12345678.
     rx.setFilters({{0x100, 0x700 | CAN_EFF_FLAG | CAN_RTR_FLAG},
                    {0x12345678 | CAN_EFF_FLAG, CAN_EFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG}});
     rx.setOpt(SOL_SOCKET, SO_TIMESTAMP, 1, "setsockopt(SO_TIMESTAMP)");
-    if (int e = rx.bindTo(ifindex)) { errno = e; fail(errnoText("bind rx")); }
+    if (int e = rx.bindTo(ifindex)) {
+      errno = e;
+      fail(errnoText("bind rx"));
+    }
 
     struct Sent {
       can_frame f;
@@ -450,15 +485,23 @@ void run(const Options& opt) {
     bad.can_dlc = 9;
     if (::write(tx.fd(), &bad, sizeof bad) >= 0 || errno != EINVAL)
       fail("a frame with DLC 9 was not refused with EINVAL (" + errnoText("write") + ")");
-    std::printf("can_kernel_smoke: filters OK (%d of %zu frames passed, in order, SO_TIMESTAMP present and monotonic, "
-                "DLC 9 refused)\n", count, sent.size());
+    std::printf(
+        "can_kernel_smoke: filters OK (%d of %zu frames passed, in order, SO_TIMESTAMP present and monotonic, "
+        "DLC 9 refused)\n",
+        count, sent.size());
   }
 
   // --- 4. latency -------------------------------------------------------------
   {
     Socket tx, rx;
-    if (int e = tx.bindTo(ifindex)) { errno = e; fail(errnoText("bind tx")); }
-    if (int e = rx.bindTo(ifindex)) { errno = e; fail(errnoText("bind rx")); }
+    if (int e = tx.bindTo(ifindex)) {
+      errno = e;
+      fail(errnoText("bind tx"));
+    }
+    if (int e = rx.bindTo(ifindex)) {
+      errno = e;
+      fail(errnoText("bind rx"));
+    }
     std::vector<double> us;
     us.reserve(static_cast<size_t>(opt.frames));
     for (int i = 0; i < opt.frames; ++i) {
@@ -502,8 +545,10 @@ void run(const Options& opt) {
 }
 
 int usage(const char* argv0, int code) {
-  std::fprintf(code ? stderr : stdout, "usage: %s [--iface NAME (vcan0)] [--frames N (1000)] [--max-p99-us US] [--peer N]\n"
-               "       %s --serve [--iface NAME]\n", argv0, argv0);
+  std::fprintf(code ? stderr : stdout,
+               "usage: %s [--iface NAME (vcan0)] [--frames N (1000)] [--max-p99-us US] [--peer N]\n"
+               "       %s --serve [--iface NAME]\n",
+               argv0, argv0);
   return code;
 }
 
@@ -514,18 +559,33 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     auto value = [&]() -> std::string {
-      if (i + 1 >= argc) { std::fprintf(stderr, "%s needs a value\n", a.c_str()); std::exit(usage(argv[0], 2)); }
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "%s needs a value\n", a.c_str());
+        std::exit(usage(argv[0], 2));
+      }
       return argv[++i];
     };
-    if (a == "--iface") opt.iface = value();
-    else if (a == "--frames") opt.frames = std::max(1, std::atoi(value().c_str()));
-    else if (a == "--max-p99-us") opt.maxP99Us = std::atof(value().c_str());
-    else if (a == "--peer") opt.peer = std::max(0, std::atoi(value().c_str()));
-    else if (a == "--serve") opt.serve = true;
-    else if (a == "-h" || a == "--help") return usage(argv[0], 0);
-    else { std::fprintf(stderr, "unknown argument '%s'\n", a.c_str()); return usage(argv[0], 2); }
+    if (a == "--iface")
+      opt.iface = value();
+    else if (a == "--frames")
+      opt.frames = std::max(1, std::atoi(value().c_str()));
+    else if (a == "--max-p99-us")
+      opt.maxP99Us = std::atof(value().c_str());
+    else if (a == "--peer")
+      opt.peer = std::max(0, std::atoi(value().c_str()));
+    else if (a == "--serve")
+      opt.serve = true;
+    else if (a == "-h" || a == "--help")
+      return usage(argv[0], 0);
+    else {
+      std::fprintf(stderr, "unknown argument '%s'\n", a.c_str());
+      return usage(argv[0], 2);
+    }
   }
-  if (opt.iface.size() >= IFNAMSIZ) { std::fprintf(stderr, "interface name too long\n"); return 2; }
+  if (opt.iface.size() >= IFNAMSIZ) {
+    std::fprintf(stderr, "interface name too long\n");
+    return 2;
+  }
   try {
     if (opt.serve) {
       serve(opt);

@@ -144,8 +144,10 @@ class System {
         timeout);
     std::string errors;
     for (auto& a : axes_) {
-      if (a->busy()) errors += " axis " + a->name() + ": still running after " + std::to_string(timeout.count()) + " ms;";
-      else if (a->status() == Cia402Axis::Status::kFailed) errors += " axis " + a->name() + ": " + a->error() + ";";
+      if (a->busy())
+        errors += " axis " + a->name() + ": still running after " + std::to_string(timeout.count()) + " ms;";
+      else if (a->status() == Cia402Axis::Status::kFailed)
+        errors += " axis " + a->name() + ": " + a->error() + ";";
     }
     if (!done || !errors.empty()) fail(what + ":" + errors);
   }
@@ -185,7 +187,8 @@ std::string describe(Cia402Axis& a) {
 
 void checkEnabled(System& s, const std::string& when) {
   for (auto& a : s.axes()) {
-    if (a->state() != Cia402State::kOperationEnabled) fail(when + ": axis " + describe(*a) + " is not operation enabled");
+    if (a->state() != Cia402State::kOperationEnabled)
+      fail(when + ": axis " + describe(*a) + " is not operation enabled");
     ok(describe(*a));
   }
 }
@@ -248,7 +251,9 @@ void waitTpdos(System& s, const std::vector<std::uint64_t>& before, std::uint64_
 }
 
 using SteadyTime = std::chrono::steady_clock::time_point;
-double msSince(SteadyTime t) { return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count(); }
+double msSince(SteadyTime t) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
 
 // One error frame written by `injector` (a second CAN_RAW socket on the interface).
 void injectError(SocketCanBus& injector, canid_t error_class, std::uint8_t controller = 0) {
@@ -273,23 +278,34 @@ double busOff(System& s, SocketCanBus& injector, const std::string& what, double
   const BusStatus off = s.bus().status();
   if (off.last_error.find("bus-off") == std::string::npos)
     fail(what + ": last_error does not name the bus-off: '" + off.last_error + "'");
-  ok("bus-off detected after " + std::to_string(detect_ms) + " ms: state " + toString(off.state) + ", " + off.last_error);
+  ok("bus-off detected after " + std::to_string(detect_ms) + " ms: state " + toString(off.state) + ", " +
+     off.last_error);
   if (!s.master().waitUntil([&] { return s.bus().status().recoveries > before.recoveries; }, seconds(10)))
     fail(what + ": the SocketCanBus did not reopen within 10 s: " + s.bus().status().last_error);
   const double outage_ms = msSince(t0);
   const BusStatus back = s.bus().status();
   if (back.state != BusState::kErrorActive) fail(what + ": after the reopen the bus is " + toString(back.state));
   if (back.bus_off_events != before.bus_off_events + 1)
-    fail(what + ": bus_off_events " + std::to_string(before.bus_off_events) + " -> " + std::to_string(back.bus_off_events) +
-         ", expected + 1");
+    fail(what + ": bus_off_events " + std::to_string(before.bus_off_events) + " -> " +
+         std::to_string(back.bus_off_events) + ", expected + 1");
   if (outage_ms < min_outage_ms)
     fail(what + ": the socket was back after " + std::to_string(outage_ms) + " ms, before its back-off of " +
          std::to_string(min_outage_ms) + " ms");
   ok("reopened after " + std::to_string(outage_ms) + " ms (back-off >= " + std::to_string(min_outage_ms) +
      " ms), recoveries " + std::to_string(before.recoveries) + " -> " + std::to_string(back.recoveries));
-  if (!s.waitEvent(m, [](const Event& e) { return e.type == EventType::kBusStateChanged && e.text.find("-> bus-off") != std::string::npos; }, seconds(2)))
+  if (!s.waitEvent(
+          m,
+          [](const Event& e) {
+            return e.type == EventType::kBusStateChanged && e.text.find("-> bus-off") != std::string::npos;
+          },
+          seconds(2)))
     fail(what + ": the master reported no 'bus-off' event");
-  if (!s.waitEvent(m, [](const Event& e) { return e.type == EventType::kBusStateChanged && e.text.find("(recovered)") != std::string::npos; }, seconds(2)))
+  if (!s.waitEvent(
+          m,
+          [](const Event& e) {
+            return e.type == EventType::kBusStateChanged && e.text.find("(recovered)") != std::string::npos;
+          },
+          seconds(2)))
     fail(what + ": the master reported no '(recovered)' event");
   ok("master events: bus-off, then recovered");
   // The master's own heartbeat goes out again (it could not while the socket was closed).
@@ -301,14 +317,16 @@ double busOff(System& s, SocketCanBus& injector, const std::string& what, double
      "; its heartbeat goes out again; bus outages seen by the master " + std::to_string(mbefore.bus_outages) + " -> " +
      std::to_string(mafter.bus_outages));
   if (mafter.bus_outages != mbefore.bus_outages + 1)
-    fail(what + ": the master counted " + std::to_string(mafter.bus_outages - mbefore.bus_outages) + " outages, expected 1");
+    fail(what + ": the master counted " + std::to_string(mafter.bus_outages - mbefore.bus_outages) +
+         " outages, expected 1");
   return outage_ms;
 }
 
 void waitAllOperational(System& s, const std::string& what, milliseconds timeout) {
   if (!s.master().waitUntil([&] { return s.master().allOperational(); }, timeout)) {
     std::string states;
-    for (auto& a : s.axes()) states += " node " + std::to_string(a->node()) + " " + toString(s.master().nodeState(a->node())) + ";";
+    for (auto& a : s.axes())
+      states += " node " + std::to_string(a->node()) + " " + toString(s.master().nodeState(a->node())) + ";";
     fail(what + ": not all nodes operational within " + std::to_string(timeout.count()) + " ms:" + states);
   }
 }
@@ -338,12 +356,14 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
   for (auto& a : s.axes()) {
     const std::uint8_t n = a->node();
     const SdoResult rpdo = s.sdoUpload(n, 0x1600, 0), tpdo = s.sdoUpload(n, 0x1A00, 0);
-    if (!rpdo.ok || !tpdo.ok) fail("node " + std::to_string(n) + ": reading the PDO mapping back failed: " + rpdo.error + tpdo.error);
+    if (!rpdo.ok || !tpdo.ok)
+      fail("node " + std::to_string(n) + ": reading the PDO mapping back failed: " + rpdo.error + tpdo.error);
     if (rpdo.data.at(0) != 2 || tpdo.data.at(0) != 2) {
       fail("node " + std::to_string(n) + ": PDO mapping has " + std::to_string(rpdo.data.at(0)) + " RPDO1 / " +
            std::to_string(tpdo.data.at(0)) + " TPDO1 entries, expected 2 / 2");
     }
-    ok("node " + std::to_string(n) + " (" + a->name() + ") operational; RPDO1 and TPDO1 mapping read back: 2 entries each");
+    ok("node " + std::to_string(n) + " (" + a->name() +
+       ") operational; RPDO1 and TPDO1 mapping read back: 2 entries each");
   }
 
   // 3. enable
@@ -387,10 +407,12 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
     o.filters = {};  // send only
     SocketCanBus trigger(o);
     std::size_t m = s.mark();
-    if (!trigger.send(makeFrame(fault_id, {vn, static_cast<std::uint8_t>(code & 0xFF), static_cast<std::uint8_t>(code >> 8)})))
+    if (!trigger.send(
+            makeFrame(fault_id, {vn, static_cast<std::uint8_t>(code & 0xFF), static_cast<std::uint8_t>(code >> 8)})))
       fail("sending the fault test frame failed: " + trigger.status().last_error);
-    if (!s.waitEvent(m, [&](const Event& e) { return e.type == EventType::kEmcy && e.node == vn && e.emcy_code == code; },
-                     seconds(5)))
+    if (!s.waitEvent(
+            m, [&](const Event& e) { return e.type == EventType::kEmcy && e.node == vn && e.emcy_code == code; },
+            seconds(5)))
       fail("drive fault: no EMCY " + hex(code) + " from node " + std::to_string(vn) +
            " within 5 s (is can_sim_drive running with --fault-frame-id " + hex(fault_id, 3) + "?)");
     ok("EMCY " + hex(code) + " (" + emcyText(code) + ") from node " + std::to_string(vn));
@@ -400,7 +422,8 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
     if (s.master().feedback(vn).emcy_code != code) fail("drive fault: feedback.emcy_code is not " + hex(code));
     for (auto& a : s.axes()) {
       if (a.get() == &victim) continue;
-      if (a->state() != Cia402State::kOperationEnabled) fail("drive fault: unrelated axis " + describe(*a) + " left operation enabled");
+      if (a->state() != Cia402State::kOperationEnabled)
+        fail("drive fault: unrelated axis " + describe(*a) + " left operation enabled");
     }
     ok("the other axes stay operation enabled");
 
@@ -408,23 +431,26 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
     m = s.mark();
     victim.faultReset();
     s.waitAxes("fault reset", seconds(10));
-    if (!s.waitEvent(m, [&](const Event& e) { return e.type == EventType::kEmcy && e.node == vn && e.emcy_code == 0; },
-                     seconds(5)))
+    if (!s.waitEvent(
+            m, [&](const Event& e) { return e.type == EventType::kEmcy && e.node == vn && e.emcy_code == 0; },
+            seconds(5)))
       fail("fault reset: no EMCY 0x0000 (error reset) from node " + std::to_string(vn));
     ok("EMCY 0x0000 (error reset); " + describe(victim));
     victim.enable();
     s.waitAxes("enable after fault reset", seconds(15));
     checkEnabled(s, "after fault reset");
   }
-  moveAll(s, {{vn, victim.config().home_offset + (victim.config().home_offset + 0.06 <= victim.config().max_position ? 0.06 : -0.06)}},
+  moveAll(s,
+          {{vn, victim.config().home_offset +
+                    (victim.config().home_offset + 0.06 <= victim.config().max_position ? 0.06 : -0.06)}},
           "move after fault recovery");
 
   // 7. error-passive and bus-off, injected as error frames by a second socket.
   {
     SocketCanOptions o;
     o.interface = interface;
-    o.filters = {};     // it only writes
-    o.error_mask = 0;   // and does not take part in the bus-off itself
+    o.filters = {};    // it only writes
+    o.error_mask = 0;  // and does not take part in the bus-off itself
     SocketCanBus injector(o);
     const Duration first_backoff = SocketCanOptions{}.reopen_initial;
 
@@ -434,7 +460,13 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
     injectError(injector, CAN_ERR_CRTL, CAN_ERR_CRTL_TX_PASSIVE);
     if (!s.master().waitUntil([&] { return s.bus().status().state == BusState::kErrorPassive; }, seconds(2)))
       fail("error-passive: the master's bus still reports " + std::string(toString(s.bus().status().state)));
-    if (!s.waitEvent(m, [](const Event& e) { return e.type == EventType::kBusStateChanged && e.text.find("error-active -> error-passive") != std::string::npos; }, seconds(2)))
+    if (!s.waitEvent(
+            m,
+            [](const Event& e) {
+              return e.type == EventType::kBusStateChanged &&
+                     e.text.find("error-active -> error-passive") != std::string::npos;
+            },
+            seconds(2)))
       fail("error-passive: no 'error-active -> error-passive' event from the master");
     waitTpdos(s, counts, 10, "error-passive");
     if (s.bus().status().state != BusState::kErrorPassive) fail("error-passive: the state did not stay error-passive");
@@ -443,7 +475,13 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
     injectError(injector, CAN_ERR_CRTL, CAN_ERR_CRTL_ACTIVE);
     if (!s.master().waitUntil([&] { return s.bus().status().state == BusState::kErrorActive; }, seconds(2)))
       fail("back to error-active: the master's bus still reports " + std::string(toString(s.bus().status().state)));
-    if (!s.waitEvent(m, [](const Event& e) { return e.type == EventType::kBusStateChanged && e.text.find("error-passive -> error-active") != std::string::npos; }, seconds(2)))
+    if (!s.waitEvent(
+            m,
+            [](const Event& e) {
+              return e.type == EventType::kBusStateChanged &&
+                     e.text.find("error-passive -> error-active") != std::string::npos;
+            },
+            seconds(2)))
       fail("back to error-active: no 'error-passive -> error-active' event from the master");
     ok("master reports error-active again");
 
@@ -469,7 +507,8 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
     waitTpdos(s, tpdoCounts(s), 5, "after the bus-off");
     ok("every drive's TPDO1 flows again (the drives' sockets saw the error frame too and came back)");
     finishMoves(s, moves, "moves across the bus-off");
-    if (s.waitEvent(m, [](const Event& e) { return e.type == EventType::kHeartbeatTimeout; }, milliseconds(0)))
+    if (s.waitEvent(
+            m, [](const Event& e) { return e.type == EventType::kHeartbeatTimeout; }, milliseconds(0)))
       fail("bus-off: a heartbeat timed out although the outage was shorter than the consumer time");
     if (!s.master().allOperational()) fail("bus-off: not all nodes are operational");
     checkEnabled(s, "after the bus-off");
@@ -490,7 +529,8 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
     const std::size_t recovered_emcys =
         s.countEvents([](const Event& e) { return e.type == EventType::kEmcy && e.emcy_code == 0x8140; });
     ok(std::to_string(recovered_emcys) + " EMCY 0x8140 (recovered from bus off) from the drives reached the master");
-    ok("outages " + std::to_string(outage1) + " ms then " + std::to_string(outage2) + " ms; nodes operational, axes enabled");
+    ok("outages " + std::to_string(outage1) + " ms then " + std::to_string(outage2) +
+       " ms; nodes operational, axes enabled");
   }
 
   // 8. interface down / up: the SocketCanBus handles it like a bus-off (close,
@@ -498,13 +538,16 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
   const BusStatus before = s.bus().status();
   step("interface loss: ip link set " + interface + " down");
   std::size_t m = s.mark();
-  if (std::system(("ip link set " + interface + " down").c_str()) != 0) fail("`ip link set " + interface + " down` failed");
+  if (std::system(("ip link set " + interface + " down").c_str()) != 0)
+    fail("`ip link set " + interface + " down` failed");
   if (!s.master().waitUntil([&] { return s.bus().status().state == BusState::kDown; }, seconds(5)))
     fail("interface down: the SocketCanBus still reports " + std::string(toString(s.bus().status().state)));
   ok("SocketCanBus state down: " + s.bus().status().last_error);
-  if (!s.waitEvent(m, [](const Event& e) { return e.type == EventType::kBusStateChanged; }, seconds(5)))
+  if (!s.waitEvent(
+          m, [](const Event& e) { return e.type == EventType::kBusStateChanged; }, seconds(5)))
     fail("interface down: no bus state event from the master");
-  if (!s.waitEvent(m, [](const Event& e) { return e.type == EventType::kHeartbeatTimeout; }, seconds(5)))
+  if (!s.waitEvent(
+          m, [](const Event& e) { return e.type == EventType::kHeartbeatTimeout; }, seconds(5)))
     fail("interface down: no heartbeat timeout while the interface was down");
   ok("master reported the bus state change and heartbeat timeouts");
   step("ip link set " + interface + " up: wait for the reopen");
@@ -520,7 +563,8 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
   ok("SocketCanBus back to error-active, recoveries " + std::to_string(before.recoveries) + " -> " +
      std::to_string(s.bus().status().recoveries));
   waitAllOperational(s, "after the interface came back", seconds(15));
-  if (!s.waitEvent(m, [](const Event& e) { return e.type == EventType::kHeartbeatResumed; }, seconds(1)))
+  if (!s.waitEvent(
+          m, [](const Event& e) { return e.type == EventType::kHeartbeatResumed; }, seconds(1)))
     fail("interface up: no heartbeat-resumed event");
   if (!s.master().waitUntil(
           [&] {

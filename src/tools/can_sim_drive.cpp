@@ -90,7 +90,8 @@ int main(int argc, char** argv) {
         for (const AxisConfig& a : config.axes) {
           if (wanted.empty() || std::find(wanted.begin(), wanted.end(), a.node_id) != wanted.end()) axes.push_back(a);
         }
-        if (axes.empty()) throw std::runtime_error("--nodes " + nodes_text + ": none of these nodes is in " + config_path);
+        if (axes.empty())
+          throw std::runtime_error("--nodes " + nodes_text + ": none of these nodes is in " + config_path);
         std::vector<std::unique_ptr<SocketCanBus>> buses;
         std::vector<std::unique_ptr<SimDrive>> drives;
         for (const AxisConfig& a : axes) {
@@ -127,8 +128,10 @@ int main(int argc, char** argv) {
             const auto it = std::find_if(drives.begin(), drives.end(),
                                          [&](const auto& d) { return fr.len >= 3 && d->node() == fr.data[0]; });
             if (it == drives.end()) {
-              std::printf("can_sim_drive: fault test frame %s ignored (expected [node, code lo, code hi] of one of "
-                          "this process's nodes)\n", formatFrame(fr).c_str());
+              std::printf(
+                  "can_sim_drive: fault test frame %s ignored (expected [node, code lo, code hi] of one of "
+                  "this process's nodes)\n",
+                  formatFrame(fr).c_str());
             } else {
               const auto code = static_cast<std::uint16_t>(fr.data[1] | fr.data[2] << 8);
               (*it)->injectFault(code);

@@ -9,6 +9,7 @@
 #include <functional>
 #include <iomanip>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <random>
 #include <sstream>
@@ -16,24 +17,24 @@
 #include <tuple>
 #include <utility>
 #include <vector>
-#include <limits>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "cect_params.h"
+#include "cect_scenes.h"
 #include "cli.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
 #include "massage_cell/cect/locate.h"
 #include "massage_cell/sim/body_model.h"
-#include "massage_cell/stereo/pipeline.h"
+#include "massage_cell/sim/ground_truth.h"
 #include "massage_cell/sim/renderer.h"
 #include "massage_cell/sim/scene_builder.h"
 #include "massage_cell/sim/stereo_frame.h"
-#include "massage_cell/sim/ground_truth.h"
-#include "cect_scenes.h"
+#include "massage_cell/stereo/pipeline.h"
+#include "package_paths.h"
 
 namespace {
 
@@ -117,8 +118,8 @@ struct Options {
   bool csv = false;
   bool per_point = false;
   bool by_border = false;  ///< --by-border
-  bool parallax = true;  ///< the model's midline corrected for the silhouette's parallax (3D)
-  bool levels_3d = true;  ///< the levels spaced along the body's axis in 3D
+  bool parallax = true;    ///< the model's midline corrected for the silhouette's parallax (3D)
+  bool levels_3d = true;   ///< the levels spaced along the body's axis in 3D
   std::string acupoints;
   std::string pictures;  ///< --pictures: a folder for every pair's picture
   int seed_step = -1;
@@ -163,7 +164,9 @@ struct Stats {
     for (double e : errors_mm) s += e;
     return s / static_cast<double>(errors_mm.size());
   }
-  double max() const { return errors_mm.empty() ? std::nan("") : *std::max_element(errors_mm.begin(), errors_mm.end()); }
+  double max() const {
+    return errors_mm.empty() ? std::nan("") : *std::max_element(errors_mm.begin(), errors_mm.end());
+  }
   /// The q-quantile of the errors (nearest rank).
   double quantile(double q) const {
     if (errors_mm.empty()) return std::nan("");
@@ -231,12 +234,12 @@ const std::vector<std::pair<double, std::string>>& borderBands() {
 }
 
 struct PairResult {
-  std::map<std::string, Stats> stats;  ///< "cect/acupoints", "sgbm/random", ...
-  Stats model;                         ///< placed vs anatomical acupoints
+  std::map<std::string, Stats> stats;      ///< "cect/acupoints", "sgbm/random", ...
+  Stats model;                             ///< placed vs anatomical acupoints
   std::map<std::string, Stats> per_point;  ///< CECT on each acupoint (by name)
   std::map<std::string, Stats> border;     ///< --by-border: "cect/<band>", "sgbm/<band>"
   double cect_ms = 0.0, sgbm_ms = 0.0;
-  std::string failure;                 ///< CECT's reason when the frame was not usable
+  std::string failure;         ///< CECT's reason when the frame was not usable
   int in_view = 0;             ///< acupoints in view (the simulator's truth)
   int placed_in_view = 0;      ///< ... of them placed and localised
   int placed_out_of_view = 0;  ///< acupoints placed and localised though not in view
@@ -244,7 +247,8 @@ struct PairResult {
 
 /// --pictures: one pair's picture (see the usage).
 void writePicture(const Options& o, const Condition& c, int subject, const cect::CectFrame& f,
-                  const cect::LocatedAcupoints& result, const std::map<std::string, Eigen::Vector3d>& anatomical, const cect::StereoGeometry& geometry,
+                  const cect::LocatedAcupoints& result, const std::map<std::string, Eigen::Vector3d>& anatomical,
+                  const camera::StereoModel& geometry,
                   const std::function<bool(const cv::Point2f&, Eigen::Vector3d*)>& truth) {
   const cect::BackLandmarks& lm = result.landmarks;
   cv::Mat img;
@@ -275,16 +279,20 @@ void writePicture(const Options& o, const Condition& c, int subject, const cect:
     Eigen::Vector3d gt;
     double err = std::numeric_limits<double>::infinity();
     if (a.valid && truth(a.rectified, &gt)) err = 1000.0 * (a.point.position - gt).norm();
-    const cv::Scalar colour = err < 5.0 ? cv::Scalar(0, 220, 0) : err < 10.0 ? cv::Scalar(0, 165, 255) : cv::Scalar(0, 0, 255);
+    const cv::Scalar colour = err < 5.0    ? cv::Scalar(0, 220, 0)
+                              : err < 10.0 ? cv::Scalar(0, 165, 255)
+                                           : cv::Scalar(0, 0, 255);
     cv::circle(img, cv::Point(cvRound(a.rectified.x), cvRound(a.rectified.y)), 2, colour, -1, cv::LINE_AA);
   }
   std::ostringstream text;
   text << c.name << ", subject " << subject;
-  if (lm.valid && lm.body_angle_deg != 0.0) text << ", turned " << std::fixed << std::setprecision(1) << lm.body_angle_deg << " deg";
+  if (lm.valid && lm.body_angle_deg != 0.0)
+    text << ", turned " << std::fixed << std::setprecision(1) << lm.body_angle_deg << " deg";
   if (!result.valid) text << ": " << result.reason;
   cv::putText(img, f.left().trunk.summary(), cv::Point(8, 36), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(255, 255, 255),
               1, cv::LINE_AA);
-  cv::putText(img, text.str(), cv::Point(8, 18), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+  cv::putText(img, text.str(), cv::Point(8, 18), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(255, 255, 255), 1,
+              cv::LINE_AA);
   std::ostringstream name;
   name << o.pictures << "/" << c.name << "_s" << std::setw(2) << std::setfill('0') << subject << ".png";
   if (!cv::imwrite(name.str(), img)) throw std::runtime_error("cannot write '" + name.str() + "'");
@@ -318,7 +326,7 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   sim::RenderOptions ro;
   ro.noise_seed = static_cast<std::uint32_t>(subject);
   const sim::StereoFrame frame = sim::renderStereoFrame(renderer, pair, sim::Lighting::preset(sc.light), ro);
-  const cect::StereoGeometry geometry(pair.left_info, pair.right_info);
+  const camera::StereoModel geometry(pair.left_info, pair.right_info);
   const Eigen::Isometry3d left_from_world = pair.left.world_from_camera.inverse();
 
   // Ground truth at a rectified left pixel: the surface point seen there.
@@ -425,8 +433,10 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
       if (!q.name.empty()) {
         Stats& pp = res.per_point[q.name];
         pp.queried = 1;
-        if (lp.valid) pp.errors_mm.push_back(sc.errors_mm.back());
-        else pp.misses[lp.reason.substr(0, lp.reason.find(" by "))] = 1;
+        if (lp.valid)
+          pp.errors_mm.push_back(sc.errors_mm.back());
+        else
+          pp.misses[lp.reason.substr(0, lp.reason.find(" by "))] = 1;
       }
       Eigen::Vector3d ps;
       if (sgbmPoint(q.rect, &ps)) ss.errors_mm.push_back(1000.0 * (ps - gt).norm());
@@ -481,7 +491,8 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   }
   res.model.queried = res.in_view;
   std::tie(res.stats["cect/given"], res.stats["sgbm/given"]) = score(given, static_cast<int>(given.size()));
-  std::tie(res.stats["cect/near_arms"], res.stats["sgbm/near_arms"]) = score(nearArms, static_cast<int>(nearArms.size()));
+  std::tie(res.stats["cect/near_arms"], res.stats["sgbm/near_arms"]) =
+      score(nearArms, static_cast<int>(nearArms.size()));
   if (!o.pictures.empty()) writePicture(o, c, subject, f, result, anatomical, geometry, truth);
   return res;
 }
@@ -512,7 +523,8 @@ struct SummaryRow {
 /// layout's error, and the 3D error at the true acupoint pixels.
 void printSummary(const std::vector<SummaryRow>& rows) {
   std::cout << "Summary (acupoints in view = the simulator's truth; layout = the placed pixel's surface point vs the\n"
-               "anatomical acupoint; given = CECT at the true acupoint pixels; near arms = back pixels within 20 px of an arm)\n"
+               "anatomical acupoint; given = CECT at the true acupoint pixels; near arms = back pixels within 20 px of "
+               "an arm)\n"
             << std::left << std::setw(18) << "condition" << std::right << std::setw(8) << "in view" << std::setw(9)
             << "placed%" << std::setw(8) << "extra" << std::setw(12) << "layout mm" << std::setw(10) << "lay p95"
             << std::setw(11) << "given mm" << std::setw(10) << "giv p95" << std::setw(9) << "giv<1cm" << std::setw(10)
@@ -532,8 +544,7 @@ void printSummary(const std::vector<SummaryRow>& rows) {
 void run(const Options& o) {
   stereo::retainFreedMemory();  // page faults would otherwise dominate the per-pair timings
   const cect::AcupointModel model =
-      cect::loadAcupointModel(o.acupoints.empty() ? std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/acupoints.yaml"
-                                                  : o.acupoints);
+      cect::loadAcupointModel(o.acupoints.empty() ? tools::packageFile("config/acupoints.yaml") : o.acupoints);
   cect::CectParams params;
   if (o.seed_step >= 0) params.seed_step = o.seed_step;
   if (o.query_search >= 0) params.query_search = o.query_search;
@@ -562,7 +573,8 @@ void run(const Options& o) {
     }
   }
 
-  if (o.csv) std::cout << "condition,subject,method,points,mean_mm,max_mm,acc_rate\n";
+  if (o.csv)
+    std::cout << "condition,subject,method,points,mean_mm,max_mm,acc_rate\n";
   else
     std::cout << "CECT vs StereoSGBM at the same left pixels; " << o.width << "x" << o.height << ", fx " << o.fx
               << " px, baseline " << o.baseline << " m, camera " << o.camera_height << " m above the table"
@@ -570,7 +582,8 @@ void run(const Options& o) {
               << (o.raw ? ", raw (distorted, unrectified) pairs" : ", rectified pairs") << "\n\n"
               << std::left << std::setw(18) << "condition" << std::setw(8) << "method" << std::setw(11) << "points"
               << std::right << std::setw(8) << "queried" << std::setw(8) << "valid%" << std::setw(9) << "mean mm"
-              << std::setw(9) << "max mm" << std::setw(9) << "p95 mm" << std::setw(9) << "acc<1cm" << "\n";
+              << std::setw(9) << "max mm" << std::setw(9) << "p95 mm" << std::setw(9) << "acc<1cm"
+              << "\n";
   std::vector<SummaryRow> summary;
   for (const Condition& c : conditions) {
     std::map<std::string, Stats> total, per_point, border;
@@ -612,20 +625,22 @@ void run(const Options& o) {
     }
     std::cout << std::left << std::setw(18) << c.name << "model placement vs anatomical acupoints: mean "
               << fmt(model_total.mean(), 1) << " mm, max " << fmt(model_total.max(), 1) << " mm; CECT "
-              << fmt(medianOf(cect_ms), 1) << " ms median (max " << fmt(*std::max_element(cect_ms.begin(), cect_ms.end()), 1)
-              << "), SGBM " << fmt(medianOf(sgbm_ms), 1) << " ms; " << c.subjects.size() << " subjects\n";
+              << fmt(medianOf(cect_ms), 1) << " ms median (max "
+              << fmt(*std::max_element(cect_ms.begin(), cect_ms.end()), 1) << "), SGBM " << fmt(medianOf(sgbm_ms), 1)
+              << " ms; " << c.subjects.size() << " subjects\n";
     {
       const Stats& g = total["cect/given"];
       const Stats& sg = total["sgbm/given"];
-      SummaryRow row{c.name, in_view, placed_in_view, placed_out_of_view, model_total, g, sg,
-                     total["cect/near_arms"], medianOf(cect_ms)};
+      SummaryRow row{c.name, in_view, placed_in_view,          placed_out_of_view, model_total,
+                     g,      sg,      total["cect/near_arms"], medianOf(cect_ms)};
       std::cout << std::left << std::setw(18) << c.name << "acupoints in view " << in_view << ": "
                 << fmt(row.placedShare(), 1) << " % placed (" << placed_out_of_view
                 << " placed though out of view); layout vs anatomical mean " << fmt(model_total.mean(), 1)
                 << " mm, p95 " << fmt(model_total.quantile(0.95), 1) << " mm\n"
-                << std::setw(18) << "" << "at the true acupoint pixels: CECT mean " << fmt(g.mean()) << " mm, p95 "
-                << fmt(g.quantile(0.95)) << ", " << fmt(100.0 * g.accRate(), 1) << " % within 1 cm; SGBM mean "
-                << fmt(sg.mean()) << " mm, " << fmt(100.0 * sg.accRate(), 1) << " % within 1 cm\n";
+                << std::setw(18) << ""
+                << "at the true acupoint pixels: CECT mean " << fmt(g.mean()) << " mm, p95 " << fmt(g.quantile(0.95))
+                << ", " << fmt(100.0 * g.accRate(), 1) << " % within 1 cm; SGBM mean " << fmt(sg.mean()) << " mm, "
+                << fmt(100.0 * sg.accRate(), 1) << " % within 1 cm\n";
       summary.push_back(row);
     }
     for (const auto& f : failures) std::cout << "  CECT failed on " << f << "\n";
@@ -659,7 +674,8 @@ void run(const Options& o) {
     if (o.per_point) {
       std::cout << "  " << std::left << std::setw(14) << "acupoint" << std::right << std::setw(8) << "queried"
                 << std::setw(8) << "valid%" << std::setw(9) << "mean mm" << std::setw(9) << "max mm" << std::setw(9)
-                << "acc<1cm" << "  commonest miss\n";
+                << "acc<1cm"
+                << "  commonest miss\n";
       for (const std::string& name : model.names()) {
         const auto it = per_point.find(name);
         if (it == per_point.end()) continue;
@@ -703,7 +719,9 @@ int main(int argc, char** argv) {
           tools::require(o.random_points >= 0, opt + " must be >= 0");
         };
         t.values["--width"] = [&](const std::string& opt, const std::string& v) { o.width = tools::parseInt(opt, v); };
-        t.values["--height"] = [&](const std::string& opt, const std::string& v) { o.height = tools::parseInt(opt, v); };
+        t.values["--height"] = [&](const std::string& opt, const std::string& v) {
+          o.height = tools::parseInt(opt, v);
+        };
         t.values["--fx"] = [&](const std::string& opt, const std::string& v) { o.fx = tools::parseDouble(opt, v); };
         t.values["--baseline"] = [&](const std::string& opt, const std::string& v) {
           o.baseline = tools::parseDouble(opt, v);

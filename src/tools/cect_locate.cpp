@@ -15,20 +15,21 @@
 #include <utility>
 #include <vector>
 
+#include <yaml-cpp/yaml.h>
 #include <Eigen/Core>
 #include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <yaml-cpp/yaml.h>
 
 #include "cect_params.h"
 #include "cli.h"
 #include "massage_cell/camera/calibration_io.h"
+#include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
 #include "massage_cell/cect/locate.h"
 #include "massage_cell/cect/segmentation.h"
-#include "massage_cell/cect/stereo_geometry.h"
+#include "package_paths.h"
 
 namespace {
 
@@ -244,8 +245,7 @@ camera::CameraCalibration readInfo(const std::string& path, const cv::Mat& image
 }
 
 cect::AcupointModel loadModel(const Options& o) {
-  const std::string path =
-      o.acupoints.empty() ? std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/acupoints.yaml" : o.acupoints;
+  const std::string path = o.acupoints.empty() ? tools::packageFile("config/acupoints.yaml") : o.acupoints;
   return cect::loadAcupointModel(path);
 }
 
@@ -277,7 +277,7 @@ PointRow stereoRow(const cect::LocatedAcupoint& a) {
 
 struct StereoInput {
   cv::Mat left, right;
-  cect::StereoGeometry geometry;
+  camera::StereoModel geometry;
 };
 
 /// The images, checked against their calibrations, and the pair's geometry.
@@ -288,7 +288,7 @@ StereoInput readPair(const Options& o) {
   const camera::CameraCalibration left_info = readInfo(o.left_info, in.left, o.left);
   const camera::CameraCalibration right_info = readInfo(o.right_info, in.right, o.right);
   try {
-    in.geometry = cect::StereoGeometry(left_info, right_info);
+    in.geometry = camera::StereoModel(left_info, right_info);
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error("calibration '" + o.left_info + "' / '" + o.right_info + "': " + e.what());
   }
@@ -296,7 +296,7 @@ StereoInput readPair(const Options& o) {
 }
 
 Report stereoReport(const Options& o, const cect::CectFrame& frame, const cect::LocatedAcupoints& located) {
-  const cect::StereoGeometry& geometry = frame.geometry();
+  const camera::StereoModel& geometry = frame.geometry();
   Report r;
   r.inputs = {{"left", o.left}, {"right", o.right}, {"left_info", o.left_info}, {"right_info", o.right_info}};
   r.frame_valid = frame.valid();
@@ -548,8 +548,8 @@ void writeOverlay(const Options& o, const Report& r) {
     const cv::Point c(cvRound(p.pixel.x), cvRound(p.pixel.y));
     const cv::Scalar colour = p.valid ? cv::Scalar(0, 220, 0) : cv::Scalar(0, 0, 255);
     cv::circle(img, c, cvRound(2 * k), colour, cv::FILLED, cv::LINE_AA);
-    cv::putText(img, p.name, c + cv::Point(cvRound(3 * k), cvRound(-2 * k)), cv::FONT_HERSHEY_PLAIN, 0.6 * k, colour,
-                1, cv::LINE_AA);
+    cv::putText(img, p.name, c + cv::Point(cvRound(3 * k), cvRound(-2 * k)), cv::FONT_HERSHEY_PLAIN, 0.6 * k, colour, 1,
+                cv::LINE_AA);
   }
   drawStatus(img, statusLine(r), k);
   bool ok = false;
@@ -656,8 +656,9 @@ void checkOptions(const Options& o) {
   if (o.right_info.empty()) missing.push_back("--right-info");
   std::string list;
   for (const std::string& m : missing) list += (list.empty() ? "" : ", ") + m;
-  require(missing.empty(), "missing " + list + " (a stereo pair needs --left, --right, --left-info and "
-                                               "--right-info; one image: --layout-only IMAGE)");
+  require(missing.empty(), "missing " + list +
+                               " (a stereo pair needs --left, --right, --left-info and "
+                               "--right-info; one image: --layout-only IMAGE)");
   const cect::CectParams p = cectParams(o);
   require(p.min_depth < p.max_depth, "--min-depth must be less than --max-depth (the defaults are 0.25 and 2.5 m)");
 }

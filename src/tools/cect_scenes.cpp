@@ -40,11 +40,11 @@ Framing usualFraming(Draw& d, const sim::BackModel& back) {
 void dressCell(Draw& d, sim::Dressing* s) {
   s->head = true;
   s->lower_body = true;
-  s->hair = d.pick(std::vector<sim::HairLength>{sim::HairLength::kShort, sim::HairLength::kNape,
-                                                 sim::HairLength::kLong, sim::HairLength::kNone});
-  s->hair_colour = d.pick(std::vector<sim::HairColour>{sim::HairColour::kBlack, sim::HairColour::kBrown,
-                                                        sim::HairColour::kBlond, sim::HairColour::kGrey,
-                                                        sim::HairColour::kRed});
+  s->hair = d.pick(std::vector<sim::HairLength>{sim::HairLength::kShort, sim::HairLength::kNape, sim::HairLength::kLong,
+                                                sim::HairLength::kNone});
+  s->hair_colour =
+      d.pick(std::vector<sim::HairColour>{sim::HairColour::kBlack, sim::HairColour::kBrown, sim::HairColour::kBlond,
+                                          sim::HairColour::kGrey, sim::HairColour::kRed});
   const auto& colours = sim::clothColours();
   s->sheet = sim::Cloth{d.pick(colours).second, d.chance(0.7) ? sim::Weave::kFine : sim::Weave::kWaffle};
 }
@@ -74,7 +74,9 @@ std::string describe(const Scenario& s, const std::string& condition, const Fram
   std::ostringstream o;
   o.precision(2);
   o << condition << ": arms "
-    << (s.dressing.arms == sim::ArmPose::kNone ? "none" : s.dressing.arms == sim::ArmPose::kRaised ? "raised" : "along")
+    << (s.dressing.arms == sim::ArmPose::kNone     ? "none"
+        : s.dressing.arms == sim::ArmPose::kRaised ? "raised"
+                                                   : "along")
     << (s.dressing.towel ? ", towel" : "") << ", view x " << f.top << " .. " << f.bottom << " m"
     << (s.rig.rectified ? "" : ", raw toe-in rig") << ", B " << s.rig.baseline << " m";
   return o.str();
@@ -124,14 +126,18 @@ Scenario realScenario(const std::string& condition, int subject, const sim::RigP
     rawToeIn(d, &s.rig);
   } else {  // mixed
     const double pose = d.uniform(0.0, 1.0);
-    if (pose < 0.7) armsAlong(d, &s.dressing, 0.35);
-    else if (pose < 0.9) s.dressing.arms = sim::ArmPose::kRaised;
+    if (pose < 0.7)
+      armsAlong(d, &s.dressing, 0.35);
+    else if (pose < 0.9)
+      s.dressing.arms = sim::ArmPose::kRaised;
     if (d.chance(0.5)) addTowel(d, back, &s.dressing);
     f = {d.uniform(0.01, 0.16), d.uniform(l4 - 0.22, l2)};
-    if (d.chance(0.5)) rawToeIn(d, &s.rig);
-    else s.rig.baseline = d.uniform(0.06, 0.12);
+    if (d.chance(0.5))
+      rawToeIn(d, &s.rig);
+    else
+      s.rig.baseline = d.uniform(0.06, 0.12);
     s.light = d.pick(std::vector<sim::LightPreset>{sim::LightPreset::kTopLeft, sim::LightPreset::kTopCentre,
-                                                    sim::LightPreset::kTopRight});
+                                                   sim::LightPreset::kTopRight});
   }
   s.rig = sim::frameRig(s.rig, f.top, f.bottom, 0.17);
   s.summary = describe(s, condition, f);

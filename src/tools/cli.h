@@ -28,7 +28,9 @@ inline void require(bool ok, const std::string& message) {
   if (!ok) throw UsageError(message);
 }
 
-inline bool startsWithSpace(const std::string& s) { return !s.empty() && std::isspace(static_cast<unsigned char>(s[0])); }
+inline bool startsWithSpace(const std::string& s) {
+  return !s.empty() && std::isspace(static_cast<unsigned char>(s[0]));
+}
 
 inline int parseInt(const std::string& option, const std::string& text) {
   char* end = nullptr;

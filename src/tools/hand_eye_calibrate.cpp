@@ -18,6 +18,7 @@
 #include "massage_cell/calib/recorded_set.h"
 #include "massage_cell/calib/stereo_marker.h"
 #include "massage_cell/sim/hand_eye_scene.h"
+#include "package_paths.h"
 
 namespace {
 
@@ -63,7 +64,7 @@ Exit status: 0 calibrated (warnings included), 1 bad data or no calibration
 struct Options {
   bool sim = false;
   std::string data, out, save_pairs;
-  std::string arm_config = std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/arm.yaml";
+  std::string arm_config;  // default: the package's config/arm.yaml
   std::optional<Eigen::Vector3d> offset;
   calib::CharucoSpec spec;
   calib::FitOptions fit;
@@ -177,17 +178,19 @@ calib::HandEyeResult fitAndReport(const std::vector<Row>& rows, const Eigen::Vec
     if (o.sim) std::printf("  %8.3f", row.truth_error_mm);
     std::printf("\n");
   }
-  std::printf("poses used %zu of %zu; residual RMS %.3f mm, max %.3f mm; singular values of the poses"
-              " %.0f %.0f %.0f mm\n",
-              pairs.size(), rows.size(), r.rms_mm, r.max_mm, r.singular_values(0) * 1e3, r.singular_values(1) * 1e3,
-              r.singular_values(2) * 1e3);
+  std::printf(
+      "poses used %zu of %zu; residual RMS %.3f mm, max %.3f mm; singular values of the poses"
+      " %.0f %.0f %.0f mm\n",
+      pairs.size(), rows.size(), r.rms_mm, r.max_mm, r.singular_values(0) * 1e3, r.singular_values(1) * 1e3,
+      r.singular_values(2) * 1e3);
   printTransform("fitted", r.camera_from_base);
   for (const auto& w : r.warnings) std::cerr << "hand_eye_calibrate: warning: " << w << "\n";
   return r;
 }
 
 std::vector<Row> simulate(const Options& o, const Eigen::Vector3d& offset, Eigen::Isometry3d* truth) {
-  const arm::ArmConfig arm = arm::loadArmConfig(o.arm_config);
+  const arm::ArmConfig arm =
+      arm::loadArmConfig(o.arm_config.empty() ? tools::packageFile("config/arm.yaml") : o.arm_config);
   const sim::StereoPairModel pair = sim::makeStereoPair(sim::RigParameters{});
   sim::MarkerMount mount;
   mount.spec = o.spec;

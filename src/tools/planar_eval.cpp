@@ -19,6 +19,7 @@
 #include "massage_cell/planar/evaluation.h"
 #include "massage_cell/planar/reconstruct.h"
 #include "massage_cell/sim/multiview_set.h"
+#include "package_paths.h"
 
 namespace {
 
@@ -115,8 +116,7 @@ bool parse(int argc, char** argv, Options* o) {
 
 std::string dataFolder(const Options& o) {
   if (!o.data.empty()) return o.data;
-  if (const char* env = std::getenv("MASSAGE_CELL_DATA")) return env;
-  return std::string(MASSAGE_CELL_SOURCE_DIR) + "/../shared/data";
+  return tools::sharedDataDir();
 }
 
 /// A rendered set's views and reference (planes, visible masks, points on them).
@@ -201,7 +201,8 @@ void evaluateSet(const EvalSet& set, const Options& o) {
     planar::ExtendStats ext;
     planar::DelineateStats del;
     const planar::PlanarModel model = planar::delineate(
-        set.views, base.points, planar::extendAndMerge(set.views, base.points, base.lines, half_planes, o.params.extension, &ext),
+        set.views, base.points,
+        planar::extendAndMerge(set.views, base.points, base.lines, half_planes, o.params.extension, &ext),
         o.params.delineation, &del);
     const planar::Evaluation ev = planar::evaluateModel(model, set.views, set.reference, 10.0, 0.03 * set.depth);
     printRow(set, method, ev, stats, front + stats.seconds + ext.seconds + del.seconds);

@@ -102,8 +102,8 @@ void printSummary(const std::vector<planar::View>& views, const planar::Reconstr
             << r.times.extension << " s)\n"
             << (r.delineation.labelling_view >= 0
                     ? "delineation: " + std::to_string(r.delineation.point_planes) + " planes from left-over points, " +
-                          std::to_string(r.delineation.dropped) + " dropped, " +
-                          std::to_string(r.model.facets.size()) + " planes\n"
+                          std::to_string(r.delineation.dropped) + " dropped, " + std::to_string(r.model.facets.size()) +
+                          " planes\n"
                     : std::string())
             << "total " << r.times.total() << " s\n";
   for (std::size_t i = 0; i < r.model.facets.size(); ++i) {

@@ -14,12 +14,12 @@
 #include <utility>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
+#include <opencv2/imgcodecs.hpp>
 
+#include "cli.h"
 #include "massage_cell/camera/calibration_io.h"
 #include "massage_cell/sim/textured_plane.h"
-#include "cli.h"
 
 namespace {
 
@@ -116,8 +116,8 @@ bool parseOptions(int argc, char** argv, Options& o) {
   require(o.amplitude < o.distance, "--amplitude must be smaller than --distance (the plane must stay in front)");
   require(o.format == "jpg" || o.format == "png", "--format must be jpg or png, got '" + o.format + "'");
   require(o.noise >= 0.0, "--noise must be >= 0");
-  for (const auto& [option, prefix] : {std::pair{"--prefix-left", &o.prefix_left},
-                                       std::pair{"--prefix-right", &o.prefix_right}}) {
+  for (const auto& [option, prefix] :
+       {std::pair{"--prefix-left", &o.prefix_left}, std::pair{"--prefix-right", &o.prefix_right}}) {
     require(!prefix->empty() && prefix->find('/') == std::string::npos,
             std::string(option) + " must be a non-empty file name prefix without '/'");
   }
@@ -153,8 +153,7 @@ void run(const Options& o) {
   rig.cy = (o.height - 1) / 2.0;
   rig.baseline = o.baseline;
   massage_cell::camera::writeCameraInfoYaml((dir / "left.yaml").string(), sim::leftCalibration(rig), "sample_left");
-  massage_cell::camera::writeCameraInfoYaml((dir / "right.yaml").string(), sim::rightCalibration(rig),
-                                            "sample_right");
+  massage_cell::camera::writeCameraInfoYaml((dir / "right.yaml").string(), sim::rightCalibration(rig), "sample_right");
 
   sim::TexturedPlane plane;
   plane.seed = o.seed;
@@ -195,8 +194,8 @@ void run(const Options& o) {
     gt << YAML::Key << "right" << YAML::Value << right_name;
     gt << YAML::Key << "plane_distance" << YAML::Value << z;
     gt << YAML::Key << "centre_disparity" << YAML::Value << disparity;
-    gt << YAML::Key << "texture_offset" << YAML::Value << YAML::Flow << YAML::BeginSeq
-       << plane.texture_offset.x() << plane.texture_offset.y() << YAML::EndSeq;
+    gt << YAML::Key << "texture_offset" << YAML::Value << YAML::Flow << YAML::BeginSeq << plane.texture_offset.x()
+       << plane.texture_offset.y() << YAML::EndSeq;
     gt << YAML::EndMap;
   }
   gt << YAML::EndSeq << YAML::EndMap;
@@ -207,10 +206,11 @@ void run(const Options& o) {
   if (!file) throw std::runtime_error("cannot write '" + gt_path.string() + "'");
 
   const double fb = rig.fx * rig.baseline;
-  std::printf("render_sample: wrote %d stereo pair%s (%dx%d %s) to %s; plane distance %.4f..%.4f m, "
-              "disparity %.3f..%.3f px\n",
-              o.frames, o.frames == 1 ? "" : "s", o.width, o.height, o.format.c_str(), dir.string().c_str(), min_z,
-              max_z, fb / max_z, fb / min_z);
+  std::printf(
+      "render_sample: wrote %d stereo pair%s (%dx%d %s) to %s; plane distance %.4f..%.4f m, "
+      "disparity %.3f..%.3f px\n",
+      o.frames, o.frames == 1 ? "" : "s", o.width, o.height, o.format.c_str(), dir.string().c_str(), min_z, max_z,
+      fb / max_z, fb / min_z);
 }
 
 }  // namespace

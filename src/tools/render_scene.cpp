@@ -7,9 +7,9 @@
 #include <fstream>
 #include <sstream>
 
+#include <yaml-cpp/yaml.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <yaml-cpp/yaml.h>
 
 #include "cli.h"
 #include "massage_cell/camera/calibration_io.h"
@@ -179,7 +179,8 @@ void checkCellOptions(const Options& o) {
     }
   };
   require(o.varied >= 0, "--varied must be >= 1");
-  require(o.build.empty() || o.build == "male" || o.build == "female", "--build must be male or female, got '" + o.build + "'");
+  require(o.build.empty() || o.build == "male" || o.build == "female",
+          "--build must be male or female, got '" + o.build + "'");
   require(!(given(o, "--subject") + given(o, "--varied") + !o.build.empty() > 1),
           "--subject, --varied and --build are exclusive");
   require((!given(o, "--bmi") && !given(o, "--stature")) || !o.build.empty(), "--bmi and --stature need --build");
@@ -210,7 +211,9 @@ void checkBackSetup(const Options& o);
 bool parseOptions(int argc, char** argv, Options& o) {
   OptionTable t;
   auto text = [](std::string& field) { return [&field](const std::string&, const std::string& v) { field = v; }; };
-  auto integer = [](int& field) { return [&field](const std::string& opt, const std::string& v) { field = parseInt(opt, v); }; };
+  auto integer = [](int& field) {
+    return [&field](const std::string& opt, const std::string& v) { field = parseInt(opt, v); };
+  };
   auto number = [](double& field) {
     return [&field](const std::string& opt, const std::string& v) { field = parseDouble(opt, v); };
   };
@@ -258,9 +261,9 @@ bool parseOptions(int argc, char** argv, Options& o) {
               {"--toe-in", number(o.toe_in)},
               {"--frame-top", text(o.frame_top)},
               {"--frame-bottom", text(o.frame_bottom)}};
-  t.flags = {{"--raw", [&o] { o.raw = true; }},
-             {"--head", [&o] { o.head = true; }},
-             {"--lower-body", [&o] { o.lower_body = true; }}};
+  t.flags = {{"--raw", [&o] { o.raw = true; }}, {"--head", [&o] { o.head = true; }}, {"--lower-body", [&o] {
+                                                                                        o.lower_body = true;
+                                                                                      }}};
   for (auto& [name, setter] : t.values) {
     setter = [&o, name = name, inner = setter](const std::string& opt, const std::string& v) {
       o.given.push_back(name);
@@ -287,7 +290,8 @@ bool parseOptions(int argc, char** argv, Options& o) {
   require(o.noise >= 0.0, "--noise must be >= 0");
   require(o.exposure > 0.0, "--exposure must be > 0");
   require(o.breathing_phase >= 0.0 && o.breathing_phase <= 1.0, "--breathing-phase must be in [0, 1]");
-  require(o.breathing_amplitude >= 0.0 && o.breathing_amplitude <= 0.03, "--breathing-amplitude must be in [0, 0.03] m");
+  require(o.breathing_amplitude >= 0.0 && o.breathing_amplitude <= 0.03,
+          "--breathing-amplitude must be in [0, 0.03] m");
   require(o.frames >= 1 && o.frames <= 10000, "--frames must be in 1..10000");
   require(o.frames == 1 || o.preset == "back", "--frames > 1 is for the back preset");
   require(o.rate > 0.0 && o.rate <= 1000.0, "--rate must be in (0, 1000] Hz");
@@ -327,7 +331,8 @@ void writePoints(const fs::path& path, const std::map<std::string, Eigen::Vector
   YAML::Emitter out;
   out.SetDoublePrecision(9);
   out << YAML::BeginMap;
-  for (const auto& [name, p] : points) out << YAML::Key << name << YAML::Value << YAML::Flow << std::vector<double>{p.x(), p.y(), p.z()};
+  for (const auto& [name, p] : points)
+    out << YAML::Key << name << YAML::Value << YAML::Flow << std::vector<double>{p.x(), p.y(), p.z()};
   out << YAML::EndMap;
   std::ofstream file(path);
   file << out.c_str() << "\n";
@@ -340,7 +345,8 @@ void writeLandmarks(const fs::path& path, const std::map<std::string, Eigen::Vec
   YAML::Emitter out;
   out.SetDoublePrecision(9);
   out << YAML::BeginMap;
-  for (const auto& [name, p] : landmarks) out << YAML::Key << name << YAML::Value << YAML::Flow << std::vector<double>{p.x(), p.y(), p.z()};
+  for (const auto& [name, p] : landmarks)
+    out << YAML::Key << name << YAML::Value << YAML::Flow << std::vector<double>{p.x(), p.y(), p.z()};
   out << YAML::Key << "midline" << YAML::Value << YAML::BeginSeq;
   for (const auto& p : midline) out << YAML::Flow << std::vector<double>{p.x(), p.y(), p.z()};
   out << YAML::EndSeq << YAML::EndMap;
@@ -359,7 +365,8 @@ void writeYaml(const fs::path& path, const YAML::Emitter& out) {
 /// with the acupoints (green: in view, red: not in view), landmarks (blue) and midline (yellow).
 cv::Mat previewImage(const sim::StereoFrame& f, const sim::CameraModel& left,
                      const std::map<std::string, sim::PointTruth>& acupoints,
-                     const std::map<std::string, Eigen::Vector3d>& landmarks, const std::vector<Eigen::Vector3d>& midline) {
+                     const std::map<std::string, Eigen::Vector3d>& landmarks,
+                     const std::vector<Eigen::Vector3d>& midline) {
   std::vector<cv::Mat> tiles{f.left.image, f.right.image};
   if (!f.left_disparity.empty()) {
     cv::Mat d = f.left_disparity.clone(), valid = (d == d), shown;
@@ -378,7 +385,8 @@ cv::Mat previewImage(const sim::StereoFrame& f, const sim::CameraModel& left,
     if (left.project(p, &px)) cv::circle(overlay, cv::Point2d(px.x(), px.y()), radius, colour, cv::FILLED, cv::LINE_AA);
   };
   for (const auto& p : midline) dot(p, cv::Scalar(0, 220, 255), std::max(1, r / 2));
-  for (const auto& [name, t] : acupoints) dot(t.world, t.in_view ? cv::Scalar(40, 200, 40) : cv::Scalar(40, 40, 230), r);
+  for (const auto& [name, t] : acupoints)
+    dot(t.world, t.in_view ? cv::Scalar(40, 200, 40) : cv::Scalar(40, 40, 230), r);
   for (const auto& [name, p] : landmarks) dot(p, cv::Scalar(230, 120, 40), r);
   tiles.push_back(overlay);
   cv::Mat out;
@@ -392,7 +400,8 @@ void emitTruth(YAML::Emitter& out, const std::map<std::string, sim::PointTruth>&
     out << YAML::Key << name << YAML::Value << YAML::BeginMap;
     out << YAML::Key << "left_optical" << YAML::Value << YAML::Flow
         << std::vector<double>{t.left_optical.x(), t.left_optical.y(), t.left_optical.z()};
-    out << YAML::Key << "left_pixel" << YAML::Value << YAML::Flow << std::vector<double>{t.left_pixel.x(), t.left_pixel.y()};
+    out << YAML::Key << "left_pixel" << YAML::Value << YAML::Flow
+        << std::vector<double>{t.left_pixel.x(), t.left_pixel.y()};
     out << YAML::Key << "right_pixel" << YAML::Value << YAML::Flow
         << std::vector<double>{t.right_pixel.x(), t.right_pixel.y()};
     out << YAML::Key << "label" << YAML::Value << sim::labelName(t.left_label);
@@ -595,8 +604,9 @@ void requireBackInView(const sim::Renderer& renderer, const sim::StereoPairModel
   }
   if (dressed_scene) {
     if (hidden.size() == acupoints.size()) {
-      throw std::runtime_error("the back is not in view: no acupoint is seen by both cameras (check the framing, "
-                               "--shift, --camera-height, --fx)");
+      throw std::runtime_error(
+          "the back is not in view: no acupoint is seen by both cameras (check the framing, "
+          "--shift, --camera-height, --fx)");
     }
     return;
   }
@@ -655,7 +665,8 @@ void emitDressing(YAML::Emitter& m, const Options& o, const sim::Dressing& d) {
   m << YAML::Key << "arm_abduction" << YAML::Value << YAML::Flow
     << std::vector<double>{d.arm_abduction_left, d.arm_abduction_right};
   m << YAML::Key << "head" << YAML::Value << d.head;
-  if (d.head) m << YAML::Key << "hair" << YAML::Value << o.hair << YAML::Key << "hair_colour" << YAML::Value << o.hair_colour;
+  if (d.head)
+    m << YAML::Key << "hair" << YAML::Value << o.hair << YAML::Key << "hair_colour" << YAML::Value << o.hair_colour;
   m << YAML::Key << "lower_body" << YAML::Value << d.lower_body;
   m << YAML::Key << "towel" << YAML::Value << (o.towel.empty() ? "none" : o.towel);
   if (d.towel) {
@@ -665,7 +676,8 @@ void emitDressing(YAML::Emitter& m, const Options& o, const sim::Dressing& d) {
   m << YAML::Key << "sheet" << YAML::Value << (o.sheet.empty() ? "default_sheet" : o.sheet);
   m << YAML::Key << "toe_in_degrees" << YAML::Value << o.toe_in;
   if (!o.frame_top.empty()) {
-    m << YAML::Key << "frame_top" << YAML::Value << o.frame_top << YAML::Key << "frame_bottom" << YAML::Value << o.frame_bottom;
+    m << YAML::Key << "frame_top" << YAML::Value << o.frame_top << YAML::Key << "frame_bottom" << YAML::Value
+      << o.frame_bottom;
   }
   m << YAML::EndMap;
 }
@@ -697,7 +709,8 @@ double renderBackFrame(const Options& o, const BackSetup& c, const fs::path& dir
   writeLandmarks(dir / "landmarks.yaml", sim::toCameraFrame(back.landmarks(), c.pair.left), midline);
   const auto truth = sim::acupointTruth(acupoints, c.pair, frame);
   writeTruth(dir / "acupoints_truth.yaml", truth, sim::acupointTruth(back.landmarks(), c.pair, frame));
-  sim::writeImage((dir / "preview.png").string(), previewImage(frame, c.pair.left, truth, back.landmarks(), back.midline()));
+  sim::writeImage((dir / "preview.png").string(),
+                  previewImage(frame, c.pair.left, truth, back.landmarks(), back.midline()));
   files.insert(files.end(), {"acupoints.yaml", "landmarks.yaml", "acupoints_truth.yaml", "preview.png"});
   m << YAML::Key << "breathing_phase" << YAML::Value << o.breathing_phase;
   m << YAML::Key << "acupoints_not_visible_in_both" << YAML::Value << YAML::Flow << hidden;
@@ -781,13 +794,14 @@ void renderBack(const Options& o, const fs::path& dir) {
   m << YAML::Key << "render_seconds_per_pair" << YAML::Value << total_render / o.frames;
   m << YAML::Key << "files" << YAML::Value << files << YAML::EndMap;
   writeYaml(dir / "manifest.yaml", m);
-  const std::string who = o.varied > 0     ? "varied subject " + std::to_string(o.varied)
+  const std::string who = o.varied > 0       ? "varied subject " + std::to_string(o.varied)
                           : !o.build.empty() ? o.build + " build, BMI " + std::to_string(o.bmi).substr(0, 4)
                                              : "subject " + std::to_string(o.subject);
-  std::printf("render_scene: back, %s%s, light %s, shift %.3f m, %s %dx%d: %d pair%s in %.3f s (%.3f s per pair) -> %s\n",
-              who.c_str(), dressed(o) ? " (dressed)" : "", o.light.c_str(), o.shift,
-              c.pair.rectified ? "rectified" : "raw", o.width, o.height, o.frames, o.frames == 1 ? "" : "s",
-              total_render, total_render / o.frames, dir.string().c_str());
+  std::printf(
+      "render_scene: back, %s%s, light %s, shift %.3f m, %s %dx%d: %d pair%s in %.3f s (%.3f s per pair) -> %s\n",
+      who.c_str(), dressed(o) ? " (dressed)" : "", o.light.c_str(), o.shift, c.pair.rectified ? "rectified" : "raw",
+      o.width, o.height, o.frames, o.frames == 1 ? "" : "s", total_render, total_render / o.frames,
+      dir.string().c_str());
 }
 
 void renderBoxes(const Options& o, const fs::path& dir) {
@@ -840,19 +854,21 @@ void renderEfficiency(const Options& o, const fs::path& dir, bool gradient) {
   m << YAML::EndMap << YAML::Key << "right_views" << YAML::Value << YAML::BeginSeq;
   for (std::size_t k = 0; k < set.rights.size(); ++k) {
     const std::string id = std::to_string(k + 1);
-    const sim::ViewRender right = renderer.render(set.rights[k], lighting, renderOptions(o, static_cast<std::uint32_t>(k + 1)));
+    const sim::ViewRender right =
+        renderer.render(set.rights[k], lighting, renderOptions(o, static_cast<std::uint32_t>(k + 1)));
     sim::writeImage((dir / ("right_" + id + ".png")).string(), right.image);
     const cv::Mat disparity = sim::disparityFromDepth(left.depth, o.fx, set.baselines[k]);
     sim::writePfm((dir / ("left_disparity_" + id + ".pfm")).string(), disparity);
     camera::CameraCalibration info = left_info;
     info.P[3] = -o.fx * set.baselines[k];
     camera::writeCameraInfoYaml((dir / ("right_" + id + "_camera_info.yaml")).string(), info, "sim_right");
-    files.insert(files.end(), {"right_" + id + ".png", "left_disparity_" + id + ".pfm", "right_" + id + "_camera_info.yaml"});
+    files.insert(files.end(),
+                 {"right_" + id + ".png", "left_disparity_" + id + ".pfm", "right_" + id + "_camera_info.yaml"});
     double dmin = 0, dmax = 0;
     cv::minMaxLoc(disparity, &dmin, &dmax, nullptr, nullptr, disparity == disparity);
     m << YAML::BeginMap << YAML::Key << "name" << YAML::Value << "R" + id << YAML::Key << "image" << YAML::Value
-      << "right_" + id + ".png" << YAML::Key << "baseline" << YAML::Value << set.baselines[k] << YAML::Key
-      << "levels" << YAML::Value << set.levels[k] << YAML::Key << "min_disparity" << YAML::Value << dmin << YAML::Key
+      << "right_" + id + ".png" << YAML::Key << "baseline" << YAML::Value << set.baselines[k] << YAML::Key << "levels"
+      << YAML::Value << set.levels[k] << YAML::Key << "min_disparity" << YAML::Value << dmin << YAML::Key
       << "max_disparity" << YAML::Value << dmax << YAML::EndMap;
   }
   const double seconds = secondsSince(start);
@@ -880,7 +896,8 @@ void renderMultiview(const Options& o, const fs::path& dir) {
     sim::writeImage((dir / (id + ".png")).string(), view.image);
     sim::writePfm((dir / (id + "_depth.pfm")).string(), view.depth);
     sim::writeImage((dir / (id + "_labels.png")).string(), view.labels);
-    camera::writeCameraInfoYaml((dir / (id + "_camera_info.yaml")).string(), sim::monoCalibration(cameras[k]), "sim_" + id);
+    camera::writeCameraInfoYaml((dir / (id + "_camera_info.yaml")).string(), sim::monoCalibration(cameras[k]),
+                                "sim_" + id);
     files.insert(files.end(), {id + ".png", id + "_depth.pfm", id + "_labels.png", id + "_camera_info.yaml"});
     emitCamera(m, id, cameras[k]);
   }

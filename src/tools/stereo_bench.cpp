@@ -16,6 +16,7 @@
 #include "massage_cell/sim/renderer.h"
 #include "massage_cell/sim/scene_builder.h"
 #include "massage_cell/sim/stereo_frame.h"
+#include "package_paths.h"
 #include "stereo_params.h"
 
 namespace {
@@ -103,10 +104,10 @@ bool parse(int argc, char** argv, Options& o) {
   require(o.frame_width >= 160 && o.frame_height >= 120 && o.frame_width <= 4096 && o.frame_height <= 4096,
           "--frame-size must be between 160x120 and 4096x4096");
   require(o.repeat >= 1 && o.repeat <= 100, "--repeat must be in 1..100");
-  require(o.frame_levels >= 2 && o.frame_levels < o.frame_width / 2, "--frame-levels must be >= 2 and below half the width");
+  require(o.frame_levels >= 2 && o.frame_levels < o.frame_width / 2,
+          "--frame-levels must be >= 2 and below half the width");
   require(o.plot.empty() || o.sweep, "--plot needs --sweep");
   checkStereoParams(o.params);
-  if (o.data.empty()) o.data = stereo::middleburyRoot();
   return true;
 }
 
@@ -121,16 +122,16 @@ void printRow(const Options& o, const Row& r, const stereo::MatchResult* m) {
   if (o.csv) {
     std::printf("%s,%s,%d,%.1f,%.4f\n", r.scene.c_str(), r.method.c_str(), r.levels, r.ms, r.energy);
   } else if (m) {
-    std::printf("%-22s %-10s %6d %10.1f %10.1f %10.1f %14.2f %7d\n", r.scene.c_str(), r.method.c_str(), r.levels, m->cost_ms,
-                m->optimize_ms, r.ms, r.energy, m->cuts);
+    std::printf("%-22s %-10s %6d %10.1f %10.1f %10.1f %14.2f %7d\n", r.scene.c_str(), r.method.c_str(), r.levels,
+                m->cost_ms, m->optimize_ms, r.ms, r.energy, m->cuts);
   }
   std::fflush(stdout);
 }
 
 void header(const Options& o, const char* title) {
   if (o.csv) return;
-  std::printf("\n%s\n%-22s %-10s %6s %10s %10s %10s %14s %7s\n", title, "scene", "method", "levels", "cost ms", "optim ms",
-              "total ms", "energy", "cuts");
+  std::printf("\n%s\n%-22s %-10s %6s %10s %10s %10s %14s %7s\n", title, "scene", "method", "levels", "cost ms",
+              "optim ms", "total ms", "energy", "cuts");
 }
 
 void drawPlot(const std::string& path, const std::vector<Row>& rows, const std::vector<std::string>& methods) {
@@ -144,7 +145,9 @@ void drawPlot(const std::string& path, const std::vector<Row>& rows, const std::
                      h - m - static_cast<int>((std::log10(std::max(ms, 0.1)) - lo) / (hi - lo) * (h - 2 * m)));
   };
   cv::rectangle(plot, {m, m}, {w - m, h - m}, cv::Scalar(0, 0, 0));
-  for (int l = 8; l <= 64; l += 8) cv::putText(plot, std::to_string(l), px(l, std::pow(10, lo)) + cv::Point(-8, 20), cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0});
+  for (int l = 8; l <= 64; l += 8)
+    cv::putText(plot, std::to_string(l), px(l, std::pow(10, lo)) + cv::Point(-8, 20), cv::FONT_HERSHEY_SIMPLEX, 0.45,
+                {0, 0, 0});
   for (double e = std::ceil(lo); e <= hi; e += 1.0) {
     cv::putText(plot, std::to_string(static_cast<long>(std::pow(10, e))) + " ms", {5, px(8, std::pow(10, e)).y + 4},
                 cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
@@ -238,7 +241,8 @@ void runFrames(const Options& o) {
   }
 }
 
-void run(const Options& o) {
+void run(Options o) {
+  if (!o.scenes.empty() && o.data.empty()) o.data = stereo::middleburyRoot(sharedDataDir());
   if (o.csv) std::printf("scene,method,levels,time_ms,energy\n");
   // Part 1: Middlebury.
   if (!o.scenes.empty()) header(o, "Middlebury scenes: time and energy (Eq. 2.2) per method");
@@ -260,9 +264,10 @@ void run(const Options& o) {
     if (!o.csv && results.count("hbds") && results.count("expansion")) {
       const auto& h = results["hbds"];
       const auto& e = results["expansion"];
-      std::printf("%-22s HBDS vs alpha-expansion: %.1fx faster (total time), %.1fx (optimisation only); energy ratio %.4f\n",
-                  name.c_str(), e.total_ms() / h.total_ms(), e.optimize_ms / h.optimize_ms,
-                  h.energy.total() / e.energy.total());
+      std::printf(
+          "%-22s HBDS vs alpha-expansion: %.1fx faster (total time), %.1fx (optimisation only); energy ratio %.4f\n",
+          name.c_str(), e.total_ms() / h.total_ms(), e.optimize_ms / h.optimize_ms,
+          h.energy.total() / e.energy.total());
     }
   }
   if (o.frame) runFrames(o);
@@ -326,5 +331,6 @@ void run(const Options& o) {
 int main(int argc, char** argv) {
   massage_cell::stereo::retainFreedMemory();
   Options options;
-  return runTool("stereo_bench", [&] { return parse(argc, argv, options); }, [&] { run(options); });
+  return runTool(
+      "stereo_bench", [&] { return parse(argc, argv, options); }, [&] { run(options); });
 }

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "massage_cell/stereo/consistency.h"
+#include "package_paths.h"
 #include "stereo_params.h"
 
 namespace {
@@ -83,8 +84,6 @@ bool parse(int argc, char** argv, Options& o) {
   }
   checkStereoParams(o.params);
   if (o.refiners.empty()) o.refiners.push_back(o.params.refine);
-  if (o.data.empty()) o.data = stereo::middleburyRoot();
-  if (o.data2005.empty()) o.data2005 = stereo::middlebury2005Root();
   return true;
 }
 
@@ -99,9 +98,12 @@ void writePicture(const Options& o, const stereo::MiddleburyScene& scene, const 
     for (int x = 0; x < errors.cols; ++x) {
       const float g = scene.ground_truth.at<float>(y, x), d = r.disparity.at<float>(y, x);
       cv::Vec3b& px = errors.at<cv::Vec3b>(y, x);
-      if (!(g > 0.0f) || scene.nonocc.at<uchar>(y, x) != 255) px = cv::Vec3b(0, 0, 0);
-      else if (!std::isfinite(d)) px = cv::Vec3b(255, 80, 0);
-      else if (std::abs(d - g) > 1.0f) px = cv::Vec3b(0, 0, 255);
+      if (!(g > 0.0f) || scene.nonocc.at<uchar>(y, x) != 255)
+        px = cv::Vec3b(0, 0, 0);
+      else if (!std::isfinite(d))
+        px = cv::Vec3b(255, 80, 0);
+      else if (std::abs(d - g) > 1.0f)
+        px = cv::Vec3b(0, 0, 255);
     }
   }
   std::vector<cv::Mat> parts{stereo::colourise(r.disparity, 0, scene.dmax), errors};
@@ -191,7 +193,9 @@ void printRatios(const std::vector<Row>& rows) {
   }
 }
 
-void run(const Options& o) {
+void run(Options o) {
+  if (o.data.empty()) o.data = stereo::middleburyRoot(sharedDataDir());
+  if (o.data2005.empty()) o.data2005 = stereo::middlebury2005Root(sharedDataDir());
   if (!o.pictures.empty()) std::filesystem::create_directories(o.pictures);
   if (o.csv) {
     std::printf("scene,method,mask,threshold,bad_percent,time_ms\n");
@@ -235,5 +239,6 @@ void run(const Options& o) {
 int main(int argc, char** argv) {
   massage_cell::stereo::retainFreedMemory();
   Options options;
-  return runTool("stereo_eval", [&] { return parse(argc, argv, options); }, [&] { run(options); });
+  return runTool(
+      "stereo_eval", [&] { return parse(argc, argv, options); }, [&] { run(options); });
 }

@@ -33,14 +33,17 @@ struct Options {
   stereo::StereoParams params;
 };
 
-std::string usage() { return std::string(kUsageHead) + stereoParamsHelp() + "Exit status: 0 ok, 1 failure, 2 bad command line.\n"; }
+std::string usage() {
+  return std::string(kUsageHead) + stereoParamsHelp() + "Exit status: 0 ok, 1 failure, 2 bad command line.\n";
+}
 
 bool parse(int argc, char** argv, Options& o) {
   // Positional LEFT RIGHT first, then options.
   std::vector<char*> rest{argv[0]};
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a.rfind("-", 0) != 0 && (rest.size() == 1 || std::string(rest.back()).rfind("-", 0) != 0) && o.images.size() < 2) {
+    if (a.rfind("-", 0) != 0 && (rest.size() == 1 || std::string(rest.back()).rfind("-", 0) != 0) &&
+        o.images.size() < 2) {
       o.images.push_back(a);
     } else {
       rest.push_back(argv[i]);
@@ -111,5 +114,6 @@ void run(const Options& o) {
 int main(int argc, char** argv) {
   massage_cell::stereo::retainFreedMemory();
   Options options;
-  return runTool("stereo_match", [&] { return parse(argc, argv, options); }, [&] { run(options); });
+  return runTool(
+      "stereo_match", [&] { return parse(argc, argv, options); }, [&] { run(options); });
 }

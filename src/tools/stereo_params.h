@@ -1,6 +1,9 @@
 // Options shared by the stereo tools: the cost and smoothness parameters of
 // massage_cell::stereo::StereoParams.
 #pragma once
+#include <algorithm>
+#include <string>
+#include <vector>
 
 #include <cmath>
 
@@ -55,7 +58,9 @@ inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
   auto number = [](float& field) {
     return [&field](const std::string& opt, const std::string& v) { field = static_cast<float>(parseDouble(opt, v)); };
   };
-  auto integer = [](int& field) { return [&field](const std::string& opt, const std::string& v) { field = parseInt(opt, v); }; };
+  auto integer = [](int& field) {
+    return [&field](const std::string& opt, const std::string& v) { field = parseInt(opt, v); };
+  };
   table.values["--cost"] = [&p](const std::string&, const std::string& v) {
     try {
       p.cost.data_term = stereo::parseDataTerm(v);
@@ -104,33 +109,19 @@ inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
   table.values["--threads"] = integer(p.threads);
 }
 
+/// The tools' option for a parameter stereo::checkParams names (the hbds node's name).
+inline std::string stereoOption(const std::string& name) {
+  if (name == "polish_window") return "--polish";
+  if (name == "filter") return "--filter-*:";
+  std::string option = "--" + name;
+  std::replace(option.begin(), option.end(), '_', '-');
+  return option;
+}
+
+/// UsageError naming the option of the first problem stereo::checkParams finds.
 inline void checkStereoParams(const stereo::StereoParams& p) {
-  require(p.cost.eta > 0.0f, "--eta must be > 0");
-  require(p.cost.census_lambda > 0.0f && std::isfinite(p.cost.census_lambda), "--census-lambda must be > 0");
-  require(p.cost.ad_lambda > 0.0f && std::isfinite(p.cost.ad_lambda), "--ad-lambda must be > 0");
-  require(p.cost.ncc_window >= 1 && p.cost.ncc_window % 2 == 1, "--ncc-window must be odd and >= 1");
-  require(p.cost.gradient_saturation >= 0.0f, "--gradient-saturation must be >= 0");
-  require(p.smooth.tau > 0.0f, "--tau must be > 0");
-  require(p.smooth.u_min >= 0.0f && p.smooth.u_max >= p.smooth.u_min, "need 0 <= --u-min <= --u-max");
-  require(p.smooth.truncation >= 0.0f, "--truncation must be >= 0");
-  require(p.hbds_overlap >= 0, "--overlap must be >= 0");
-  require(p.hbds_coarse >= 1 && p.hbds_coarse <= 8, "--coarse must be in 1..8");
-  require(p.polish_window >= 0, "--polish must be >= 0");
-  require(p.polish_cycles >= 1, "--polish-cycles must be >= 1");
-  try {
-    stereo::validate(p.refine_params);
-  } catch (const std::invalid_argument& e) {
-    throw UsageError(std::string("--refine-window: ") + e.what());
-  }
-  try {
-    stereo::validate(p.filter_params);
-  } catch (const std::invalid_argument& e) {
-    throw UsageError(std::string("--filter-*: ") + e.what());
-  }
-  require(p.subpixel_params.window >= 1 && p.subpixel_params.window % 2 == 1, "--subpixel-window must be odd and >= 1");
-  require(p.lr_tolerance >= 0.0f && std::isfinite(p.lr_tolerance), "--lr-tolerance must be >= 0");
-  require(p.max_cycles >= 1, "--max-cycles must be >= 1");
-  require(p.threads >= 0, "--threads must be >= 0");
+  const std::vector<stereo::ParamProblem> problems = stereo::checkParams(p);
+  if (!problems.empty()) throw UsageError(stereoOption(problems.front().name) + " " + problems.front().problem);
 }
 
 }  // namespace massage_cell::tools

@@ -2,12 +2,12 @@
 // plausible values; bad options exit 2, a bad configuration 1.
 #include <gtest/gtest.h>
 
-#include <cstdio>
-#include <map>
-#include <sstream>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/wait.h>
+#include <cstdio>
+#include <map>
+#include <sstream>
 
 #include <thread>
 
@@ -51,8 +51,8 @@ TEST(ArmBenchTool, ShortCsvRun) {
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_EQ(r.out.rfind("metric,value,unit\n", 0), 0u) << r.out;
   std::map<std::string, double> values = csvValues(r.out);
-  for (const char* m : {"cycle_jitter_p50_ms", "cycle_jitter_p99_ms", "cycle_jitter_max_ms", "estop_latency_ms",
-                        "move_error_mm"}) {
+  for (const char* m :
+       {"cycle_jitter_p50_ms", "cycle_jitter_p99_ms", "cycle_jitter_max_ms", "estop_latency_ms", "move_error_mm"}) {
     ASSERT_TRUE(values.count(m)) << m << "\n" << r.out;
     EXPECT_GE(values[m], 0.0) << m;
   }

@@ -66,25 +66,26 @@ TEST(ArmConfig, ShippedFileLoads) {
 }
 
 TEST(ArmConfig, MistakesAreNamed) {
-  EXPECT_NE(errorOf(edited("watchdog_timeout: 0.5", "watchdog_timeout: 0.5\nwatchdog: 1")).find("watchdog: unknown field"),
-            std::string::npos);
-  EXPECT_NE(errorOf(edited("X: \\{min: 0.0, max: 0.78", "X: {min: 0.0, max: 0.85")).find(
-                "joints.X.max: 0.85 m is beyond the drive's software limit 0.8 m"),
+  EXPECT_NE(
+      errorOf(edited("watchdog_timeout: 0.5", "watchdog_timeout: 0.5\nwatchdog: 1")).find("watchdog: unknown field"),
+      std::string::npos);
+  EXPECT_NE(errorOf(edited("X: \\{min: 0.0, max: 0.78", "X: {min: 0.0, max: 0.85"))
+                .find("joints.X.max: 0.85 m is beyond the drive's software limit 0.8 m"),
             std::string::npos)
       << errorOf(edited("X: \\{min: 0.0, max: 0.78", "X: {min: 0.0, max: 0.85"));
-  EXPECT_NE(errorOf(edited("max: \\[0.76, 0.46, 0.30\\]", "max: [0.76, 0.49, 0.30]")).find(
-                "workspace: the y range [0, 0.49] m is not inside what the joint limits reach"),
+  EXPECT_NE(errorOf(edited("max: \\[0.76, 0.46, 0.30\\]", "max: [0.76, 0.49, 0.30]"))
+                .find("workspace: the y range [0, 0.49] m is not inside what the joint limits reach"),
             std::string::npos);
-  EXPECT_NE(errorOf(edited("default_region: midline", "default_region: neck")).find(
-                "default_region: 'neck' is not one of regions"),
+  EXPECT_NE(errorOf(edited("default_region: midline", "default_region: neck"))
+                .find("default_region: 'neck' is not one of regions"),
             std::string::npos);
   EXPECT_NE(errorOf(edited("lower_back: \\{max_depth: 0.012, default_depth: 0.008\\}",
                            "lower_back: {max_depth: 0.012, default_depth: 0.02}"))
                 .find("regions.lower_back.default_depth: must be > 0 and <= max_depth"),
             std::string::npos);
   // acupoints.yaml names lower_back: removing that region from the table is caught.
-  EXPECT_NE(errorOf(edited("  lower_back: \\{max_depth: 0.012, default_depth: 0.008\\}.*\n", "")).find(
-                "has region 'lower_back', which regions does not list"),
+  EXPECT_NE(errorOf(edited("  lower_back: \\{max_depth: 0.012, default_depth: 0.008\\}.*\n", ""))
+                .find("has region 'lower_back', which regions does not list"),
             std::string::npos);
   EXPECT_NE(errorOf(edited("can_config: can_axes.yaml", "can_config: nowhere.yaml")).find("can_config: "),
             std::string::npos);

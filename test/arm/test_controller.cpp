@@ -53,8 +53,9 @@ struct Rig {
       const canid_t id = f->frame.can_id;
       if (id > 0x200 && id < 0x280 && f->frame.can_dlc == 6) {
         const auto* b = f->frame.data;
-        rpdos.push_back({f->stamp, static_cast<std::uint8_t>(id - 0x200), static_cast<std::uint16_t>(b[0] | b[1] << 8),
-                         static_cast<std::int32_t>(b[2] | b[3] << 8 | b[4] << 16 | static_cast<std::uint32_t>(b[5]) << 24)});
+        rpdos.push_back(
+            {f->stamp, static_cast<std::uint8_t>(id - 0x200), static_cast<std::uint16_t>(b[0] | b[1] << 8),
+             static_cast<std::int32_t>(b[2] | b[3] << 8 | b[4] << 16 | static_cast<std::uint32_t>(b[5]) << 24)});
       }
     }
     if (keep_alive) controller->keepAlive();
@@ -67,7 +68,9 @@ struct Rig {
     }
     return pred();
   }
-  void run(can::Duration d) { runUntil([] { return false; }, d); }
+  void run(can::Duration d) {
+    runUntil([] { return false; }, d);
+  }
   bool start() {
     for (auto& d : drives) d->powerOn();
     step();
@@ -186,7 +189,8 @@ TEST(Controller, SynchronisedMoveArrivesTogetherOnTheLine) {
     for (int i = 0; i < 3; ++i) {
       const double v = std::abs(r.drives[i]->velocity()) / r.config.axis(i).counts_per_metre;
       top_speed[i] = std::max(top_speed[i], v);
-      if (arrived[i] < 0 && std::abs(p[i] - goal[i]) < 1e-6) arrived[i] = std::chrono::duration<double>(r.clock.now() - t0).count();
+      if (arrived[i] < 0 && std::abs(p[i] - goal[i]) < 1e-6)
+        arrived[i] = std::chrono::duration<double>(r.clock.now() - t0).count();
     }
   };
   const Accepted m = r.controller->moveTo(goal);
@@ -344,7 +348,8 @@ TEST(Controller, RefusalsNameTheProblem) {
   req.depth = 0;
   req.targets[0].point = {0.9, 0.25, 0.19};
   a = r.controller->massage(req);
-  EXPECT_TRUE(contains(a.error, "massage refused: GV4: the travel point (0.900, 0.250, 0.280) m is outside the workspace envelope"))
+  EXPECT_TRUE(contains(
+      a.error, "massage refused: GV4: the travel point (0.900, 0.250, 0.280) m is outside the workspace envelope"))
       << a.error;
   EXPECT_EQ(r.controller->status().last_error, a.error);
   r.run(200ms);
@@ -367,7 +372,8 @@ TEST(Controller, TargetLostDuringAPressRetracts) {
   ASSERT_TRUE(r.runUntil([&] { return r.controller->result(m.id).done; }, 20s));
   const CommandResult res = r.controller->result(m.id);
   EXPECT_FALSE(res.success);
-  EXPECT_TRUE(contains(res.message, "massage aborted: acupoint frame acupoint/BL23_L lost; tool retracted to (0.550, 0.180, 0.280) m"))
+  EXPECT_TRUE(contains(
+      res.message, "massage aborted: acupoint frame acupoint/BL23_L lost; tool retracted to (0.550, 0.180, 0.280) m"))
       << res.message;
   EXPECT_TRUE(contains(r.log, "retract"));
   EXPECT_NEAR(r.tool().z(), 0.28, 1e-6);
@@ -433,7 +439,7 @@ TEST(Controller, EstopQuickStopsAtOnceAndLatches) {
   EXPECT_FALSE(r.controller->result(m.id).success);
   EXPECT_EQ(r.controller->result(m.id).message, "e-stop pressed");
   EXPECT_TRUE(r.allStill());
-  EXPECT_EQ(r.drives[2]->state(), Cia402State::kQuickStopActive);  // Z holds (option 6)
+  EXPECT_EQ(r.drives[2]->state(), Cia402State::kQuickStopActive);   // Z holds (option 6)
   EXPECT_EQ(r.drives[0]->state(), Cia402State::kSwitchOnDisabled);  // X, Y: option 2
   EXPECT_EQ(r.controller->mode(), Mode::kEstop);
   // Latched: refused while pressed, and after release until reset.

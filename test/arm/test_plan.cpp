@@ -57,7 +57,8 @@ TEST(Plan, VerticalPressSequence) {
   // up (already at 0.30 > travel 0.28: no), travel, approach, descend, hold, retract, up.
   std::vector<std::string> kinds;
   for (const Step& s : steps) kinds.push_back(s.label.substr(s.label.find(": ") + 2));
-  EXPECT_EQ(kinds, (std::vector<std::string>{"travel", "approach", "descend", "hold", "retract", "up to the travel height"}));
+  EXPECT_EQ(kinds,
+            (std::vector<std::string>{"travel", "approach", "descend", "hold", "retract", "up to the travel height"}));
   EXPECT_TRUE(steps[0].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.28)));
   EXPECT_TRUE(steps[1].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.21)));   // 3 cm above the skin
   EXPECT_TRUE(steps[2].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.174)));  // 6 mm in
@@ -131,8 +132,10 @@ TEST(Plan, EnvelopeRefusals) {
   PressRequest r;
   std::vector<Step> steps;
   r.targets = {target("high", "lower_back", {0.5, 0.2, 0.29})};  // approach point 3 cm higher: above 0.30
-  EXPECT_NE(planMassage(c, kHome, r, &steps).find("high: the travel point (0.500, 0.200, 0.320) m is outside the workspace envelope: z above 0.300 m"),
-            std::string::npos)
+  EXPECT_NE(
+      planMassage(c, kHome, r, &steps)
+          .find("high: the travel point (0.500, 0.200, 0.320) m is outside the workspace envelope: z above 0.300 m"),
+      std::string::npos)
       << planMassage(c, kHome, r, &steps);
   r.targets = {target("low", "lower_back", {0.5, 0.2, 0.085})};  // 8 mm in: below z 0.08
   r.depth = 0.008;

@@ -260,14 +260,13 @@ TEST(SimCell, ArmBaseMatchesTheUrdf) {
 TEST(SimCell, RenderedMarkerIsDetectedAtItsTruePoint) {
   const ms::StereoPairModel pair = cellPair();
   const ms::MarkerMount mount = testMount();
-  const ms::MarkerPose pose = ms::renderMarkerPose(pair, Eigen::Vector3d(0.40, 0.25, 0.20), mount,
-                                                   renderOptions(), 1);
+  const ms::MarkerPose pose = ms::renderMarkerPose(pair, Eigen::Vector3d(0.40, 0.25, 0.20), mount, renderOptions(), 1);
   const mc::RectifiedGeometry g = mc::rectifiedGeometry(pair.left_info, pair.right_info);
   const mc::MarkerDetection d = mc::detectMarker(pose.left, pose.right, g, mount.spec);
   ASSERT_TRUE(d.found) << d.problem;
   EXPECT_EQ(d.corners, mount.spec.cornerCount());
-  EXPECT_LT((d.point - pose.marker_in_camera).norm(), 0.001) << d.point.transpose() << " vs "
-                                                             << pose.marker_in_camera.transpose();
+  EXPECT_LT((d.point - pose.marker_in_camera).norm(), 0.001)
+      << d.point.transpose() << " vs " << pose.marker_in_camera.transpose();
   EXPECT_LT(d.fit_rms_mm, 1.0);
   // The board faces the camera: its normal (board z, into the board) along the optical axis.
   EXPECT_GT(d.camera_from_board.linear().col(2).cwiseAbs().z(), 0.99);
@@ -285,8 +284,8 @@ TEST(SimCell, BlankPairIsNotFound) {
 TEST(SimCell, EndToEndWithinOneMillimetreAndATenthOfADegree) {
   const ms::StereoPairModel pair = cellPair();
   const ms::MarkerMount mount = testMount();
-  const std::vector<Eigen::Vector3d> tips = ms::spreadTipPositions(
-      8, Eigen::Vector3d(0.0, 0.0, 0.08), Eigen::Vector3d(0.76, 0.46, 0.30), pair, mount);
+  const std::vector<Eigen::Vector3d> tips =
+      ms::spreadTipPositions(8, Eigen::Vector3d(0.0, 0.0, 0.08), Eigen::Vector3d(0.76, 0.46, 0.30), pair, mount);
   ASSERT_EQ(tips.size(), 8u);
   const mc::RectifiedGeometry g = mc::rectifiedGeometry(pair.left_info, pair.right_info);
   std::vector<mc::Correspondence> pairs;

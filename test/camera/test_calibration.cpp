@@ -70,7 +70,8 @@ std::string joined(const std::vector<std::string>& problems) {
 // -------------------------------------------------------------- checkCalibration --
 
 TEST(CheckCalibrationTest, ConsistentCalibrationHasNoProblems) {
-  EXPECT_TRUE(checkCalibration(makeLeft(), {640, 480}, "left").empty()) << joined(checkCalibration(makeLeft(), {640, 480}, "left"));
+  EXPECT_TRUE(checkCalibration(makeLeft(), {640, 480}, "left").empty())
+      << joined(checkCalibration(makeLeft(), {640, 480}, "left"));
   CameraCalibration no_distortion = makeLeft();
   no_distortion.D.clear();  // plumb_bob with no coefficients: no distortion
   EXPECT_TRUE(checkCalibration(no_distortion, {640, 480}, "left").empty());
@@ -278,9 +279,9 @@ class CameraInfoYamlTest : public ::testing::Test {
  protected:
   void SetUp() override {
     static std::atomic<int> counter{0};
-    dir_ = fs::temp_directory_path() / ("massage_cell_test_calibration_" + std::to_string(::getpid()) + "_" +
-                                        std::to_string(counter++) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() /
+           ("massage_cell_test_calibration_" + std::to_string(::getpid()) + "_" + std::to_string(counter++) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir_);
     ASSERT_TRUE(fs::create_directories(dir_)) << dir_;
   }
@@ -328,7 +329,8 @@ class CameraInfoYamlTest : public ::testing::Test {
 };
 
 void expectNearArray(const double* a, const double* b, std::size_t n, const char* what) {
-  for (std::size_t i = 0; i < n; ++i) EXPECT_NEAR(a[i], b[i], 1e-9 * std::max(1.0, std::abs(b[i]))) << what << "[" << i << "]";
+  for (std::size_t i = 0; i < n; ++i)
+    EXPECT_NEAR(a[i], b[i], 1e-9 * std::max(1.0, std::abs(b[i]))) << what << "[" << i << "]";
 }
 
 TEST_F(CameraInfoYamlTest, RoundTripKeepsAllFields) {

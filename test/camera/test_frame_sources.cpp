@@ -72,9 +72,9 @@ cv::Mat pattern(int index, int view, cv::Size size = {64, 48}) {
   cv::Mat image(size, CV_8UC3);
   for (int y = 0; y < size.height; ++y) {
     for (int x = 0; x < size.width; ++x) {
-      image.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<uchar>((x * 3 + y * 5 + index * 17) % 256),
-                                            static_cast<uchar>((index * 20 + 10) % 256),
-                                            static_cast<uchar>(view * 80 + (x + y) % 16));
+      image.at<cv::Vec3b>(y, x) =
+          cv::Vec3b(static_cast<uchar>((x * 3 + y * 5 + index * 17) % 256), static_cast<uchar>((index * 20 + 10) % 256),
+                    static_cast<uchar>(view * 80 + (x + y) % 16));
     }
   }
   return image;
@@ -82,16 +82,18 @@ cv::Mat pattern(int index, int view, cv::Size size = {64, 48}) {
 
 /// The flat colour of frame `index`, view `view` in the test videos (MJPEG is
 /// lossy, so videos are told apart by their mean colour).
-cv::Scalar videoColour(int index, int view) { return cv::Scalar(30 + 40 * index, view == 0 ? 60 : 190, 220 - 40 * index); }
+cv::Scalar videoColour(int index, int view) {
+  return cv::Scalar(30 + 40 * index, view == 0 ? 60 : 190, 220 - 40 * index);
+}
 
 ::testing::AssertionResult hasColour(const cv::Mat& image, const cv::Scalar& expected, double tolerance = 12.0) {
   if (image.empty()) return ::testing::AssertionFailure() << "empty image";
   const cv::Scalar mean = cv::mean(image);
   for (int c = 0; c < 3; ++c) {
     if (std::abs(mean[c] - expected[c]) > tolerance) {
-      return ::testing::AssertionFailure() << "mean colour (" << mean[0] << ", " << mean[1] << ", " << mean[2]
-                                           << ") is not (" << expected[0] << ", " << expected[1] << ", "
-                                           << expected[2] << ")";
+      return ::testing::AssertionFailure()
+             << "mean colour (" << mean[0] << ", " << mean[1] << ", " << mean[2] << ") is not (" << expected[0] << ", "
+             << expected[1] << ", " << expected[2] << ")";
     }
   }
   return ::testing::AssertionSuccess();
@@ -129,9 +131,8 @@ class TempFolderTest : public ::testing::Test {
   void SetUp() override {
     static std::atomic<int> counter{0};
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("massage_cell_test_frame_sources_" + std::to_string(::getpid()) + "_" + std::to_string(counter++) + "_" +
-            info->test_suite_name() + "_" + info->name());
+    dir_ = fs::temp_directory_path() / ("massage_cell_test_frame_sources_" + std::to_string(::getpid()) + "_" +
+                                        std::to_string(counter++) + "_" + info->test_suite_name() + "_" + info->name());
     fs::remove_all(dir_);
     ASSERT_TRUE(fs::create_directories(dir_)) << dir_;
   }
@@ -544,7 +545,8 @@ TEST_F(FolderSourceTest, SixteenBitPngStaysMono16) {
   for (int i = 0; i < 2; ++i) {
     cv::Mat image(24, 32, CV_16UC1);
     for (int y = 0; y < image.rows; ++y)
-      for (int x = 0; x < image.cols; ++x) image.at<std::uint16_t>(y, x) = static_cast<std::uint16_t>(1000 * (i + 1) + 997 * x + 31 * y);
+      for (int x = 0; x < image.cols; ++x)
+        image.at<std::uint16_t>(y, x) = static_cast<std::uint16_t>(1000 * (i + 1) + 997 * x + 31 * y);
     images.push_back(image);
     writeImage(numbered("depth_", i), image);
   }
@@ -563,8 +565,8 @@ TEST_F(FolderSourceTest, FourChannelPngBecomesBgr) {
   cv::Mat bgra(24, 32, CV_8UC4);
   for (int y = 0; y < bgra.rows; ++y)
     for (int x = 0; x < bgra.cols; ++x)
-      bgra.at<cv::Vec4b>(y, x) = cv::Vec4b(static_cast<uchar>(x * 7), static_cast<uchar>(y * 9), 77,
-                                           static_cast<uchar>(x * 8 % 256));
+      bgra.at<cv::Vec4b>(y, x) =
+          cv::Vec4b(static_cast<uchar>(x * 7), static_cast<uchar>(y * 9), 77, static_cast<uchar>(x * 8 % 256));
   writeImage("rgba_0.png", bgra);
   cv::Mat expected;
   cv::cvtColor(bgra, expected, cv::COLOR_BGRA2BGR);
@@ -806,8 +808,8 @@ TEST_F(VideoSourceTest, PairLoopRewindsBothFiles) {
 
 TEST_F(VideoSourceTest, SideBySideSplitsHalves) {
   const cv::Size view(64, 48);
-  const std::string why =
-      writeVideo(dir_ / "sbs.avi", 3, {view.width * 2, view.height}, [&](int i) { return sideBySideVideoFrame(i, view); });
+  const std::string why = writeVideo(dir_ / "sbs.avi", 3, {view.width * 2, view.height},
+                                     [&](int i) { return sideBySideVideoFrame(i, view); });
   if (!why.empty()) GTEST_SKIP() << why;
   SourceConfig c;
   c.type = SourceType::kVideo;
@@ -843,7 +845,8 @@ TEST_F(VideoSourceTest, MissingFile) {
 
 TEST_F(VideoSourceTest, MissingRightFile) {
   const cv::Size size(64, 48);
-  const std::string why = writeVideo(dir_ / "left.avi", 2, size, [&](int i) { return flatFrame(size, videoColour(i, 0)); });
+  const std::string why =
+      writeVideo(dir_ / "left.avi", 2, size, [&](int i) { return flatFrame(size, videoColour(i, 0)); });
   if (!why.empty()) GTEST_SKIP() << why;
   SourceConfig c;
   c.type = SourceType::kVideo;

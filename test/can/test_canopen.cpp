@@ -204,8 +204,10 @@ TEST(Sdo, SegmentedDownload) {
 }
 
 TEST(Sdo, AbortLayoutAndTexts) {
-  expectFrame(sdoAbortResponse(1, 0x2000, 0, sdo_abort::kNoObject), F(0x581, {0x80, 0x00, 0x20, 0x00, 0x00, 0x00, 0x02, 0x06}));
-  expectFrame(sdoAbortRequest(2, 0x6041, 0, sdo_abort::kTimeout), F(0x602, {0x80, 0x41, 0x60, 0x00, 0x00, 0x00, 0x04, 0x05}));
+  expectFrame(sdoAbortResponse(1, 0x2000, 0, sdo_abort::kNoObject),
+              F(0x581, {0x80, 0x00, 0x20, 0x00, 0x00, 0x00, 0x02, 0x06}));
+  expectFrame(sdoAbortRequest(2, 0x6041, 0, sdo_abort::kTimeout),
+              F(0x602, {0x80, 0x41, 0x60, 0x00, 0x00, 0x00, 0x04, 0x05}));
   auto a = decodeSdoResponse(F(0x581, {0x80, 0x41, 0x60, 0x00, 0x11, 0x00, 0x09, 0x06}));
   ASSERT_TRUE(a);
   EXPECT_EQ(a->command, SdoCommand::kAbort);
@@ -244,18 +246,19 @@ TEST(Classify, PredefinedConnectionSet) {
     CobType type;
     int node, pdo;
   };
-  for (const Case& c : {Case{0x000, CobType::kNmt, 0, 0}, Case{0x080, CobType::kSync, 0, 0}, Case{0x081, CobType::kEmcy, 1, 0},
-                        Case{0x181, CobType::kTpdo, 1, 1}, Case{0x2FF, CobType::kTpdo, 127, 2},
-                        Case{0x203, CobType::kRpdo, 3, 1}, Case{0x57F, CobType::kRpdo, 127, 4},
-                        Case{0x585, CobType::kSdoResponse, 5, 0}, Case{0x605, CobType::kSdoRequest, 5, 0},
-                        Case{0x77F, CobType::kHeartbeat, 127, 0}}) {
+  for (const Case& c :
+       {Case{0x000, CobType::kNmt, 0, 0}, Case{0x080, CobType::kSync, 0, 0}, Case{0x081, CobType::kEmcy, 1, 0},
+        Case{0x181, CobType::kTpdo, 1, 1}, Case{0x2FF, CobType::kTpdo, 127, 2}, Case{0x203, CobType::kRpdo, 3, 1},
+        Case{0x57F, CobType::kRpdo, 127, 4}, Case{0x585, CobType::kSdoResponse, 5, 0},
+        Case{0x605, CobType::kSdoRequest, 5, 0}, Case{0x77F, CobType::kHeartbeat, 127, 0}}) {
     auto r = classify(F(c.id, {}));
     ASSERT_TRUE(r) << std::hex << c.id << " " << r.error();
     EXPECT_EQ(r->type, c.type) << std::hex << c.id;
     EXPECT_EQ(r->node, c.node) << std::hex << c.id;
     EXPECT_EQ(r->pdo, c.pdo) << std::hex << c.id;
   }
-  for (canid_t id : {0x100u, 0x7E5u, 0x7E4u, 0x180u, 0x700u, 0x001u}) EXPECT_FALSE(classify(F(id, {}))) << std::hex << id;
+  for (canid_t id : {0x100u, 0x7E5u, 0x7E4u, 0x180u, 0x700u, 0x001u})
+    EXPECT_FALSE(classify(F(id, {}))) << std::hex << id;
   EXPECT_FALSE(classify(F(0x12345, {})));
 }
 

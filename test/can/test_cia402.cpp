@@ -14,12 +14,18 @@ using S = Cia402State;
 
 TEST(Statusword, TableOfConventionsMd) {
   // statusword & 0x6F (conventions.md / CiA 402-2 §8.4.1)
-  const std::map<int, S> table = {{0x00, S::kNotReadyToSwitchOn}, {0x20, S::kNotReadyToSwitchOn},
-                                  {0x40, S::kSwitchOnDisabled},    {0x60, S::kSwitchOnDisabled},
-                                  {0x21, S::kReadyToSwitchOn},     {0x23, S::kSwitchedOn},
-                                  {0x27, S::kOperationEnabled},    {0x07, S::kQuickStopActive},
-                                  {0x0F, S::kFaultReactionActive}, {0x2F, S::kFaultReactionActive},
-                                  {0x08, S::kFault},               {0x28, S::kFault}};
+  const std::map<int, S> table = {{0x00, S::kNotReadyToSwitchOn},
+                                  {0x20, S::kNotReadyToSwitchOn},
+                                  {0x40, S::kSwitchOnDisabled},
+                                  {0x60, S::kSwitchOnDisabled},
+                                  {0x21, S::kReadyToSwitchOn},
+                                  {0x23, S::kSwitchedOn},
+                                  {0x27, S::kOperationEnabled},
+                                  {0x07, S::kQuickStopActive},
+                                  {0x0F, S::kFaultReactionActive},
+                                  {0x2F, S::kFaultReactionActive},
+                                  {0x08, S::kFault},
+                                  {0x28, S::kFault}};
   for (int low = 0; low < 0x80; ++low) {
     if (low & 0x10) continue;  // bit 4 (voltage enabled) is not part of the state
     const auto it = table.find(low & 0x6F);

@@ -60,13 +60,17 @@ axes:
   - {name: X, node_id: 2, counts_per_metre: 1000}
   - {name: Y, node_id: 2, counts_per_metre: 1000}
 )");
-  EXPECT_NE(e.find("test.yaml: axes[1].node_id: duplicate node id 2 (axis 'X' already uses it)"), std::string::npos) << e;
+  EXPECT_NE(e.find("test.yaml: axes[1].node_id: duplicate node id 2 (axis 'X' already uses it)"), std::string::npos)
+      << e;
 }
 
 TEST(CanConfig, MissingRequiredFieldsAreNamed) {
-  EXPECT_NE(errorOf("axes:\n  - {name: X, counts_per_metre: 1}\n").find("axes[0].node_id: missing field"), std::string::npos);
-  EXPECT_NE(errorOf("axes:\n  - {node_id: 1, counts_per_metre: 1}\n").find("axes[0].name: missing field"), std::string::npos);
-  EXPECT_NE(errorOf("axes:\n  - {name: X, node_id: 1}\n").find("axes[0].counts_per_metre: missing field"), std::string::npos);
+  EXPECT_NE(errorOf("axes:\n  - {name: X, counts_per_metre: 1}\n").find("axes[0].node_id: missing field"),
+            std::string::npos);
+  EXPECT_NE(errorOf("axes:\n  - {node_id: 1, counts_per_metre: 1}\n").find("axes[0].name: missing field"),
+            std::string::npos);
+  EXPECT_NE(errorOf("axes:\n  - {name: X, node_id: 1}\n").find("axes[0].counts_per_metre: missing field"),
+            std::string::npos);
   EXPECT_NE(errorOf("bus: {sync_period_ms: 10}\n").find("axes: missing field"), std::string::npos);
   EXPECT_NE(errorOf("axes: []\n").find("no axes configured"), std::string::npos);
 }
@@ -97,7 +101,8 @@ TEST(CanConfig, UnknownFieldsAndDuplicateNamesAreErrors) {
   EXPECT_NE(e.find("axes[0].node: unknown field"), std::string::npos) << e;
   e = errorOf("axes:\n  - {name: X, node_id: 1, counts_per_metre: 1, homing: {methd: 17}}\n");
   EXPECT_NE(e.find("axes[0].homing.methd: unknown field"), std::string::npos) << e;
-  e = errorOf("axes:\n  - {name: X, node_id: 1, counts_per_metre: 1}\n  - {name: X, node_id: 2, counts_per_metre: 1}\n");
+  e = errorOf(
+      "axes:\n  - {name: X, node_id: 1, counts_per_metre: 1}\n  - {name: X, node_id: 2, counts_per_metre: 1}\n");
   EXPECT_NE(e.find("axes[1].name: duplicate axis name 'X'"), std::string::npos) << e;
   e = errorOf("busses: {}\naxes:\n  - {name: X, node_id: 1, counts_per_metre: 1}\n");
   EXPECT_NE(e.find("busses: unknown field"), std::string::npos) << e;
@@ -138,13 +143,17 @@ TEST(CanConfig, BadMasterHeartbeatValuesAreNamed) {
   EXPECT_NE(e.find("bus.master_heartbeat_ms: 70000 is outside 0..65535"), std::string::npos) << e;
   e = errorOf("bus: {master_heartbeat_ms: fast}\n" + axes);
   EXPECT_NE(e.find("bus.master_heartbeat_ms: expected a number, got 'fast'"), std::string::npos) << e;
-  e = errorOf("bus: {master_heartbeat_ms: 0}\naxes:\n  - {name: X, node_id: 1, counts_per_metre: 1, "
-              "master_heartbeat_timeout_ms: 300}\n");
+  e = errorOf(
+      "bus: {master_heartbeat_ms: 0}\naxes:\n  - {name: X, node_id: 1, counts_per_metre: 1, "
+      "master_heartbeat_timeout_ms: 300}\n");
   EXPECT_NE(e.find("axes[0].master_heartbeat_timeout_ms: the drive would monitor the master's heartbeat, but "
-                   "bus.master_heartbeat_ms is 0"), std::string::npos) << e;
+                   "bus.master_heartbeat_ms is 0"),
+            std::string::npos)
+      << e;
   e = errorOf("axes:\n  - {name: X, node_id: 1, counts_per_metre: 1, master_heartbeat_timeout_ms: 100}\n");
   EXPECT_NE(e.find("axes[0].master_heartbeat_timeout_ms: 100 ms must be longer than bus.master_heartbeat_ms (100 ms)"),
-            std::string::npos) << e;
+            std::string::npos)
+      << e;
   e = errorOf("axes:\n  - {name: X, node_id: 1, counts_per_metre: 1, abort_connection_option: 4}\n");
   EXPECT_NE(e.find("axes[0].abort_connection_option: 4 is outside 0..3"), std::string::npos) << e;
   // validate() checks a config built in code the same way.

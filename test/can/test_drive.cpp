@@ -49,14 +49,16 @@ struct Rig {
     }
     return pred();
   }
-  void run(Duration d) { runUntil([] { return false; }, d); }
+  void run(Duration d) {
+    runUntil([] { return false; }, d);
+  }
   // Power, bring-up; true when every node is operational.
   bool start() {
     for (auto& d : drives) d->powerOn();
     step();
     master->bringUp();
-    return runUntil([&] { return master->allOperational() && axes[0]->valid() && axes[1]->valid() && axes[2]->valid(); },
-                    3s);
+    return runUntil(
+        [&] { return master->allOperational() && axes[0]->valid() && axes[1]->valid() && axes[2]->valid(); }, 3s);
   }
   // Runs until the axis's operation ends; true when it succeeded.
   bool finish(Cia402Axis& ax, Duration limit = 60s) {
@@ -168,10 +170,12 @@ TEST(Drive, MovesOfAllAxesAtOnce) {
   for (int i = 0; i < 3; ++i) ASSERT_TRUE(r.enable(i)) << r.axes[i]->error();
   const double targets[3] = {0.5, 0.3, 0.1};
   for (int i = 0; i < 3; ++i) r.axes[i]->moveTo(targets[i]);
-  ASSERT_TRUE(r.runUntil([&] {
-    return r.axes[0]->status() != Status::kRunning && r.axes[1]->status() != Status::kRunning &&
-           r.axes[2]->status() != Status::kRunning;
-  }, 20s));
+  ASSERT_TRUE(r.runUntil(
+      [&] {
+        return r.axes[0]->status() != Status::kRunning && r.axes[1]->status() != Status::kRunning &&
+               r.axes[2]->status() != Status::kRunning;
+      },
+      20s));
   for (int i = 0; i < 3; ++i) {
     EXPECT_EQ(r.axes[i]->status(), Status::kSucceeded) << r.axes[i]->error();
     EXPECT_LE(std::abs(r.axes[i]->positionCounts() - r.axes[i]->config().toCounts(targets[i])), 1);
@@ -423,9 +427,9 @@ TEST(Drive, SdoAbortsComeBackWithText) {
   r.master->sdoDownload(1, 0x6041, 0, {0, 0}, collect);
   r.master->sdoUpload(1, 0x2345, 0, collect);
   r.master->sdoUpload(1, 0x1018, 9, collect);
-  r.master->sdoDownload(1, 0x6060, 0, {3}, collect);      // profile velocity: not supported
-  r.master->sdoDownload(1, 0x6081, 0, {1, 2}, collect);   // 2 bytes for a 4-byte object
-  r.master->sdoDownload(1, 0x1A00, 0, {1}, collect);      // mapping while TPDO1 is valid
+  r.master->sdoDownload(1, 0x6060, 0, {3}, collect);     // profile velocity: not supported
+  r.master->sdoDownload(1, 0x6081, 0, {1, 2}, collect);  // 2 bytes for a 4-byte object
+  r.master->sdoDownload(1, 0x1A00, 0, {1}, collect);     // mapping while TPDO1 is valid
   ASSERT_TRUE(r.runUntil([&] { return got.size() == 6; }, 1s));
   EXPECT_NE(got[0].error.find("0x06010002 attempt to write a read only object"), std::string::npos) << got[0].error;
   EXPECT_NE(got[1].error.find("0x06020000 object does not exist"), std::string::npos) << got[1].error;
@@ -560,7 +564,7 @@ CanConfig consumerConfig() {
   CanConfig c = exampleConfig();
   c.axes[0].master_heartbeat_timeout_ms = 300;  // abort connection option 1 (default): fault
   c.axes[2].master_heartbeat_timeout_ms = 300;
-  c.axes[2].abort_connection_option = 3;        // quick stop
+  c.axes[2].abort_connection_option = 3;  // quick stop
   return c;
 }
 
@@ -583,7 +587,7 @@ TEST(Drive, DrivesReactWhenTheMasterHeartbeatStops) {
   const std::int32_t moving_at = r.drives[0]->position();
   // The master stops (hangs, crashes): 300 ms after its last heartbeat the drives react.
   r.master_polled = false;
-  r.run(190ms);  // its last heartbeat was at most 100 ms before it stopped
+  r.run(190ms);                                           // its last heartbeat was at most 100 ms before it stopped
   EXPECT_EQ(r.drives[0]->state(), S::kOperationEnabled);  // not yet
   r.run(260ms);
   EXPECT_EQ(r.drives[0]->state(), S::kFault);
@@ -633,7 +637,7 @@ TEST(Drive, HeartbeatConsumerWaitsForTheFirstHeartbeatAndChecksItsObjects) {
   r.master->sdoDownload(1, 0x1016, 1, toBytes((127u << 16) | 200u, 4), collect);  // monitor node 127, 200 ms
   r.master->sdoDownload(1, 0x1016, 1, toBytes((1u << 16) | 200u, 4), collect);    // itself: refused
   r.master->sdoDownload(1, 0x1016, 1, toBytes(0x01000000u | (5u << 16) | 200u, 4), collect);  // reserved bits
-  r.master->sdoDownload(1, 0x6007, 0, toBytes(4, 2), collect);                     // no such reaction here
+  r.master->sdoDownload(1, 0x6007, 0, toBytes(4, 2), collect);                                // no such reaction here
   ASSERT_TRUE(r.runUntil([&] { return got.size() == 4; }, 1s));
   EXPECT_TRUE(got[0].ok) << got[0].error;
   EXPECT_NE(got[1].error.find("0x06090030"), std::string::npos) << got[1].error;

@@ -17,8 +17,8 @@
 #include <fstream>
 #include <iterator>
 #include <map>
-#include <sstream>
 #include <mutex>
+#include <sstream>
 #include <thread>
 
 #include "massage_cell/can/master.h"
@@ -35,7 +35,12 @@ using namespace std::chrono_literals;
 struct SdoFixture : ::testing::Test {
   VirtualClock clock;
   std::vector<can_frame> sent;
-  SdoClient client{5, [this](const can_frame& f) { sent.push_back(f); return true; }, clock, 100ms};
+  SdoClient client{5,
+                   [this](const can_frame& f) {
+                     sent.push_back(f);
+                     return true;
+                   },
+                   clock, 100ms};
   std::vector<SdoResult> results;
   SdoClient::Callback collect() {
     return [this](const SdoResult& r) { results.push_back(r); };
@@ -373,8 +378,8 @@ TEST_F(MasterFixture, EmcyBecomesAnEventWithText) {
   nodes[1]->ep->send(encodeEmcy(2, e));
   step();
   const auto events = master->takeEvents();
-  ASSERT_TRUE(hasEvent(events, EventType::kEmcy, 2,
-                       "node 2 (Y): EMCY 0x2310 continuous over-current (error register 0x03)"));
+  ASSERT_TRUE(
+      hasEvent(events, EventType::kEmcy, 2, "node 2 (Y): EMCY 0x2310 continuous over-current (error register 0x03)"));
   EXPECT_EQ(master->feedback(2).emcy_code, 0x2310);
 }
 
@@ -625,14 +630,16 @@ TEST(MasterHeartbeat, StopsWhenTheMasterStops) {
   EXPECT_GE(running, 4u);  // 9 expected (t = 0, 50, ..., 400 ms); a loaded machine may delay a few
   EXPECT_LE(running, 10u);
   master->stop();
-  while (sniffer->receive(0ns)) {}
+  while (sniffer->receive(0ns)) {
+  }
   std::this_thread::sleep_for(300ms);
   EXPECT_EQ(sniffer->pending(), 0u) << "heartbeats after stop()";
   master->start();  // alive again
   std::this_thread::sleep_for(200ms);
   EXPECT_GE(sniffer->pending(), 1u);
   master.reset();  // destruction stops it too
-  while (sniffer->receive(0ns)) {}
+  while (sniffer->receive(0ns)) {
+  }
   std::this_thread::sleep_for(200ms);
   EXPECT_EQ(sniffer->pending(), 0u) << "heartbeats after the master was destroyed";
 }
@@ -775,7 +782,7 @@ TEST(MasterRealtime, ThreadRunsUnderFifoAtThePriority) {
   EXPECT_EQ(master.start(50), "");
   EXPECT_EQ(master.threadPriority(), 50);
   ASSERT_TRUE(master.waitUntil([&] { return in_hook >= 0; }, 2s));
-  EXPECT_EQ(in_hook, 50);  // the SYNC / cycle thread itself
+  EXPECT_EQ(in_hook, 50);                          // the SYNC / cycle thread itself
   EXPECT_EQ(realtimePriority(pthread_self()), 0);  // the caller is left alone
   master.stop();
   EXPECT_EQ(master.threadPriority(), 0);
@@ -807,7 +814,8 @@ TEST(MasterRealtime, ALockHolderInheritsTheWaitingThreadsPriority) {
     before = kernelPriority();
     locked = true;
     const auto end = std::chrono::steady_clock::now() + 2s;
-    while ((boosted = kernelPriority()) != -51 && std::chrono::steady_clock::now() < end) std::this_thread::sleep_for(1ms);
+    while ((boosted = kernelPriority()) != -51 && std::chrono::steady_clock::now() < end)
+      std::this_thread::sleep_for(1ms);
   });
   while (!locked) std::this_thread::sleep_for(1ms);
   std::thread waiter([&] {  // the SYNC thread under SCHED_FIFO 50

@@ -18,9 +18,9 @@ AxisConfig axis() {
   AxisConfig a;
   a.name = "T";
   a.node_id = 5;
-  a.counts_per_metre = 100000;  // 10 um
-  a.profile_velocity = 0.1;     // 10000 counts/s
-  a.profile_acceleration = 0.5; // 50000 counts/s^2
+  a.counts_per_metre = 100000;   // 10 um
+  a.profile_velocity = 0.1;      // 10000 counts/s
+  a.profile_acceleration = 0.5;  // 50000 counts/s^2
   a.profile_deceleration = 0.5;
   a.quick_stop_deceleration = 1.0;
   a.min_position = 0.0;
@@ -146,12 +146,12 @@ TEST_F(SimFixture, SdoServerSegmentedUploadAndAborts) {
   EXPECT_EQ(formatFrame(r), "585#410810000F000000");  // 15 bytes, segmented
   r = sdo(sdoUploadSegmentRequest(5, false));
   EXPECT_EQ(formatFrame(r), "585#007365676D656E74");  // "segment"
-  r = sdo(sdoUploadSegmentRequest(5, false));          // toggle not alternated
+  r = sdo(sdoUploadSegmentRequest(5, false));         // toggle not alternated
   EXPECT_EQ(formatFrame(r), "585#8008100000000305");  // abort 0x05030000
-  r = sdo(sdoUploadSegmentRequest(5, true));           // no transfer running any more
+  r = sdo(sdoUploadSegmentRequest(5, true));          // no transfer running any more
   EXPECT_EQ(formatFrame(r), "585#8000000001000405");  // abort 0x05040001
   r = sdo(sdoInitiateDownloadRequest(5, 0x1000, 0, {1, 2, 3, 4}));
-  EXPECT_EQ(formatFrame(r), "585#8000100002000106");  // read only
+  EXPECT_EQ(formatFrame(r), "585#8000100002000106");                      // read only
   r = sdo(sdoInitiateDownloadRequest(5, 0x6081, 0, {1, 2, 3, 4, 5, 6}));  // 6 bytes for a 4-byte object
   EXPECT_EQ(formatFrame(r), "585#8081600012000706");
   // A command specifier the server does not know (block download).
@@ -237,8 +237,8 @@ TEST_F(SimFixture, StateMachineTransitions) {
     S want;
   };
   // 2, 3, 4, 5, 4, 8, 3+4, 9, 2, 7, 2, 3, 10, 2, 3, 4, 11, 12
-  const Step steps[] = {{0x06, S::kReadyToSwitchOn}, {0x07, S::kSwitchedOn},       {0x0F, S::kOperationEnabled},
-                        {0x07, S::kSwitchedOn},      {0x0F, S::kOperationEnabled}, {0x06, S::kReadyToSwitchOn},
+  const Step steps[] = {{0x06, S::kReadyToSwitchOn},  {0x07, S::kSwitchedOn},       {0x0F, S::kOperationEnabled},
+                        {0x07, S::kSwitchedOn},       {0x0F, S::kOperationEnabled}, {0x06, S::kReadyToSwitchOn},
                         {0x0F, S::kOperationEnabled}, {0x00, S::kSwitchOnDisabled}, {0x06, S::kReadyToSwitchOn},
                         {0x00, S::kSwitchOnDisabled}, {0x06, S::kReadyToSwitchOn},  {0x07, S::kSwitchedOn},
                         {0x02, S::kSwitchOnDisabled}, {0x06, S::kReadyToSwitchOn},  {0x07, S::kSwitchedOn},
@@ -310,7 +310,7 @@ TEST_F(SimFixture, QuickStopStopsOnItsRamp) {
 
 TEST_F(SimFixture, HomingInPlace) {
   start();
-  write(0x6098, 0, {35});                              // current position
+  write(0x6098, 0, {35});  // current position
   write(0x607C, 0, toBytes(static_cast<std::uint32_t>(-1234), 4));
   write(0x6060, 0, {6});
   enable();

@@ -3,9 +3,9 @@
 // vcan here: the SocketCAN paths past opening are covered elsewhere).
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <cstdio>
 #include <string>
-#include <sys/wait.h>
 
 #ifndef MASSAGE_CELL_SOURCE_DIR
 #define MASSAGE_CELL_SOURCE_DIR "."
@@ -98,11 +98,13 @@ TEST(CanBenchTool, MeasuresOnTheVirtualBus) {
   r = run(bench + " --samples 5");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.output.find("--samples: must be 10..100000"), std::string::npos) << r.output;
-  for (const char* bad : {" --max-p99-ms 0", " --max-p99-ms fast", " --sdo-timeout-ms 0", " --heartbeat-timeout-ms x"}) {
+  for (const char* bad :
+       {" --max-p99-ms 0", " --max-p99-ms fast", " --sdo-timeout-ms 0", " --heartbeat-timeout-ms x"}) {
     r = run(bench + bad);
     EXPECT_EQ(r.status, 2) << bad << "\n" << r.output;
     EXPECT_NE(r.output.find(std::string(bad).substr(1, std::string(bad).find(' ', 1) - 1) + ":"), std::string::npos)
-        << bad << "\n" << r.output;
+        << bad << "\n"
+        << r.output;
   }
 }
 
@@ -122,12 +124,15 @@ TEST(CanBenchTool, TableEndsWithTheSuccessLineOrAFailure) {
   // A heartbeat consumer time shorter than the drive's heartbeat is refused.
   r = run(bench + " --samples 30 --heartbeat-timeout-ms 50");
   EXPECT_EQ(r.status, 1) << r.output;
-  EXPECT_NE(r.output.find("CAN_BENCH FAIL: --heartbeat-timeout-ms 50: must be longer than the drive's heartbeat_ms (100)"),
-            std::string::npos) << r.output;
+  EXPECT_NE(
+      r.output.find("CAN_BENCH FAIL: --heartbeat-timeout-ms 50: must be longer than the drive's heartbeat_ms (100)"),
+      std::string::npos)
+      << r.output;
   // A missing interface is a failure naming it.
   r = run(bench + " --samples 30 --interface mcnocan7");
   EXPECT_EQ(r.status, 1) << r.output;
-  EXPECT_NE(r.output.find("CAN_BENCH FAIL: SocketCAN interface 'mcnocan7' does not exist"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("CAN_BENCH FAIL: SocketCAN interface 'mcnocan7' does not exist"), std::string::npos)
+      << r.output;
 }
 
 }  // namespace

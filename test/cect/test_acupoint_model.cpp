@@ -31,6 +31,7 @@
 #include "massage_cell/sim/scene_builder.h"
 #include "massage_cell/sim/stereo_frame.h"
 
+namespace camera = massage_cell::camera;
 namespace cect = massage_cell::cect;
 namespace sim = massage_cell::sim;
 
@@ -643,7 +644,10 @@ TEST(AcupointLandmarks, LevelsAreSpacedAlongTheBodyIn3D) {
   // A back whose length along its axis grows as a square of the row
   // fraction u from C7: 0.25 (u + 1)^2 - 0.25 m (0.75 m at L4), so level f
   // lies at u = sqrt(1 + 3 f) - 1 in rows. The cubic fit holds a square exactly.
-  auto along = [&](double y) { const double u = (y - c7) / (l4 - c7); return 0.25 * (u + 1) * (u + 1) - 0.25; };
+  auto along = [&](double y) {
+    const double u = (y - c7) / (l4 - c7);
+    return 0.25 * (u + 1) * (u + 1) - 0.25;
+  };
   const cect::PointLookup curved = [&](const cv::Point2f& q, cv::Point3d* p) {
     *p = cv::Point3d(0.01 * q.x, along(q.y), 0.8);
     return true;
@@ -653,7 +657,8 @@ TEST(AcupointLandmarks, LevelsAreSpacedAlongTheBodyIn3D) {
   ASSERT_EQ(l.along.size(), l.midline.size());
   for (const char* level : {"T3", "T7", "T10", "L2"}) {
     const double f = model().level_fraction.at(level);
-    EXPECT_NEAR(cect::levelPixel(l, model(), level).y, c7 + (std::sqrt(1.0 + 3.0 * f) - 1.0) * (l4 - c7), 0.05) << level;
+    EXPECT_NEAR(cect::levelPixel(l, model(), level).y, c7 + (std::sqrt(1.0 + 3.0 * f) - 1.0) * (l4 - c7), 0.05)
+        << level;
     EXPECT_GT(std::abs(cect::levelPixel(l, model(), level).y - cect::levelPixel(rows, model(), level).y), 5.0)
         << level << ": the curved back must move it";
   }
@@ -696,7 +701,7 @@ TEST(AcupointLandmarks, ParallaxCorrectionPutsTheMidlineOnTheSpine) {
   const sim::StereoFrame frame =
       sim::renderStereoFrame(renderer, pair, sim::Lighting::preset(sim::LightPreset::kTopCentre), ro);
   const cect::CectFrame f = cect::CectFrame::analyse(frame.left.image, frame.right.image,
-                                                     cect::StereoGeometry(pair.left_info, pair.right_info), {});
+                                                     camera::StereoModel(pair.left_info, pair.right_info), {});
   ASSERT_TRUE(f.valid()) << f.reason();
   cect::BackLandmarks l = cect::findLandmarks(f.left(), model());
   ASSERT_TRUE(l.valid) << l.reason;
@@ -717,13 +722,13 @@ TEST(AcupointLandmarks, ParallaxCorrectionPutsTheMidlineOnTheSpine) {
   const cect::BackLandmarks uncorrected = l;
   const double shift = cect::correctMidlineParallax(&l, f.left(), cect::framePoints(f));
   const double after = gvOffset(l);
-  std::printf("GV points' mean x offset: %.2f px from the silhouette, %.2f px corrected (mean shift %.2f px)\n",
-              before, after, shift);
+  std::printf("GV points' mean x offset: %.2f px from the silhouette, %.2f px corrected (mean shift %.2f px)\n", before,
+              after, shift);
   EXPECT_GT(std::abs(before), 3.0);  // the parallax is there to correct
   EXPECT_LT(std::abs(after), 1.5);
   EXPECT_LT(std::abs(after), 0.4 * std::abs(before));
-  EXPECT_LT((l.c7.x - uncorrected.c7.x) * before, 0.0);                // moved toward the spine
-  EXPECT_FLOAT_EQ(l.c7.y, uncorrected.c7.y);                           // only across the body
+  EXPECT_LT((l.c7.x - uncorrected.c7.x) * before, 0.0);  // moved toward the spine
+  EXPECT_FLOAT_EQ(l.c7.y, uncorrected.c7.y);             // only across the body
 
   // Without 3D it leaves the landmarks alone and says so.
   cect::BackLandmarks none = uncorrected;
@@ -754,7 +759,7 @@ ShiftedMeanSubject shiftedMeanSubject(double shift) {
   const sim::StereoFrame stereo =
       sim::renderStereoFrame(renderer, m.pair, sim::Lighting::preset(sim::LightPreset::kTopCentre), ro);
   m.frame = cect::CectFrame::analyse(stereo.left.image, stereo.right.image,
-                                     cect::StereoGeometry(m.pair.left_info, m.pair.right_info), {});
+                                     camera::StereoModel(m.pair.left_info, m.pair.right_info), {});
   EXPECT_TRUE(m.frame.valid()) << m.frame.reason();
   m.landmarks = cect::findLandmarks(m.frame.left(), model());
   EXPECT_TRUE(m.landmarks.valid) << m.landmarks.reason;
@@ -774,9 +779,10 @@ TEST(AcupointLandmarks, CalibratedWaistRimOffsetMatchesTheMeanSubject) {
   const double length = l.l4.y - l.c7.y;
   const double move = cect::correctWaistParallax(&l, zero, m.frame.left(), cect::framePoints(m.frame));
   ASSERT_TRUE(std::isfinite(move));
-  std::printf("implied by the mean subject: waist_rim_offset %.4f (yaml %.4f): the spine's waist %.1f px below the "
-              "silhouette's\n",
-              move / length, model().waist_rim_offset, move);
+  std::printf(
+      "implied by the mean subject: waist_rim_offset %.4f (yaml %.4f): the spine's waist %.1f px below the "
+      "silhouette's\n",
+      move / length, model().waist_rim_offset, move);
   EXPECT_GT(move, 5.0);  // the rims are lower than the spine: the parallax is there
   EXPECT_NEAR(model().waist_rim_offset, move / length, 0.002);
   // With the calibrated constant the mean subject's own waist stays (nearly) where it was.
@@ -801,9 +807,10 @@ TEST(AcupointLandmarks, WaistParallaxKeepsL4WithTheCameraMovedAlongTheTable) {
   const double move = cect::correctWaistParallax(&l, model(), m.frame.left(), cect::framePoints(m.frame));
   ASSERT_TRUE(std::isfinite(move));
   const double before = m.landmarks.l4.y - l4_true, after = l.l4.y - l4_true;
-  std::printf("camera 7 cm along the table: L4 row error %+.2f px from the silhouette, %+.2f px with the waist in 3D "
-              "(moved %+.2f px); C7 %+.2f -> %+.2f px\n",
-              before, after, move, m.landmarks.c7.y - c7_true, l.c7.y - c7_true);
+  std::printf(
+      "camera 7 cm along the table: L4 row error %+.2f px from the silhouette, %+.2f px with the waist in 3D "
+      "(moved %+.2f px); C7 %+.2f -> %+.2f px\n",
+      before, after, move, m.landmarks.c7.y - c7_true, l.c7.y - c7_true);
   EXPECT_GT(std::abs(before), 4.0);
   EXPECT_LT(std::abs(after), 0.5 * std::abs(before));
   EXPECT_LT(std::abs(l.c7.y - c7_true), std::abs(m.landmarks.c7.y - c7_true) + 0.5);

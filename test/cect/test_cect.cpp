@@ -86,8 +86,8 @@ struct Rendered {
 };
 
 /// `specular` < 0: the skin's sheen as modelled; otherwise its Blinn-Phong weight.
-Rendered renderBack(bool rectified, int subject = 0, int w = 640, int h = 480, double fx = 500,
-                    float specular = -1.0f, sim::LightPreset light = sim::LightPreset::kTopCentre) {
+Rendered renderBack(bool rectified, int subject = 0, int w = 640, int h = 480, double fx = 500, float specular = -1.0f,
+                    sim::LightPreset light = sim::LightPreset::kTopCentre) {
   const sim::BackModel back(sim::BodyParameters::subject(subject));
   sim::Scene scene = sim::makeBackScene(back, 1);
   if (specular >= 0.0f)
@@ -112,7 +112,7 @@ struct OnOff {
   cect::CectFrame on, off;
 };
 OnOff analyseOnOff(const Rendered& r, const cect::CectParams& on, const cect::CectParams& off) {
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
   OnOff out{cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, on),
             cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, off)};
   EXPECT_TRUE(out.on.valid()) << out.on.reason();
@@ -122,11 +122,11 @@ OnOff analyseOnOff(const Rendered& r, const cect::CectParams& on, const cect::Ce
 
 }  // namespace
 
-TEST(StereoGeometry, RawPairRoundTripsAndFundamentalMatrix) {
+TEST(StereoModelOnRenderedPairs, RawPairRoundTripsAndFundamentalMatrix) {
   sim::RigParameters rig;
   rig.rectified = false;
   const sim::StereoPairModel pair = sim::makeStereoPair(rig);
-  const cect::StereoGeometry g(pair.left_info, pair.right_info);
+  const camera::StereoModel g(pair.left_info, pair.right_info);
   EXPECT_FALSE(g.identity());
   EXPECT_NEAR(g.baseline(), 0.10, 1e-6);
   const Eigen::Matrix3d F = g.fundamental();
@@ -153,24 +153,24 @@ TEST(StereoGeometry, RawPairRoundTripsAndFundamentalMatrix) {
   }
 }
 
-TEST(StereoGeometry, RejectsBadCalibrations) {
+TEST(StereoModelOnRenderedPairs, RejectsBadCalibrations) {
   auto [l, r] = rectifiedInfo(320, 240, 250, 0.1);
   camera::CameraCalibration none = l;
   none.K = {};
-  EXPECT_THROW(cect::StereoGeometry(none, r), std::invalid_argument);
+  EXPECT_THROW(camera::StereoModel(none, r), std::invalid_argument);
   camera::CameraCalibration wrong = r;
   wrong.P[3] = 25.0;  // right camera on the left
-  EXPECT_THROW(cect::StereoGeometry(l, wrong), std::invalid_argument);
+  EXPECT_THROW(camera::StereoModel(l, wrong), std::invalid_argument);
   camera::CameraCalibration small = r;
   small.width = 160;
-  EXPECT_THROW(cect::StereoGeometry(l, small), std::invalid_argument);
-  const cect::StereoGeometry ok(l, r);
+  EXPECT_THROW(camera::StereoModel(l, small), std::invalid_argument);
+  const camera::StereoModel ok(l, r);
   cv::Mat img(240, 320, CV_8UC3, cv::Scalar(200, 200, 200)), other(200, 320, CV_8UC3);
   EXPECT_THROW(cect::CectFrame::analyse(img, other, ok, {}), std::invalid_argument);
   EXPECT_THROW(cect::CectFrame::analyse(cv::Mat(), img, ok, {}), std::invalid_argument);
   cv::Mat grey(240, 320, CV_8U, cv::Scalar(100));
   EXPECT_THROW(cect::CectFrame::analyse(grey, grey, ok, {}), std::invalid_argument);
-  EXPECT_THROW(cect::CectFrame::analyse(img, img, cect::StereoGeometry(), {}), std::invalid_argument);
+  EXPECT_THROW(cect::CectFrame::analyse(img, img, camera::StereoModel(), {}), std::invalid_argument);
 }
 
 TEST(Cect, FoundationalCorrespondencesPickTheRightCrossing) {
@@ -184,7 +184,7 @@ TEST(Cect, FoundationalCorrespondencesPickTheRightCrossing) {
   p.seed_step = 0;
   p.query_search = 0;
   p.segmentation.trunk.separate_arms = false;
-  const cect::CectFrame f = cect::CectFrame::analyse(s.left, s.right, cect::StereoGeometry(l, r), p);
+  const cect::CectFrame f = cect::CectFrame::analyse(s.left, s.right, camera::StereoModel(l, r), p);
   ASSERT_TRUE(f.valid()) << f.reason();
   ASSERT_GT(f.foundationalCount(), 80u);
   double worst = 0.0;
@@ -196,8 +196,8 @@ TEST(Cect, FoundationalCorrespondencesPickTheRightCrossing) {
     if (cect::rowCrossings(f.right().score, v.left.y).size() == 4) ++four_crossing_rows;
   }
   std::sort(errors.begin(), errors.end());
-  std::cout << "foundational: " << errors.size() << ", on four-crossing rows " << four_crossing_rows << ", median error "
-            << errors[errors.size() / 2] << " px, worst " << worst << " px\n";
+  std::cout << "foundational: " << errors.size() << ", on four-crossing rows " << four_crossing_rows
+            << ", median error " << errors[errors.size() / 2] << " px, worst " << worst << " px\n";
   EXPECT_GT(four_crossing_rows, 10) << "the scene must exercise several crossings per row";
   // A wrong crossing is off by an arm's width (>= 30 px); near the arms'
   // rounded corners the border runs at a shallow angle to the rows and the
@@ -213,7 +213,7 @@ TEST(Cect, BarycentricTransferIsExactUnderAnAffineWarp) {
   p.auto_scale = false;  // a flat synthetic shape, not a back: the reference view's pixels as they are
   p.seed_step = 0;       // contour only: the thesis's plain transfer
   p.query_search = 0;    // no matching: transfer alone
-  const cect::StereoGeometry g(l, r);
+  const camera::StereoModel g(l, r);
   const cect::CectFrame f = cect::CectFrame::analyse(s.left, s.right, g, p);
   ASSERT_TRUE(f.valid()) << f.reason();
   double worst = 0.0;
@@ -232,7 +232,7 @@ TEST(Cect, BarycentricTransferIsExactUnderAnAffineWarp) {
 
 TEST(Cect, BlankSceneAndOffBackPixelsAreReported) {
   auto [l, r] = rectifiedInfo(320, 240, 250, 0.1);
-  const cect::StereoGeometry g(l, r);
+  const camera::StereoModel g(l, r);
   const cv::Mat sheet(240, 320, CV_8UC3, cv::Scalar(225, 220, 212));
   const cect::CectFrame f = cect::CectFrame::analyse(sheet, sheet, g, {});
   EXPECT_FALSE(f.valid());
@@ -258,7 +258,7 @@ namespace {
 /// against the exact surface point and the share of valid answers.
 std::vector<double> renderedErrors(const Rendered& r, double* valid_share, const cect::CectParams& params = {},
                                    double* scale = nullptr) {
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
   const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, params);
   if (scale) *scale = f.scale();
   EXPECT_TRUE(f.valid()) << f.reason();
@@ -312,7 +312,7 @@ TEST(Cect, RenderedBackRectifiedPair) {
 
 TEST(Cect, InteriorSeedsOnRenderedSkinAreSubPixelAndAccountedFor) {
   const Rendered r = renderBack(true);
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
   const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
   ASSERT_TRUE(f.valid()) << f.reason();
   // Every grid point tried ends in exactly one outcome.
@@ -431,7 +431,7 @@ TEST(Cect, RimProfileStaysBetweenTheRimAndTheSeedsWhereTheImageCutsTheBack) {
   sim::RenderOptions ro;
   ro.supersample = 1;
   r.frame = sim::renderStereoFrame(renderer, r.pair, sim::Lighting::preset(sim::LightPreset::kTopCentre), ro);
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
   const auto f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, cect::CectParams{});
   ASSERT_TRUE(f.valid()) << f.reason();
   int rim = 0, near_bottom = 0;
@@ -601,7 +601,9 @@ TEST(Cect, SeedColumnsAtHalfStepsMakeTheReliefIndependentOfTheBodysPlace) {
     std::cout << "moved " << k << " px: interior mean |error| " << e_half.back() << " px with half-step columns, "
               << e_whole.back() << " px with whole-step columns\n";
   }
-  auto range = [](const std::vector<double>& v) { return *std::max_element(v.begin(), v.end()) - *std::min_element(v.begin(), v.end()); };
+  auto range = [](const std::vector<double>& v) {
+    return *std::max_element(v.begin(), v.end()) - *std::min_element(v.begin(), v.end());
+  };
   EXPECT_LT(range(e_half), 0.5 * range(e_whole));
   EXPECT_LT(*std::max_element(e_half.begin(), e_half.end()), *std::min_element(e_whole.begin(), e_whole.end()));
 }
@@ -658,7 +660,7 @@ TEST(Cect, PixelsAtTheNeckBaseAreExtrapolatedWithAWiderSigma) {
   // 0.02 px, the same band is refused with that reason.
   cect::CectParams strict;
   strict.pixel_sigma = 0.02;
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
   const cect::CectFrame fs = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, strict);
   ASSERT_TRUE(fs.valid()) << fs.reason();
   int rough = 0;
@@ -873,7 +875,7 @@ TEST(Cect, PixelParametersScaleToTheView) {
   EXPECT_DOUBLE_EQ(h.border_sigma, 0.5 * p.border_sigma);  // disparities, like the tolerances
   EXPECT_DOUBLE_EQ(d.slope_sigma, 2.0 * p.slope_sigma);
   EXPECT_DOUBLE_EQ(h.border_sigma_reach, p.border_sigma_reach);  // seed steps
-  EXPECT_DOUBLE_EQ(h.lr_tolerance, p.lr_tolerance);  // sub-pixel, scale-free and absolute ones stay
+  EXPECT_DOUBLE_EQ(h.lr_tolerance, p.lr_tolerance);              // sub-pixel, scale-free and absolute ones stay
   EXPECT_DOUBLE_EQ(h.smooth_radius, p.smooth_radius);
   EXPECT_DOUBLE_EQ(h.min_disparity, p.min_disparity);
   EXPECT_EQ(cect::scaledParams(p, 1.0).ncc_radius, p.ncc_radius);
@@ -933,9 +935,9 @@ TEST(Cect, DisparitySigmaCoversTheBorderBandsLargerErrors) {
   const Coverage mid = coverage(r, both.on, 15.0, 45.0), inner = coverage(r, both.on, 45.0, 1e9);
   const Coverage inner0 = coverage(r, both.off, 45.0, 1e9);
   std::cout << "within 2 sigma (median sigma): 0-15 px " << band.within2 << " (" << band.median_sigma
-            << " px), without the structural parts " << band0.within2 << " (" << band0.median_sigma
-            << " px); 15-45 px " << mid.within2 << " (" << mid.median_sigma << " px); >= 45 px " << inner.within2
-            << " (" << inner.median_sigma << " px), without " << inner0.within2 << "\n";
+            << " px), without the structural parts " << band0.within2 << " (" << band0.median_sigma << " px); 15-45 px "
+            << mid.within2 << " (" << mid.median_sigma << " px); >= 45 px " << inner.within2 << " ("
+            << inner.median_sigma << " px), without " << inner0.within2 << "\n";
   ASSERT_GT(band.count, 500u);
   ASSERT_GT(inner.count, 2000u);
   EXPECT_GT(band.within2, 0.9);

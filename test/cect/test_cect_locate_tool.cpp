@@ -14,10 +14,10 @@
 #include <string>
 #include <vector>
 
+#include <yaml-cpp/yaml.h>
 #include <Eigen/Geometry>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <yaml-cpp/yaml.h>
 
 #include "../ros/test_util.h"
 #include "massage_cell/camera/calibration_io.h"
@@ -118,9 +118,12 @@ std::vector<std::vector<std::string>> parseCsv(const std::string& text) {
   for (std::size_t i = 0; i < text.size(); ++i) {
     const char c = text[i];
     if (quoted) {
-      if (c == '"' && i + 1 < text.size() && text[i + 1] == '"') field += text[++i];
-      else if (c == '"') quoted = false;
-      else field += c;
+      if (c == '"' && i + 1 < text.size() && text[i + 1] == '"')
+        field += text[++i];
+      else if (c == '"')
+        quoted = false;
+      else
+        field += c;
     } else if (c == '"') {
       quoted = true;
     } else if (c == ',') {
@@ -182,9 +185,9 @@ void expectModelOrder(const std::vector<std::string>& names) {
 
 /// The valid acupoints of a stereo YAML output, checked one by one.
 struct ValidPoints {
-  std::vector<std::string> names;  ///< every listed point
-  int valid = 0, checked = 0;      ///< checked: with ground truth at the pixel
-  double sum_error = 0.0;          ///< metres, over the checked ones
+  std::vector<std::string> names;   ///< every listed point
+  int valid = 0, checked = 0;       ///< checked: with ground truth at the pixel
+  double sum_error = 0.0;           ///< metres, over the checked ones
   std::vector<cv::Point2d> pixels;  ///< of the valid ones
 };
 
@@ -274,8 +277,10 @@ TEST(CectLocateTool, CsvAgreesWithYaml) {
     EXPECT_EQ(r.at("reason"), a["reason"].as<std::string>());
     for (const char* key : {"u", "v", "x", "y", "z", "sigma_x", "sigma_y", "sigma_z", "disparity_sigma"}) {
       const double c = number(r.at(key)), yv = a[key].as<double>();
-      if (std::isnan(yv)) EXPECT_TRUE(r.at(key).empty()) << r.at("name") << " " << key;
-      else EXPECT_NEAR(c, yv, 1e-6 * std::max(1.0, std::abs(yv))) << r.at("name") << " " << key;
+      if (std::isnan(yv))
+        EXPECT_TRUE(r.at(key).empty()) << r.at("name") << " " << key;
+      else
+        EXPECT_NEAR(c, yv, 1e-6 * std::max(1.0, std::abs(yv))) << r.at("name") << " " << key;
     }
   }
   expectModelOrder(names);
@@ -284,8 +289,8 @@ TEST(CectLocateTool, CsvAgreesWithYaml) {
 TEST(CectLocateTool, NamesWithCommasAndQuotesSurviveBothFormats) {
   const PairOnDisk& p = rectifiedPair();
   const std::string odd = "odd, \"quoted\": #1";
-  std::ofstream(p.file("odd_model.yaml")) << test::readFile(kModel) << "\n  - {name: '" << odd
-                                          << "', level: L2, lateral_cun: 1.0, region: lower_back}\n";
+  std::ofstream(p.file("odd_model.yaml"))
+      << test::readFile(kModel) << "\n  - {name: '" << odd << "', level: L2, lateral_cun: 1.0, region: lower_back}\n";
   const std::string args = p.args() + " --acupoints " + p.file("odd_model.yaml");
   const auto rows = csvTable(runOk(args + " --format csv", p.file("odd.csv")), kStereoHeader);
   const YAML::Node points = YAML::Load(runOk(args, p.file("odd.yaml")))["acupoints"];
@@ -393,7 +398,8 @@ void checkNoBack(const PairOnDisk& p, const std::string& image) {
     EXPECT_EQ(r.at("reason"), reason);
     EXPECT_TRUE(r.at("u").empty() && r.at("x").empty());
   }
-  const auto layout = csvTable(runOk("--layout-only " + image + " --format csv", p.file("none_layout.csv")), kLayoutHeader);
+  const auto layout =
+      csvTable(runOk("--layout-only " + image + " --format csv", p.file("none_layout.csv")), kLayoutHeader);
   EXPECT_EQ(layout.size(), names.size());
   for (const auto& r : layout) EXPECT_NE(r.at("reason").find("no back in view"), std::string::npos);
 }
@@ -429,14 +435,18 @@ TEST(CectLocateTool, BadInputFailsWithAMessage) {
     std::ofstream(p.file("text.png")) << "not an image\n";
   }
   expectFailure("--left " + p.file("missing.png") + right + info, 1, "no such image file '" + p.file("missing.png"));
-  expectFailure("--left " + p.file("text.png") + right + info, 1, "cannot read '" + p.file("text.png") + "' as an image");
-  expectFailure("--left " + p.file("small.png") + right + info, 1, "image size mismatch: '" + p.file("small.png") + "' is 320x240");
-  expectFailure(p.args() + " --acupoints " + p.file("bad.yaml"), 1, "acupoint model '" + p.file("bad.yaml") + "': not valid YAML");
+  expectFailure("--left " + p.file("text.png") + right + info, 1,
+                "cannot read '" + p.file("text.png") + "' as an image");
+  expectFailure("--left " + p.file("small.png") + right + info, 1,
+                "image size mismatch: '" + p.file("small.png") + "' is 320x240");
+  expectFailure(p.args() + " --acupoints " + p.file("bad.yaml"), 1,
+                "acupoint model '" + p.file("bad.yaml") + "': not valid YAML");
   expectFailure("--left " + p.file("left.png") + right + " --left-info " + p.file("bad.yaml") + " --right-info " +
                     p.file("right.yaml"),
                 1, "calibration file '" + p.file("bad.yaml") + "' is not valid YAML");
   expectFailure(p.args() + " --bogus", 2, "unknown option '--bogus'");
-  expectFailure("--left " + p.file("left.png") + right + " --left-info " + p.file("left.yaml"), 2, "missing --right-info");
+  expectFailure("--left " + p.file("left.png") + right + " --left-info " + p.file("left.yaml"), 2,
+                "missing --right-info");
   expectFailure(p.args() + " --format json", 2, "unknown format 'json'");
   expectFailure(p.args() + " --param ncc_radius=9,bogus=1", 2, "unknown CECT parameter 'bogus'");
   expectFailure(p.args() + " --min-depth 3", 2, "--min-depth must be less than --max-depth");

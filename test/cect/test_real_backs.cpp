@@ -54,12 +54,13 @@ Rendered render(int index, double abduction, sim::ArmPose arms = sim::ArmPose::k
   sim::StereoPairModel pair = sim::makeStereoPair(rig);
   sim::RenderOptions ro;
   ro.noise_seed = static_cast<std::uint32_t>(index);
-  sim::StereoFrame frame = sim::renderStereoFrame(renderer, pair, sim::Lighting::preset(sim::LightPreset::kTopCentre), ro);
+  sim::StereoFrame frame =
+      sim::renderStereoFrame(renderer, pair, sim::Lighting::preset(sim::LightPreset::kTopCentre), ro);
   return {back, pair, frame};
 }
 
 /// Rectified left row of a landmark of the back.
-double gtRow(const Rendered& r, const cect::StereoGeometry& g, const std::string& name) {
+double gtRow(const Rendered& r, const camera::StereoModel& g, const std::string& name) {
   return g.project(sim::toCameraFrame(r.back.landmarks(), r.pair.left).at(name)).y();
 }
 
@@ -69,7 +70,7 @@ TEST(RealBacks, ArmsTouchingTheTrunkAreCutAtTheirCreasesAndC7AndL4Found) {
   for (int index : {1, 2, 6}) {
     SCOPED_TRACE("varied subject " + std::to_string(index));
     const Rendered r = render(index, 0.0);
-    const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+    const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
     const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
     ASSERT_TRUE(f.valid()) << f.reason();
     const cect::TrunkReport& trunk = f.left().trunk;
@@ -110,7 +111,7 @@ TEST(RealBacks, ArmsTouchingTheTrunkAreCutAtTheirCreasesAndC7AndL4Found) {
 
 TEST(RealBacks, ArmsHeldAwayLeaveTheTrunksWaist) {
   const Rendered r = render(7, 0.3);
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
   const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
   ASSERT_TRUE(f.valid()) << f.reason();
   EXPECT_GT(f.left().trunk.side_run_pixels, 0) << f.left().trunk.summary();
@@ -128,7 +129,7 @@ TEST(RealBacks, TheTrunksFlankBesideAnArmFollowsTheRimProfile) {
   // pixels off, and the linear interpolation from it spoils the whole band.
   // The rim profile drops such seeds.
   const Rendered r = render(3, 0.0);
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
   const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
   ASSERT_TRUE(f.valid()) << f.reason();
   const cv::Mat arms = r.frame.left.labels == sim::kLabelArm;
@@ -165,7 +166,7 @@ TEST(RealBacks, TheFloorBeyondTheTableStaysOutOfThePalestBack) {
   for (int index : {10, 22}) {
     SCOPED_TRACE("varied subject " + std::to_string(index));
     const Rendered r = render(index, 0.0);
-    const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+    const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
     auto floorIn = [&](const cect::CectFrame& f) {
       return cv::countNonZero((r.frame.left.labels == sim::kLabelFloor) & f.left().mask);
     };
@@ -187,7 +188,7 @@ TEST(RealBacks, RedHairIsNotTakenForTheBack) {
   // Red hair is the most chromatic thing in view, a class of its own above
   // pale skin: the back is the largest region of the class below it.
   const Rendered r = render(21, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kRed, "grey");
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
   const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
   ASSERT_TRUE(f.valid()) << f.reason();
   const cv::Mat back = (r.frame.left.labels == sim::kLabelBack) & f.left().mask;
@@ -204,7 +205,7 @@ TEST(RealBacks, SheenOnDarkSkinDoesNotCutTheBack) {
   // lit back's chroma to the sheet's side of the colour score. Standing well
   // above the table, it stays in the back (the coarse depth fills it in).
   const Rendered r = render(43, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kBlack, "pink");
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
   const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
   ASSERT_TRUE(f.valid()) << f.reason();
   const cv::Mat back = (r.frame.left.labels == sim::kLabelBack) & (r.frame.left_visible > 0);
@@ -226,7 +227,7 @@ TEST(RealBacks, ASheetOfSkinsColourIsLeftOutByTheTablesPlane) {
   // "multi-coloured" region. The view is segmented again without the pixels
   // on the table's plane (the coarse depth), and the back is found.
   const Rendered r = render(21, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kBrown, "beige");
-  const cect::StereoGeometry g(r.pair.left_info, r.pair.right_info);
+  const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
   cect::CectParams no_table;
   no_table.background.table_margin = 0.0;
   const cect::CectFrame colour = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, no_table);

@@ -34,8 +34,8 @@ camera::CameraCalibration rectifiedCamera(int w, int h, double f, double tx) {
   return c;
 }
 
-cect::StereoGeometry rectifiedGeometry(int w, int h, double f = 500.0, double baseline = 0.1) {
-  return cect::StereoGeometry(rectifiedCamera(w, h, f, 0.0), rectifiedCamera(w, h, f, -f * baseline));
+camera::StereoModel rectifiedGeometry(int w, int h, double f = 500.0, double baseline = 0.1) {
+  return camera::StereoModel(rectifiedCamera(w, h, f, 0.0), rectifiedCamera(w, h, f, -f * baseline));
 }
 
 const cect::AcupointModel& model() {
@@ -70,14 +70,14 @@ struct RandomCases {
   explicit RandomCases(std::uint32_t seed) : rng(seed) {}
   double u() { return unit(rng); }
   const cv::Size size{320, 240};
-  const cect::StereoGeometry geometry = rectifiedGeometry(320, 240, 250.0);
+  const camera::StereoModel geometry = rectifiedGeometry(320, 240, 250.0);
   std::mt19937 rng;
   std::uniform_real_distribution<double> unit{0.0, 1.0};
 };
 
 /// What every degenerate case must give: no crash, an invalid frame with a
 /// reason, and acupoints all invalid with that reason.
-void expectInvalid(const cv::Mat& left, const cv::Mat& right, const cect::StereoGeometry& g, const std::string& what) {
+void expectInvalid(const cv::Mat& left, const cv::Mat& right, const camera::StereoModel& g, const std::string& what) {
   SCOPED_TRACE(what);
   const cect::CectFrame f = cect::CectFrame::analyse(left, right, g, cect::CectParams{});
   EXPECT_FALSE(f.valid());
@@ -93,7 +93,7 @@ void expectInvalid(const cv::Mat& left, const cv::Mat& right, const cect::Stereo
 }
 
 /// Whatever the frame: every answer is either valid and finite or carries a reason.
-void expectConsistent(const cv::Mat& left, const cv::Mat& right, const cect::StereoGeometry& g,
+void expectConsistent(const cv::Mat& left, const cv::Mat& right, const camera::StereoModel& g,
                       const std::string& what) {
   SCOPED_TRACE(what);
   const cect::CectFrame f = cect::CectFrame::analyse(left, right, g, cect::CectParams{});
@@ -118,7 +118,7 @@ void expectConsistent(const cv::Mat& left, const cv::Mat& right, const cect::Ste
 TEST(CectRobustness, NoBackOneColourOrNoiseIsAClearInvalidResult) {
   std::mt19937 rng(11);
   std::uniform_int_distribution<int> byte(0, 255);
-  const cect::StereoGeometry g = rectifiedGeometry(320, 240, 250.0);
+  const camera::StereoModel g = rectifiedGeometry(320, 240, 250.0);
   for (int i = 0; i < 6; ++i) {
     const cv::Scalar colour(byte(rng), byte(rng), byte(rng));
     const cv::Mat one(240, 320, CV_8UC3, colour);
@@ -136,7 +136,7 @@ TEST(CectRobustness, NoBackOneColourOrNoiseIsAClearInvalidResult) {
 TEST(CectRobustness, ASliverOfBackIsAClearInvalidResult) {
   RandomCases r(12);
   const cv::Size size = r.size;
-  const cect::StereoGeometry& g = r.geometry;
+  const camera::StereoModel& g = r.geometry;
   for (int i = 0; i < 6; ++i) {
     const double angle = 180.0 * r.u();
     const int thickness = 1 + static_cast<int>(4 * r.u());
@@ -154,13 +154,12 @@ TEST(CectRobustness, ASliverOfBackIsAClearInvalidResult) {
 TEST(CectRobustness, VeryFewContourSamplesDoNotCrash) {
   RandomCases r(13);
   const cv::Size size = r.size;
-  const cect::StereoGeometry& g = r.geometry;
+  const camera::StereoModel& g = r.geometry;
   for (int i = 0; i < 8; ++i) {
     const int height = 8 + static_cast<int>(14 * r.u());
     const int top = 20 + static_cast<int>(180 * r.u());
-    const auto pair = shapePair(size, 10 + 30 * r.u(), [&](cv::Mat& img) {
-      cv::rectangle(img, cv::Rect(10, top, 300, height), kSkin, -1);
-    });
+    const auto pair = shapePair(size, 10 + 30 * r.u(),
+                                [&](cv::Mat& img) { cv::rectangle(img, cv::Rect(10, top, 300, height), kSkin, -1); });
     expectConsistent(pair.first, pair.second, g, "band " + std::to_string(height) + " px high");
     EXPECT_FALSE(cect::locateAcupoints(cect::CectFrame::analyse(pair.first, pair.second, g, {}), model()).valid);
   }
@@ -168,13 +167,13 @@ TEST(CectRobustness, VeryFewContourSamplesDoNotCrash) {
 
 TEST(CectRobustness, TinyAndHugeImages) {
   for (const cv::Size size : {cv::Size(1, 1), cv::Size(2, 2), cv::Size(16, 12), cv::Size(40, 30)}) {
-    const cect::StereoGeometry g = rectifiedGeometry(size.width, size.height, size.width * 0.8);
+    const camera::StereoModel g = rectifiedGeometry(size.width, size.height, size.width * 0.8);
     cv::Mat img(size, CV_8UC3, kSheet);
     cv::circle(img, cv::Point(size.width / 2, size.height / 2), std::max(1, size.width / 3), kSkin, -1);
     expectInvalid(img, img, g, std::to_string(size.width) + "x" + std::to_string(size.height));
   }
   const cv::Size huge(4000, 3000);
-  const cect::StereoGeometry g = rectifiedGeometry(huge.width, huge.height, 3000.0);
+  const camera::StereoModel g = rectifiedGeometry(huge.width, huge.height, 3000.0);
   cv::Mat img(huge, CV_8UC3, kSheet);
   expectInvalid(img, img, g, "4000x3000 without a back");
 }
@@ -182,7 +181,7 @@ TEST(CectRobustness, TinyAndHugeImages) {
 TEST(CectRobustness, RandomSkinShapesGiveConsistentAnswers) {
   RandomCases r(14);
   const cv::Size size = r.size;
-  const cect::StereoGeometry& g = r.geometry;
+  const camera::StereoModel& g = r.geometry;
   for (int i = 0; i < 12; ++i) {
     // Ellipses and rectangles anywhere (partly out of view), at any
     // disparity, also outside the depth range searched or negative.
@@ -190,8 +189,10 @@ TEST(CectRobustness, RandomSkinShapesGiveConsistentAnswers) {
     const auto pair = shapePair(size, d, [&](cv::Mat& img) {
       const cv::Point c(static_cast<int>(-40 + 400 * r.u()), static_cast<int>(-40 + 320 * r.u()));
       const cv::Size axes(static_cast<int>(5 + 200 * r.u()), static_cast<int>(5 + 150 * r.u()));
-      if (r.u() < 0.5) cv::ellipse(img, c, axes, 360 * r.u(), 0, 360, kSkin, -1);
-      else cv::rectangle(img, cv::Rect(c, axes), kSkin, -1);
+      if (r.u() < 0.5)
+        cv::ellipse(img, c, axes, 360 * r.u(), 0, 360, kSkin, -1);
+      else
+        cv::rectangle(img, cv::Rect(c, axes), kSkin, -1);
     });
     expectConsistent(pair.first, pair.second, g, "shape " + std::to_string(i) + " at d " + std::to_string(d));
   }
@@ -202,20 +203,20 @@ TEST(CectRobustness, NonFiniteCalibrationsAndMismatchedImagesAreRefused) {
   for (const double bad : {nan, inf, 0.0, -500.0}) {
     camera::CameraCalibration l = rectifiedCamera(320, 240, 250.0, 0.0), r = rectifiedCamera(320, 240, 250.0, -25.0);
     l.K[0] = l.P[0] = bad;
-    EXPECT_THROW(cect::StereoGeometry(l, r), std::invalid_argument) << "fx " << bad;
+    EXPECT_THROW(camera::StereoModel(l, r), std::invalid_argument) << "fx " << bad;
     l = rectifiedCamera(320, 240, 250.0, 0.0);
     r.P[3] = bad;
     if (bad != -500.0) {
-      EXPECT_THROW(cect::StereoGeometry(l, r), std::invalid_argument) << "Tx " << bad;
+      EXPECT_THROW(camera::StereoModel(l, r), std::invalid_argument) << "Tx " << bad;
     }
     r = rectifiedCamera(320, 240, 250.0, -25.0);
     r.D[0] = bad;
     if (!std::isfinite(bad)) {
-      EXPECT_THROW(cect::StereoGeometry(l, r), std::invalid_argument) << "D " << bad;
+      EXPECT_THROW(camera::StereoModel(l, r), std::invalid_argument) << "D " << bad;
     }
     r = rectifiedCamera(320, 240, 250.0, -25.0);
   }
-  const cect::StereoGeometry g = rectifiedGeometry(320, 240, 250.0);
+  const camera::StereoModel g = rectifiedGeometry(320, 240, 250.0);
   const cv::Mat img(240, 320, CV_8UC3, kSheet), other(200, 320, CV_8UC3, kSheet), grey(240, 320, CV_8U);
   EXPECT_THROW(cect::CectFrame::analyse(img, other, g, {}), std::invalid_argument);
   EXPECT_THROW(cect::CectFrame::analyse(grey, grey, g, {}), std::invalid_argument);
@@ -230,7 +231,8 @@ TEST(CectRobustness, NonFiniteCalibrationsAndMismatchedImagesAreRefused) {
 
 TEST(CectRobustness, TheDisparitySearchFollowsTheCalibrationAndTheDepthRange) {
   cect::CectParams p;  // 0.25 .. 2.5 m
-  const cect::StereoGeometry a = rectifiedGeometry(640, 480, 500.0, 0.10), b = rectifiedGeometry(1280, 960, 1000.0, 0.06);
+  const camera::StereoModel a = rectifiedGeometry(640, 480, 500.0, 0.10),
+                            b = rectifiedGeometry(1280, 960, 1000.0, 0.06);
   EXPECT_NEAR(cect::disparityRange(p, a)[0], 500.0 * 0.10 / 2.5, 1e-9);
   EXPECT_NEAR(cect::disparityRange(p, a)[1], 500.0 * 0.10 / 0.25, 1e-9);
   EXPECT_NEAR(cect::disparityRange(p, b)[0], 1000.0 * 0.06 / 2.5, 1e-9);

@@ -23,15 +23,16 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "massage_cell/camera/calibration.h"
 #include "massage_cell/cect/depth_gate.h"
 #include "massage_cell/cect/segmentation.h"
-#include "massage_cell/camera/calibration.h"
 #include "massage_cell/sim/body_model.h"
 #include "massage_cell/sim/renderer.h"
 #include "massage_cell/sim/scene_builder.h"
 #include "massage_cell/sim/stereo_frame.h"
 
 namespace sim = massage_cell::sim;
+namespace camera = massage_cell::camera;
 namespace cect = massage_cell::cect;
 
 namespace {
@@ -86,9 +87,12 @@ std::pair<int, int> lightestAndDarkest() {
 
 const char* lightName(sim::LightPreset light) {
   switch (light) {
-    case sim::LightPreset::kTopLeft: return "top-left";
-    case sim::LightPreset::kTopCentre: return "top-centre";
-    case sim::LightPreset::kTopRight: return "top-right";
+    case sim::LightPreset::kTopLeft:
+      return "top-left";
+    case sim::LightPreset::kTopCentre:
+      return "top-centre";
+    case sim::LightPreset::kTopRight:
+      return "top-right";
   }
   return "?";
 }
@@ -504,7 +508,7 @@ namespace {
 /// (25 px), as a table beside a floor.
 struct TwoDepthPair {
   cv::Mat left, right;
-  cect::StereoGeometry geometry;
+  camera::StereoModel geometry;
 };
 
 TwoDepthPair twoDepths() {
@@ -531,7 +535,7 @@ TwoDepthPair twoDepths() {
   l.R = r.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
   l.P = {500, 0, 320, 0, 0, 500, 240, 0, 0, 0, 1, 0};
   r.P = {500, 0, 320, -50, 0, 500, 240, 0, 0, 0, 1, 0};
-  p.geometry = cect::StereoGeometry(l, r);
+  p.geometry = camera::StereoModel(l, r);
   return p;
 }
 
@@ -558,7 +562,7 @@ TEST(DepthGate, TablePixelsAreTheSupportsPlaneNotTheBodyOnIt) {
   // A table tilted along the rows (0.9 -> 1.0 m), a body 20 cm above it in
   // the middle, the floor (far) at the right; the plane through the body's
   // top has the table behind it and is not taken.
-  const cect::StereoGeometry g = twoDepths().geometry;
+  const camera::StereoModel g = twoDepths().geometry;
   cv::Mat depth(480, 640, CV_32F), far(480, 640, CV_8U, cv::Scalar(0));
   for (int y = 0; y < 480; ++y)
     for (int x = 0; x < 640; ++x) depth.at<float>(y, x) = static_cast<float>(0.9 + 0.1 * y / 479.0);
@@ -575,9 +579,9 @@ TEST(DepthGate, TablePixelsAreTheSupportsPlaneNotTheBodyOnIt) {
   EXPECT_GT(cv::countNonZero(t(table)), 0.98 * table.area() - 400);
   EXPECT_EQ(cv::countNonZero(t(cv::Rect(40, 40, 20, 20))), 0) << "no depth: not the table";
   EXPECT_TRUE(cect::tablePixels(depth, far, g, 0.0).empty());
-  EXPECT_TRUE(cect::tablePixels(cv::Mat(480, 640, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN())), far,
-                                g, 0.03)
-                  .empty());
+  EXPECT_TRUE(
+      cect::tablePixels(cv::Mat(480, 640, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN())), far, g, 0.03)
+          .empty());
 }
 
 TEST(DepthGate, OffOrUnmatchableGivesNothingAndBadInputThrows) {
@@ -619,7 +623,7 @@ TEST(SegmentBack, AHighlightMatchedTooFarStaysInTheRaisedBack) {
   // table, but the raised body (and the head above it) encloses it.
   cv::Mat img(240, 320, CV_8UC3, cv::Scalar(200, 200, 200));
   img(cv::Rect(100, 60, 120, 150)).setTo(cv::Scalar(120, 150, 200));
-  img(cv::Rect(130, 20, 60, 40)).setTo(cv::Scalar(40, 40, 40));     // hair
+  img(cv::Rect(130, 20, 60, 40)).setTo(cv::Scalar(40, 40, 40));  // hair
   const cv::Rect sheen(130, 60, 60, 50);
   img(sheen).setTo(cv::Scalar(163, 178, 200));
   cv::Mat depth(img.size(), CV_32F, cv::Scalar(0.95f));

@@ -19,10 +19,10 @@
 
 #include "fuzz_input.h"
 #include "massage_cell/camera/calibration.h"
+#include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
 #include "massage_cell/cect/locate.h"
-#include "massage_cell/cect/stereo_geometry.h"
 
 using namespace massage_cell;
 
@@ -142,10 +142,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                         : decimate % 4 == 3 ? full.width / static_cast<int>(in.range(2, 3))
                                             : 0;
   camera::Decimation decimation;
-  cect::StereoGeometry geometry;
+  camera::StereoModel geometry;
   try {  // as the node does: a size it cannot decimate or a bad calibration skips the pair
     decimation = camera::Decimation::toWidth(full, max_width);
-    geometry = cect::StereoGeometry(decimation.apply(left_info), decimation.apply(right_info));
+    geometry = camera::StereoModel(decimation.apply(left_info), decimation.apply(right_info));
   } catch (const std::invalid_argument& e) {
     if (std::string(e.what()).empty()) broken("a calibration refused without a message");
     ++stats.refused[std::string(e.what()).substr(0, 60)];

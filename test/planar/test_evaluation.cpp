@@ -19,10 +19,10 @@
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
-#include "merton_data.h"
 #include "massage_cell/planar/evaluation.h"
 #include "massage_cell/sim/multiview_set.h"
 #include "massage_cell/sim/renderer.h"
+#include "merton_data.h"
 
 namespace planar = massage_cell::planar;
 namespace sim = massage_cell::sim;

@@ -27,9 +27,9 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "merton_data.h"
 #include "massage_cell/planar/features.h"
 #include "massage_cell/planar/views.h"
+#include "merton_data.h"
 
 namespace planar = massage_cell::planar;
 

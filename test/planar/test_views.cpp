@@ -23,8 +23,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "merton_data.h"
 #include "massage_cell/planar/views.h"
+#include "merton_data.h"
 
 namespace planar = massage_cell::planar;
 

@@ -12,7 +12,6 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
@@ -21,6 +20,7 @@
 #include <sensor_msgs/Image.h>
 #include <tf2_msgs/TFMessage.h>
 #include <yaml-cpp/yaml.h>
+#include <Eigen/Core>
 
 #include "spin_util.h"
 
@@ -84,7 +84,8 @@ inline void readFirstPair(const std::string& bag_path, StereoPair* pair) {
   for (const auto& m : view) {
     if (found == 15) break;
     const std::string& topic = m.getTopic();
-    if (topic == "/stereo/left/image_raw" && !(found & 1)) pair->left = *m.instantiate<sensor_msgs::Image>(), found |= 1;
+    if (topic == "/stereo/left/image_raw" && !(found & 1))
+      pair->left = *m.instantiate<sensor_msgs::Image>(), found |= 1;
     if (topic == "/stereo/right/image_raw" && !(found & 2))
       pair->right = *m.instantiate<sensor_msgs::Image>(), found |= 2;
     if (topic == "/stereo/left/camera_info" && !(found & 4))

@@ -68,7 +68,7 @@ struct Fixture {
     joints = *m;
   });
   diagnostic_msgs::DiagnosticStatus diagnostics;  // the arm's latest
-  std::vector<rosgraph_msgs::Log> arm_log;       // /rosout lines of the arm node
+  std::vector<rosgraph_msgs::Log> arm_log;        // /rosout lines of the arm node
   ros::Subscriber diag_sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10, [this](const auto& m) {
     std::lock_guard<std::mutex> lock(mutex);
     for (const auto& st : m->status) {
@@ -163,6 +163,19 @@ struct Fixture {
     }
     return pred();
   }
+  /// The joints report the same position 0.1 s apart.
+  bool waitUntilStanding(double seconds) {
+    Eigen::Vector3d last = jointPositions();
+    return waitFor(
+        [&] {
+          ros::WallDuration(0.1).sleep();
+          const Eigen::Vector3d now = jointPositions();
+          const bool standing = (now - last).norm() < 1e-7;
+          last = now;
+          return standing;
+        },
+        seconds);
+  }
   std_srvs::Trigger::Response trigger(const std::string& name) {
     std_srvs::Trigger srv;
     EXPECT_TRUE(ros::service::waitForService(name, ros::Duration(30.0))) << name;
@@ -251,15 +264,18 @@ TEST(ArmNode, MoveToPointInTheCameraOpticalFrame) {
   EXPECT_TRUE(F->waitFor([&] { return (F->jointPositions() - goal).norm() < 1e-4; }, 2.0))
       << F->jointPositions().transpose();
   // robot_state_publisher: the tool tip is there in tf too.
-  EXPECT_TRUE(F->waitFor([&] {
-    try {
-      const auto t = F->buffer.lookupTransform(kBase, "tool_tip", ros::Time(0));
-      return (Eigen::Vector3d(t.transform.translation.x, t.transform.translation.y, t.transform.translation.z) - goal)
-                 .norm() < 1e-4;
-    } catch (const tf2::TransformException&) {
-      return false;
-    }
-  }, 2.0));
+  EXPECT_TRUE(F->waitFor(
+      [&] {
+        try {
+          const auto t = F->buffer.lookupTransform(kBase, "tool_tip", ros::Time(0));
+          return (Eigen::Vector3d(t.transform.translation.x, t.transform.translation.y, t.transform.translation.z) -
+                  goal)
+                     .norm() < 1e-4;
+        } catch (const tf2::TransformException&) {
+          return false;
+        }
+      },
+      2.0));
 }
 
 TEST(ArmNode, MassageOverTwoAcupointFrames) {
@@ -422,9 +438,10 @@ TEST(ArmNode, RefusalsNameTheProblem) {
 }
 
 TEST(ArmNode, EstopMidMoveAndReset) {
+  const Eigen::Vector3d start = F->jointPositions();
   auto move = std::async(std::launch::async, [] { return F->moveTo(kBase, {0.1, 0.4, 0.25}); });
   ASSERT_TRUE(F->waitFor([] { return F->latest().mode == "moving"; }, 5.0));
-  ros::WallDuration(0.5).sleep();
+  ASSERT_TRUE(F->waitFor([&] { return (F->jointPositions() - start).norm() > 0.02; }, 5.0));  // well under way
   std_msgs::Bool on;
   on.data = true;
   F->estop_pub.publish(on);
@@ -433,9 +450,9 @@ TEST(ArmNode, EstopMidMoveAndReset) {
   EXPECT_EQ(r.message, "e-stop pressed");
   ASSERT_TRUE(F->waitFor([] { return F->latest().mode == "e-stop"; }, 2.0));
   EXPECT_TRUE(F->latest().estop_latched);
-  ros::WallDuration(0.2).sleep();  // the quick-stop ramp: 0.1 m/s at 2 m/s^2 is 50 ms
+  ASSERT_TRUE(F->waitUntilStanding(2.0));  // the quick-stop ramp: 0.1 m/s at 2 m/s^2 is 50 ms
   const Eigen::Vector3d stopped = F->jointPositions();
-  ros::WallDuration(0.5).sleep();
+  ros::WallDuration(0.5).sleep();                           // an observation window: nothing may move in it
   EXPECT_LT((F->jointPositions() - stopped).norm(), 1e-6);  // standing
   auto reset = F->trigger("/arm/reset_fault");
   EXPECT_FALSE(reset.success);
@@ -456,9 +473,10 @@ TEST(ArmNode, EstopMidMoveAndReset) {
 }
 
 TEST(ArmNode, InjectedDriveFaultAndReset) {
+  const Eigen::Vector3d start = F->jointPositions();
   auto move = std::async(std::launch::async, [] { return F->moveTo(kBase, {0.6, 0.1, 0.25}); });
   ASSERT_TRUE(F->waitFor([] { return F->latest().mode == "moving"; }, 5.0));
-  ros::WallDuration(0.3).sleep();
+  ASSERT_TRUE(F->waitFor([&] { return (F->jointPositions() - start).norm() > 0.01; }, 5.0));
   std_msgs::String fault;
   fault.data = "Y 0x2310";
   F->fault_pub.publish(fault);
@@ -537,7 +555,7 @@ TEST(ArmNodeBadInterface, LogsOneErrorNamingTheInterfaceAndKeepsRunning) {
   // the retries every 2 s repeat nothing. (That /rosout reaches us is
   // checked by RefusesEveryCommandWithTheReason: the refusals are WARNs.)
   const std::size_t errors_before = F->logged(rosgraph_msgs::Log::ERROR, "").size();
-  ros::WallDuration(5.0).sleep();
+  ros::WallDuration(5.0).sleep();  // an observation window over two retries: no new error may come
   EXPECT_TRUE(F->waitFor([] { return F->latest().header.stamp > ros::Time::now() - ros::Duration(0.5); }, 2.0))
       << "the node stopped publishing ~state";
   EXPECT_EQ(F->logged(rosgraph_msgs::Log::ERROR, "").size(), errors_before);
@@ -568,7 +586,7 @@ TEST(ArmNodeBadInterface, RefusesEveryCommandWithTheReason) {
   std_msgs::Bool on;  // the e-stop input is taken (and kept for when the interface appears)
   on.data = true;
   F->estop_pub.publish(on);
-  ros::WallDuration(0.3).sleep();
+  ros::WallDuration(0.3).sleep();  // an observation window: the e-stop taken without an interface changes nothing
   EXPECT_EQ(F->latest().mode, "fault");
 }
 

@@ -29,8 +29,8 @@ TEST(BagReplay, EveryMessageArrives) {
     for (const auto& message : view) ++expected[message.getTopic()];
   }
   ASSERT_FALSE(expected.empty()) << path << " holds no messages";
-  for (const auto& topic : {"/stereo/left/image_raw", "/stereo/right/image_raw", "/stereo/left/camera_info",
-                            "/stereo/right/camera_info"}) {
+  for (const auto& topic :
+       {"/stereo/left/image_raw", "/stereo/right/image_raw", "/stereo/left/camera_info", "/stereo/right/camera_info"}) {
     ASSERT_GT(expected[topic], 0) << "the sample bag lacks " << topic;
   }
 

@@ -20,8 +20,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <set>
 #include <string>
@@ -284,10 +284,11 @@ TEST_F(CectNode, BagOutputs) {
   // The node's figures on the bag, re-measured by every run (README, cect).
   std::vector<double> sorted = errors;
   std::sort(sorted.begin(), sorted.end());
-  std::printf("cect on the bag: %zu pairs in, %zu acupoint messages, %zu..%zu of %zu points valid; "
-              "error to the ground-truth acupoints (after 5 messages): median %.1f mm, p90 %.1f mm, max %.1f mm\n",
-              truth.size(), arrays.size(), valid_min, valid_max, n, 1e3 * median(errors),
-              1e3 * sorted[static_cast<std::size_t>(0.9 * (sorted.size() - 1))], 1e3 * sorted.back());
+  std::printf(
+      "cect on the bag: %zu pairs in, %zu acupoint messages, %zu..%zu of %zu points valid; "
+      "error to the ground-truth acupoints (after 5 messages): median %.1f mm, p90 %.1f mm, max %.1f mm\n",
+      truth.size(), arrays.size(), valid_min, valid_max, n, 1e3 * median(errors),
+      1e3 * sorted[static_cast<std::size_t>(0.9 * (sorted.size() - 1))], 1e3 * sorted.back());
 
   // 7. Diagnostics of the node on the bag.
   ASSERT_TRUE(status.seen) << "no diagnostics from stereo/cect";

@@ -13,9 +13,9 @@
 #include <message_filters/subscriber.h>
 #include <message_filters/sync_policies/exact_time.h>
 #include <message_filters/synchronizer.h>
-#include <opencv2/imgcodecs.hpp>
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "test_util.h"
 
@@ -36,7 +36,8 @@ void expectStartupError(const std::string& executable, const std::string& params
   EXPECT_NE(result.exit_code, -1) << "the node did not exit by itself\n" << result.output;
   EXPECT_NE(result.exit_code, 0) << "the node exited with status 0\n" << result.output;
   EXPECT_NE(result.output.find(expected), std::string::npos)
-      << "expected the message to contain '" << expected << "', got:\n" << result.output;
+      << "expected the message to contain '" << expected << "', got:\n"
+      << result.output;
 }
 
 void writePair(const TempDir& dir, int index, cv::Size left, cv::Size right, int value) {
@@ -58,7 +59,8 @@ TEST(StartupErrors, MissingDevice) {
 }
 
 TEST(StartupErrors, MissingFolder) {
-  expectStartupError(kStereo, kFolder + "/nonexistent/massage_cell", "image folder '/nonexistent/massage_cell' does not exist");
+  expectStartupError(kStereo, kFolder + "/nonexistent/massage_cell",
+                     "image folder '/nonexistent/massage_cell' does not exist");
   expectStartupError(kMono, "_source:=folder _folder:=/nonexistent/massage_cell", "does not exist");
 }
 
@@ -103,9 +105,11 @@ TEST(StartupErrors, MalformedCalibration) {
 TEST(StartupErrors, CalibrationSizeDiffersFromImages) {
   TempDir dir;
   writePair(dir, 0, {64, 48}, {64, 48}, 50);
-  expectStartupError(kStereo,
-                     kFolder + dir.str() + " _left/camera_name:=sample_left _left/camera_info_url:=package://massage_cell/data/sample_stereo/left.yaml",
-                     "left camera calibration is for 320x240 images but the camera delivers 64x48");
+  expectStartupError(
+      kStereo,
+      kFolder + dir.str() +
+          " _left/camera_name:=sample_left _left/camera_info_url:=package://massage_cell/data/sample_stereo/left.yaml",
+      "left camera calibration is for 320x240 images but the camera delivers 64x48");
 }
 
 TEST(StartupErrors, InvalidParameterValues) {
@@ -139,13 +143,16 @@ TEST(RunningErrors, BadFrameIsLoggedCountedAndSkipped) {
   message_filters::Synchronizer<Policy> sync(Policy(50), l, r);
   struct Collector {
     std::vector<int>* values;
-    void onPair(const sensor_msgs::ImageConstPtr& a, const sensor_msgs::ImageConstPtr&) { values->push_back(a->data[0]); }
+    void onPair(const sensor_msgs::ImageConstPtr& a, const sensor_msgs::ImageConstPtr&) {
+      values->push_back(a->data[0]);
+    }
   } collector{&values};
   sync.registerCallback(&Collector::onPair, &collector);
   ros::Subscriber diag = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
       "/diagnostics", 20, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& msg) {
         for (const auto& status : msg->status) {
-          if (status.name.find("bad_frame") == std::string::npos || status.name.find("source") == std::string::npos) continue;
+          if (status.name.find("bad_frame") == std::string::npos || status.name.find("source") == std::string::npos)
+            continue;
           for (const auto& kv : status.values) {
             if (kv.key == "bad frames") bad_frames = std::stol(kv.value);
           }
@@ -162,7 +169,7 @@ TEST(RunningErrors, BadFrameIsLoggedCountedAndSkipped) {
   for (int v : values) EXPECT_NE(v, 30) << "the bad frame's partner was published";
   node.stop();
   EXPECT_NE(readFile(log).find("left_0002.png"), std::string::npos) << "the log does not name the bad file:\n"
-                                                                     << readFile(log);
+                                                                    << readFile(log);
 }
 
 }  // namespace

@@ -64,10 +64,13 @@ class DriverStream : public ::testing::Test {
     return samples;
   }
 
-  void onStereo(const ImageConstPtr& a, const ImageConstPtr& b, const CameraInfoConstPtr& c, const CameraInfoConstPtr& d) {
+  void onStereo(const ImageConstPtr& a, const ImageConstPtr& b, const CameraInfoConstPtr& c,
+                const CameraInfoConstPtr& d) {
     samples_->push_back(Sample{{a, b}, {c, d}});
   }
-  void onMono(const ImageConstPtr& a, const CameraInfoConstPtr& c) { samples_->push_back(Sample{{a, nullptr}, {c, nullptr}}); }
+  void onMono(const ImageConstPtr& a, const CameraInfoConstPtr& c) {
+    samples_->push_back(Sample{{a, nullptr}, {c, nullptr}});
+  }
 
   template <typename Done>
   static void spinUntil(Done done, double timeout) {
@@ -124,7 +127,8 @@ TEST_F(DriverStream, RateIsTheRequestedOne) {
   ASSERT_GE(static_cast<int>(samples.size()), min_pairs_);
   const double span = (samples.back().image[0]->header.stamp - samples.front().image[0]->header.stamp).toSec();
   const double rate = (samples.size() - 1) / span;
-  EXPECT_NEAR(rate, expected_rate_, 0.1 * expected_rate_) << "measured " << rate << " Hz over " << samples.size() << " samples";
+  EXPECT_NEAR(rate, expected_rate_, 0.1 * expected_rate_)
+      << "measured " << rate << " Hz over " << samples.size() << " samples";
 }
 
 TEST_F(DriverStream, RightOpticalFrameIsOnTf) {
@@ -133,14 +137,16 @@ TEST_F(DriverStream, RightOpticalFrameIsOnTf) {
   tf2_ros::TransformListener listener(buffer);
   geometry_msgs::TransformStamped t;
   bool found = false;
-  spinUntil([&] {
-    try {
-      t = buffer.lookupTransform(frame_id_, right_frame_id_, ros::Time(0));
-      found = true;
-    } catch (const tf2::TransformException&) {
-    }
-    return found;
-  }, 10.0);
+  spinUntil(
+      [&] {
+        try {
+          t = buffer.lookupTransform(frame_id_, right_frame_id_, ros::Time(0));
+          found = true;
+        } catch (const tf2::TransformException&) {
+        }
+        return found;
+      },
+      10.0);
   ASSERT_TRUE(found) << "no transform " << frame_id_ << " -> " << right_frame_id_;
   EXPECT_NEAR(t.transform.translation.x, baseline_, 1e-6);
   EXPECT_NEAR(t.transform.translation.y, 0.0, 1e-9);

@@ -233,12 +233,12 @@ TEST_F(HbdsNode, BagOutputs) {
   EXPECT_EQ(status.count("bad pairs"), 0) << status.text("last error");
   EXPECT_GE(status.count("pairs processed"), static_cast<long>(disparities.size()));
   EXPECT_EQ(status.count("pairs received"), static_cast<long>(pairs));
-  ROS_INFO_STREAM("hbds on the bag: " << disparities.size() << " of " << pairs << " pairs processed, mean "
-                                      << status.text("mean processing time (ms)") << " ms a pair, "
-                                      << status.count("dropped pairs") << " dropped; acupoint depth errors: median "
-                                      << median(errors) * 1000 << " mm, " << within << "/" << errors.size()
-                                      << " within " << tolerance_ * 1000 << " mm, median signed error (measured - truth) "
-                                      << median(signed_errors) * 1000 << " mm");
+  ROS_INFO_STREAM(
+      "hbds on the bag: " << disparities.size() << " of " << pairs << " pairs processed, mean "
+                          << status.text("mean processing time (ms)") << " ms a pair, " << status.count("dropped pairs")
+                          << " dropped; acupoint depth errors: median " << median(errors) * 1000 << " mm, " << within
+                          << "/" << errors.size() << " within " << tolerance_ * 1000
+                          << " mm, median signed error (measured - truth) " << median(signed_errors) * 1000 << " mm");
 }
 
 // ------------------------------------------------------------ bad input --
@@ -279,7 +279,7 @@ TEST_F(HbdsNode, BadInputIsSkipped) {
   halve(p.right);
   p.right_info.width /= 2;
   p.right_info.height /= 2;
-  expectSkipped("left/right sizes differ", p, "both views must have one size");
+  expectSkipped("left/right sizes differ", p, "different image sizes");
 
   p = good;  // 16-bit images
   for (auto* image : {&p.left, &p.right}) {
@@ -323,7 +323,7 @@ TEST_F(HbdsNode, BadInputIsSkipped) {
   p = good;  // a NaN distortion coefficient (it would rectify into garbage)
   p.left_info.distortion_model = "plumb_bob";
   p.left_info.D = {std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0, 0.0, 0.0};
-  expectSkipped("NaN in D", p, "left camera_info D holds a non-finite value");
+  expectSkipped("NaN in D", p, "left calibration: D holds a non-finite value");
 
   // The node is alive and still processes a good pair.
   const ros::Time stamp = input.publish(good);
@@ -348,8 +348,8 @@ void renderPair(const massage_cell::test::TempDir& dir, bool raw_pair, StereoPai
   const char* side[2] = {"left", "right"};
   for (int i = 0; i < 2; ++i) {
     std::string name;
-    ASSERT_TRUE(camera_calibration_parsers::readCalibration((dir.path() / (std::string(side[i]) + "_camera_info.yaml")).string(),
-                                                            name, *info[i]));
+    ASSERT_TRUE(camera_calibration_parsers::readCalibration(
+        (dir.path() / (std::string(side[i]) + "_camera_info.yaml")).string(), name, *info[i]));
     const cv::Mat bgr = cv::imread((dir.path() / (std::string(side[i]) + ".png")).string(), cv::IMREAD_COLOR);
     ASSERT_FALSE(bgr.empty());
     *image[i] = *cv_bridge::CvImage(std_msgs::Header(), "bgr8", bgr).toImageMsg();

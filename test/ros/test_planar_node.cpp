@@ -18,9 +18,9 @@
 
 #include <camera_calibration_parsers/parse.h>
 #include <cv_bridge/cv_bridge.h>
-#include <opencv2/imgcodecs.hpp>
 #include <ros/ros.h>
 #include <visualization_msgs/Marker.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "massage_cell/PlanarModel.h"
 #include "massage_cell/Reconstruct.h"

@@ -42,15 +42,15 @@
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <gtest/gtest.h>
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <visualization_msgs/Marker.h>
-#include <yaml-cpp/yaml.h>
 #include <xmlrpcpp/XmlRpcValue.h>
+#include <yaml-cpp/yaml.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "spin_util.h"
 #include "test_util.h"
@@ -138,10 +138,9 @@ class Xvfb {
   Xvfb(const std::string& exe, const std::string& log_file) {
     int fds[2];
     if (pipe(fds) != 0) return;
-    child_ = std::make_unique<Child>(
-        std::vector<std::string>{exe, "-displayfd", std::to_string(fds[1]), "-screen", "0", "1280x800x24",
-                                 "-nolisten", "tcp"},
-        std::map<std::string, std::string>{}, log_file, fds[1]);
+    child_ = std::make_unique<Child>(std::vector<std::string>{exe, "-displayfd", std::to_string(fds[1]), "-screen", "0",
+                                                              "1280x800x24", "-nolisten", "tcp"},
+                                     std::map<std::string, std::string>{}, log_file, fds[1]);
     close(fds[1]);
     // Xvfb writes the display number once it accepts connections.
     std::string number;
@@ -289,14 +288,13 @@ TEST(RvizCell, RendersRobotAndCloud) {
     ASSERT_FALSE(w.x->display().empty()) << "Xvfb did not start: " << (tmp.path() / ("xvfb_" + w.name + ".log"));
     const std::string node = "rviz_cell_test_" + w.name;
     rviz_nodes.insert("/" + node);
-    w.rviz = std::make_unique<Child>(
-        std::vector<std::string>{rviz, "-d", w.config, "__name:=" + node},
-        std::map<std::string, std::string>{{"DISPLAY", w.x->display()},
-                                           {"LIBGL_ALWAYS_SOFTWARE", "1"},
-                                           {"HOME", tmp.str()},
-                                           {"ROS_HOME", ros_home_value},
-                                           {"XDG_RUNTIME_DIR", tmp.str()}},
-        (fs::path(out_dir) / ("rviz_" + w.name + ".log")).string());
+    w.rviz = std::make_unique<Child>(std::vector<std::string>{rviz, "-d", w.config, "__name:=" + node},
+                                     std::map<std::string, std::string>{{"DISPLAY", w.x->display()},
+                                                                        {"LIBGL_ALWAYS_SOFTWARE", "1"},
+                                                                        {"HOME", tmp.str()},
+                                                                        {"ROS_HOME", ros_home_value},
+                                                                        {"XDG_RUNTIME_DIR", tmp.str()}},
+                                     (fs::path(out_dir) / ("rviz_" + w.name + ".log")).string());
     std::cout << "rviz_cell: " << w.name << " on " << w.x->display() << std::endl;
   }
 
@@ -311,7 +309,8 @@ TEST(RvizCell, RendersRobotAndCloud) {
     return true;
   };
   const bool subscribed = massage_cell::test::spinUntil(windows_ready, 30.0);
-  for (auto& w : windows) ASSERT_TRUE(w.rviz->running()) << "rviz (" << w.name << ") exited: see its log in " << out_dir;
+  for (auto& w : windows)
+    ASSERT_TRUE(w.rviz->running()) << "rviz (" << w.name << ") exited: see its log in " << out_dir;
   if (!subscribed) {
     std::string seen;
     for (const auto& n : subscribersOf("/stereo/left/image_raw")) seen += " " + n;
@@ -347,8 +346,8 @@ TEST(RvizCell, RendersRobotAndCloud) {
   // The session is over when the clouds and the bag's clock have stopped. On the way,
   // live.png: the full window while the session plays, with the acupoint markers (they
   // expire 1 s after the last pair, so the static screenshots usually lack them).
-  const std::string live_shot = import + " -display " + windows[0].x->display() + " -window root " +
-                                (fs::path(out_dir) / "live.png").string();
+  const std::string live_shot =
+      import + " -display " + windows[0].x->display() + " -window root " + (fs::path(out_dir) / "live.png").string();
   bool live_taken = false;
   massage_cell::test::spinUntil(
       [&] {

@@ -6,8 +6,8 @@
 
 #include <camera_info_manager/camera_info_manager.h>
 #include <image_geometry/stereo_camera_model.h>
-#include <opencv2/imgcodecs.hpp>
 #include <ros/ros.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "test_util.h"
 
@@ -18,13 +18,17 @@ using massage_cell::test::TempDir;
 
 TEST(SimCalibration, LoadsWithCameraInfoManagerAndImageGeometryReproducesTheProjection) {
   TempDir dir;
-  const auto r = runCommand(std::string(RENDER_SCENE_TOOL) + " --preset back --width 200 --height 150 --fx 160 "
-                            "--supersample 1 --out " + dir.str(), 120);
+  const auto r = runCommand(std::string(RENDER_SCENE_TOOL) +
+                                " --preset back --width 200 --height 150 --fx 160 "
+                                "--supersample 1 --out " +
+                                dir.str(),
+                            120);
   ASSERT_EQ(r.exit_code, 0) << r.output;
 
   ros::NodeHandle nh_left("sim_left"), nh_right("sim_right");
   camera_info_manager::CameraInfoManager left(nh_left, "sim_left", "file://" + dir.str() + "/left_camera_info.yaml");
-  camera_info_manager::CameraInfoManager right(nh_right, "sim_right", "file://" + dir.str() + "/right_camera_info.yaml");
+  camera_info_manager::CameraInfoManager right(nh_right, "sim_right",
+                                               "file://" + dir.str() + "/right_camera_info.yaml");
   ASSERT_TRUE(left.isCalibrated());
   ASSERT_TRUE(right.isCalibrated());
   sensor_msgs::CameraInfo li = left.getCameraInfo(), ri = right.getCameraInfo();

@@ -54,7 +54,8 @@ struct RunResult {
 /// Runs `command` through /bin/sh with a time limit; collects its output.
 inline RunResult runCommand(const std::string& command, int timeout_s) {
   RunResult result;
-  const std::string wrapped = "timeout --signal=INT --kill-after=5 " + std::to_string(timeout_s) + " " + command + " 2>&1";
+  const std::string wrapped =
+      "timeout --signal=INT --kill-after=5 " + std::to_string(timeout_s) + " " + command + " 2>&1";
   FILE* pipe = popen(wrapped.c_str(), "r");
   if (!pipe) return result;
   std::array<char, 4096> buffer{};

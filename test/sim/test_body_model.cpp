@@ -4,8 +4,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdio>
 #include <cstdint>
+#include <cstdio>
 #include <functional>
 #include <map>
 #include <random>
@@ -15,8 +15,8 @@
 #include <utility>
 #include <vector>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "massage_cell/sim/body_model.h"
 
@@ -59,9 +59,10 @@ class MeshLocator {
     for (int t = 0; t < static_cast<int>(mesh.triangles.size()); ++t) {
       Eigen::Vector2d tlo(1e9, 1e9), thi(-1e9, -1e9);
       for (int k = 0; k < 3; ++k) {
-        const Eigen::Vector2d p = mesh.vertices[static_cast<std::size_t>(mesh.triangles[static_cast<std::size_t>(t)][k])]
-                                      .head<2>()
-                                      .cast<double>();
+        const Eigen::Vector2d p =
+            mesh.vertices[static_cast<std::size_t>(mesh.triangles[static_cast<std::size_t>(t)][k])]
+                .head<2>()
+                .cast<double>();
         tlo = tlo.cwiseMin(p);
         thi = thi.cwiseMax(p);
       }
@@ -133,12 +134,12 @@ double maxMeshError(const BackModel& back, const Mesh& mesh, int samples, std::u
 
 const std::vector<std::string>& expectedAcupoints() {
   static const std::vector<std::string> names = [] {
-    std::vector<std::string> n = {"GV14", "GV13", "GV12", "GV11", "GV10", "GV9", "GV8",
-                                  "GV7",  "GV6",  "GV5",  "GV4",  "GV3"};
+    std::vector<std::string> n = {"GV14", "GV13", "GV12", "GV11", "GV10", "GV9",
+                                  "GV8",  "GV7",  "GV6",  "GV5",  "GV4",  "GV3"};
     for (const char* bilateral :
-         {"BL11", "BL12", "BL13", "BL14", "BL15", "BL16", "BL17", "BL18", "BL19", "BL20", "BL21", "BL22", "BL23",
-          "BL24", "BL25", "BL26", "SI14", "BL41", "BL42", "BL43", "BL44", "BL45", "BL46", "BL47", "BL48", "BL49",
-          "BL50", "BL51", "BL52", "SI15", "GB21"}) {
+         {"BL11", "BL12", "BL13", "BL14", "BL15", "BL16", "BL17", "BL18", "BL19", "BL20", "BL21",
+          "BL22", "BL23", "BL24", "BL25", "BL26", "SI14", "BL41", "BL42", "BL43", "BL44", "BL45",
+          "BL46", "BL47", "BL48", "BL49", "BL50", "BL51", "BL52", "SI15", "GB21"}) {
       n.push_back(std::string(bilateral) + "_L");
       n.push_back(std::string(bilateral) + "_R");
     }
@@ -706,7 +707,8 @@ TEST(Mesh, TopologyOrientationNormalsAndBorder) {
   double best_top = 1e9, best_left = 1e9;
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
     const Eigen::Vector2d p = mesh.vertices[i].head<2>().cast<double>();
-    const double dt = (p - Eigen::Vector2d(x, 0.05)).norm(), dl = (p - Eigen::Vector2d(x, 0.9 * back.halfWidth(x))).norm();
+    const double dt = (p - Eigen::Vector2d(x, 0.05)).norm(),
+                 dl = (p - Eigen::Vector2d(x, 0.9 * back.halfWidth(x))).norm();
     if (dt < best_top) best_top = dt, top = i;
     if (dl < best_left) best_left = dl, left = i;
   }

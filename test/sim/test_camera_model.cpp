@@ -204,7 +204,10 @@ TEST(CameraModel, ValidateRejectsBadModels) {
       {"K(2,2) = 2", [](CameraModel& c) { c.K(2, 2) = 2.0; }},
       {"NaN cx", [](CameraModel& c) { c.K(0, 2) = std::nan(""); }},
       {"inf fx", [](CameraModel& c) { c.K(0, 0) = INFINITY; }},
-      {"4 coefficients", [](CameraModel& c) { c.D = {0.1, 0.0, 0.0, 0.0}; }},
+      {"4 coefficients",
+       [](CameraModel& c) {
+         c.D = {0.1, 0.0, 0.0, 0.0};
+       }},
       {"8 coefficients", [](CameraModel& c) { c.D.assign(8, 0.0); }},
       {"NaN distortion", [](CameraModel& c) { c.D[1] = std::nan(""); }},
       {"NaN pose", [](CameraModel& c) { c.world_from_camera.translation().x() = std::nan(""); }},
@@ -415,11 +418,20 @@ TEST(StereoPair, InvalidParametersThrow) {
     }
   }
   const std::vector<std::pair<std::string, std::function<void(RigParameters&)>>> raw_cases = {
-      {"4 coefficients", [](RigParameters& r) { r.distortion = {0.1, 0.0, 0.0, 0.0}; }},
+      {"4 coefficients",
+       [](RigParameters& r) {
+         r.distortion = {0.1, 0.0, 0.0, 0.0};
+       }},
       {"no coefficients", [](RigParameters& r) { r.distortion.clear(); }},
       {"NaN coefficient", [](RigParameters& r) { r.distortion[0] = std::nan(""); }},
-      {"left rotation 0.2", [](RigParameters& r) { r.left_rotation = {0.0, 0.2, 0.0}; }},
-      {"right rotation large", [](RigParameters& r) { r.right_rotation = {0.15, 0.15, 0.0}; }},
+      {"left rotation 0.2",
+       [](RigParameters& r) {
+         r.left_rotation = {0.0, 0.2, 0.0};
+       }},
+      {"right rotation large",
+       [](RigParameters& r) {
+         r.right_rotation = {0.15, 0.15, 0.0};
+       }},
       {"right rotation NaN", [](RigParameters& r) { r.right_rotation.x() = std::nan(""); }},
   };
   for (const auto& [name, mutate] : raw_cases) {

@@ -72,7 +72,8 @@ TEST(CellScene, DefaultDressingIsTheBackScene) {
     const sim::Scene plain = sim::makeBackScene(back, 3);
     const sim::Scene dressed = sim::makeCellScene(back, 3, Dressing{});
     ASSERT_EQ(plain.meshes.size(), dressed.meshes.size());
-    for (std::size_t i = 0; i < plain.meshes.size(); ++i) EXPECT_TRUE(sameMesh(plain.meshes[i], dressed.meshes[i])) << i;
+    for (std::size_t i = 0; i < plain.meshes.size(); ++i)
+      EXPECT_TRUE(sameMesh(plain.meshes[i], dressed.meshes[i])) << i;
     const sim::StereoPairModel pair = framedPair(back, 0.05, back.levelX("L4") - 0.1, 160, 120);
     const sim::Renderer r_plain(plain), r_dressed(dressed);
     const sim::ViewRender a = r_plain.render(pair.left, sim::Lighting{}, sim::RenderOptions{});
@@ -130,7 +131,8 @@ TEST(CellScene, ArmsAlongTheTrunkTouchItsFlankAtZeroDegrees) {
     d.lower_body = true;
     const sim::StereoPairModel pair = framedPair(back, 0.05, back.levelX("L4") - 0.25, 320, 320);
     const sim::StereoFrame f = render(back, d, pair);
-    const int r0 = rowOf(pair.left, {back.levelX("T4"), 0.0, 0.2}), r1 = rowOf(pair.left, {back.levelX("L4"), 0.0, 0.2});
+    const int r0 = rowOf(pair.left, {back.levelX("T4"), 0.0, 0.2}),
+              r1 = rowOf(pair.left, {back.levelX("L4"), 0.0, 0.2});
     int rows = 0, touching = 0;
     for (int r = r0; r <= r1; ++r) {
       for (int table : tableBetweenArmAndBack(f.left.labels, r)) {
@@ -183,7 +185,8 @@ TEST(CellScene, ArmsRestOnTheTableAndStartInsideTheShoulder) {
           lowest = std::min(lowest, r.centre.z() - r.b);
           EXPECT_EQ(r.centre.y() > 0.0, side > 0);
         }
-        for (std::size_t i = rings.size() / 2; i < rings.size(); ++i) resting = std::max(resting, rings[i].centre.z() - rings[i].b);
+        for (std::size_t i = rings.size() / 2; i < rings.size(); ++i)
+          resting = std::max(resting, rings[i].centre.z() - rings[i].b);
         EXPECT_GE(lowest, -1e-9) << "never below the table top";
         EXPECT_LT(resting, 1e-9) << "forearm and hand lie on the table";
         // Radii scale with the build: the upper arm 4.5 .. 6 cm.
@@ -193,9 +196,10 @@ TEST(CellScene, ArmsRestOnTheTableAndStartInsideTheShoulder) {
       }
     }
   }
-  EXPECT_THROW(sim::armRings(BackModel(BodyParameters::mean()), sim::TrunkSurface(BackModel(BodyParameters::mean()), nullptr),
-                             ArmPose::kAlongTrunk, 0, 0.0),
-               std::invalid_argument);
+  EXPECT_THROW(
+      sim::armRings(BackModel(BodyParameters::mean()), sim::TrunkSurface(BackModel(BodyParameters::mean()), nullptr),
+                    ArmPose::kAlongTrunk, 0, 0.0),
+      std::invalid_argument);
 }
 
 // ---------------------------------------------------------------------------
@@ -226,7 +230,7 @@ TEST(CellScene, TowelHidesTheAcupointsBelowItsEdgeAndKeepsThoseAbove) {
       EXPECT_TRUE(after.at(name).in_view) << name << ": " << after.at(name).reason;
     }
   }
-  EXPECT_GE(below, 8);   // L4, L5: GV3, BL25, BL26, EX_B2 ...
+  EXPECT_GE(below, 8);  // L4, L5: GV3, BL25, BL26, EX_B2 ...
   EXPECT_GE(above, 60);
 }
 
@@ -262,9 +266,9 @@ TEST(GroundTruth, PointsUnderAnArmOrTheHair) {
   const sim::StereoFrame f = render(back, d, pair);
   const double x_nape = 0.6 * sim::headLayout(back).hairline_x;
   const double flank = back.halfWidth(back.levelX("T6")) - 0.01;
-  const auto truth = sim::acupointTruth({{"nape", {x_nape, 0.0, 0.16}},
-                                         {"flank", {back.levelX("T6"), flank, back.height(back.levelX("T6"), flank)}}},
-                                        pair, f);
+  const auto truth = sim::acupointTruth(
+      {{"nape", {x_nape, 0.0, 0.16}}, {"flank", {back.levelX("T6"), flank, back.height(back.levelX("T6"), flank)}}},
+      pair, f);
   EXPECT_EQ(truth.at("nape").reason, "under the hair");
   EXPECT_EQ(truth.at("flank").reason, "under an arm");
 }
@@ -346,7 +350,8 @@ TEST(CellScene, HairColoursAndClothNames) {
     EXPECT_EQ(sim::clothColour(name), colour);
     seen.insert(name);
   }
-  for (const char* needed : {"white", "light_blue", "green", "grey", "beige", "peach", "pink"}) EXPECT_TRUE(seen.count(needed));
+  for (const char* needed : {"white", "light_blue", "green", "grey", "beige", "peach", "pink"})
+    EXPECT_TRUE(seen.count(needed));
   EXPECT_THROW(sim::clothColour("mauve"), std::invalid_argument);
   EXPECT_EQ(sim::weaveFromName("terry"), sim::Weave::kTerry);
   EXPECT_THROW(sim::weaveFromName("knit"), std::invalid_argument);
@@ -435,7 +440,8 @@ TEST(Subjects, BuildsFollowBmiSexAndStature) {
   sim::Build woman = lean, tall = lean;
   woman.female = true;
   tall.stature = 1.95;
-  EXPECT_GT(sim::bodyFromBuild(woman).hip_width / sim::bodyFromBuild(woman).shoulder_width, l.hip_width / l.shoulder_width);
+  EXPECT_GT(sim::bodyFromBuild(woman).hip_width / sim::bodyFromBuild(woman).shoulder_width,
+            l.hip_width / l.shoulder_width);
   EXPECT_GT(sim::bodyFromBuild(tall).torso_length, l.torso_length + 0.04);
   sim::Build bad;
   bad.bmi = 60.0;
@@ -488,7 +494,8 @@ TEST(Rig, ToeInCamerasConverge) {
     rig.right_rotation.setZero();
     rig.toe_in = 3.0 * kDegree;
     const sim::StereoPairModel pair = sim::makeStereoPair(rig);
-    const Eigen::Vector3d zl = pair.left.world_from_camera.linear().col(2), zr = pair.right.world_from_camera.linear().col(2);
+    const Eigen::Vector3d zl = pair.left.world_from_camera.linear().col(2),
+                          zr = pair.right.world_from_camera.linear().col(2);
     EXPECT_NEAR(std::acos(zl.dot(zr)), 2.0 * rig.toe_in, 1e-9);
     // Where the axes meet: in front of both, baseline / (2 tan(toe-in)) from the
     // baseline (baseline / (2 sin(toe-in)) along each axis).
@@ -505,7 +512,8 @@ TEST(Rig, ToeInCamerasConverge) {
     EXPECT_LT(pair.right_info.P[3], 0.0);
     rig.toe_in = 0.0;
     const sim::StereoPairModel parallel = sim::makeStereoPair(rig);
-    EXPECT_NEAR(parallel.left.world_from_camera.linear().col(2).dot(parallel.right.world_from_camera.linear().col(2)), 1.0, 1e-12);
+    EXPECT_NEAR(parallel.left.world_from_camera.linear().col(2).dot(parallel.right.world_from_camera.linear().col(2)),
+                1.0, 1e-12);
   }
   sim::RigParameters bad;
   bad.toe_in = 0.05;  // rectified

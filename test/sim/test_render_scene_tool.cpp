@@ -2,8 +2,8 @@
 // and bad input ends with a clear message and a non-zero exit status.
 #include <gtest/gtest.h>
 
-#include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "../ros/test_util.h"
 #include "massage_cell/camera/calibration_io.h"
@@ -29,7 +29,8 @@ YAML::Node renderOk(const std::string& args, const TempDir& dir) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find(" s"), std::string::npos) << "the tool prints its time";
   const YAML::Node manifest = YAML::LoadFile((dir.path() / "manifest.yaml").string());
-  for (const auto& f : manifest["files"]) EXPECT_TRUE(fs::exists(dir.path() / f.as<std::string>())) << f.as<std::string>();
+  for (const auto& f : manifest["files"])
+    EXPECT_TRUE(fs::exists(dir.path() / f.as<std::string>())) << f.as<std::string>();
   return manifest;
 }
 
@@ -66,12 +67,14 @@ TEST(RenderSceneTool, RawPairHasNoDisparityButDistortedCalibration) {
 TEST(RenderSceneTool, SessionWritesNumberedPairsAndPerFrameGroundTruth) {
   TempDir dir;
   renderOk("--preset back --frames 3 --rate 10" + kSmall, dir);
-  for (const char* f : {"left_0000.png", "right_0002.png", "ground_truth.yaml"}) EXPECT_TRUE(fs::exists(dir.path() / f)) << f;
+  for (const char* f : {"left_0000.png", "right_0002.png", "ground_truth.yaml"})
+    EXPECT_TRUE(fs::exists(dir.path() / f)) << f;
   const YAML::Node gt = YAML::LoadFile((dir.path() / "ground_truth.yaml").string());
   ASSERT_EQ(gt["frames"].size(), 3u);
   EXPECT_NEAR(gt["frames"][2]["time"].as<double>(), 0.2, 1e-9);
   // Breathing moves the upper back between frames.
-  EXPECT_NE(gt["frames"][0]["acupoints"]["BL15_L"][2].as<double>(), gt["frames"][2]["acupoints"]["BL15_L"][2].as<double>());
+  EXPECT_NE(gt["frames"][0]["acupoints"]["BL15_L"][2].as<double>(),
+            gt["frames"][2]["acupoints"]["BL15_L"][2].as<double>());
 }
 
 TEST(RenderSceneTool, OtherPresets) {

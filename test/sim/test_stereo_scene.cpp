@@ -71,7 +71,9 @@ TEST_F(BackFixture, RawPairObeysItsCalibrationsEpipolarGeometry) {
   ASSERT_FALSE(pair.rectified);
   const sim::StereoFrame f = sim::renderStereoFrame(renderer, pair, sim::Lighting(), quick());
   EXPECT_TRUE(f.left_disparity.empty());
-  auto mat = [](const auto& a, int rows, int cols) { return cv::Mat(rows, cols, CV_64F, const_cast<double*>(a.data())).clone(); };
+  auto mat = [](const auto& a, int rows, int cols) {
+    return cv::Mat(rows, cols, CV_64F, const_cast<double*>(a.data())).clone();
+  };
   const cv::Mat K1 = mat(pair.left_info.K, 3, 3), K2 = mat(pair.right_info.K, 3, 3);
   const cv::Mat R1 = mat(pair.left_info.R, 3, 3), R2 = mat(pair.right_info.R, 3, 3);
   const cv::Mat P1 = mat(pair.left_info.P, 3, 4), P2 = mat(pair.right_info.P, 3, 4);

@@ -201,7 +201,8 @@ TEST(TexturedPlane, NoiseHasTheRequestedSigmaAndDiffersBetweenViews) {
   cv::Mat left_noise, right_noise;
   cv::subtract(noisy.left, clean.left, left_noise, cv::noArray(), CV_32F);
   cv::subtract(noisy.right, clean.right, right_noise, cv::noArray(), CV_32F);
-  EXPECT_GT(cv::norm(left_noise, right_noise, cv::NORM_L1) / static_cast<double>(left_noise.total()), sigma);  // independent draws
+  EXPECT_GT(cv::norm(left_noise, right_noise, cv::NORM_L1) / static_cast<double>(left_noise.total()),
+            sigma);  // independent draws
 }
 
 TEST(TexturedPlane, TextureHasContrastAtAllScales) {

@@ -30,8 +30,8 @@ cv::Mat row8u(const std::vector<int>& v) {
 cv::Mat row8uc3(const std::vector<int>& b, const std::vector<int>& g, const std::vector<int>& r) {
   cv::Mat m(1, static_cast<int>(b.size()), CV_8UC3);
   for (std::size_t i = 0; i < b.size(); ++i)
-    m.at<cv::Vec3b>(0, static_cast<int>(i)) = cv::Vec3b(cv::saturate_cast<uchar>(b[i]), cv::saturate_cast<uchar>(g[i]),
-                                                        cv::saturate_cast<uchar>(r[i]));
+    m.at<cv::Vec3b>(0, static_cast<int>(i)) =
+        cv::Vec3b(cv::saturate_cast<uchar>(b[i]), cv::saturate_cast<uchar>(g[i]), cv::saturate_cast<uchar>(r[i]));
   return m;
 }
 
@@ -206,10 +206,10 @@ TEST(ColourCost, ChannelsAreAveragedAndTruncatedByEta) {
   // B: half-pixel-shifted ramp (BT 0); G: constant offset 30 (BT 30);
   // R: identical (0). C_f = C_r = (0 + 30 + 0) / 3 = 10 on the ramp at d = 0
   // (a plain per-channel |dI| average would give (10 + 30 + 0) / 3 = 13.33).
-  const cv::Mat L = row8uc3({10, 30, 50, 70, 90, 110, 255, 255}, {100, 100, 100, 100, 100, 100, 100, 100},
-                            {5, 5, 5, 5, 5, 5, 5, 5});
-  const cv::Mat R = row8uc3({0, 20, 40, 60, 80, 100, 250, 250}, {70, 70, 70, 70, 70, 70, 70, 70},
-                            {5, 5, 5, 5, 5, 5, 5, 5});
+  const cv::Mat L =
+      row8uc3({10, 30, 50, 70, 90, 110, 255, 255}, {100, 100, 100, 100, 100, 100, 100, 100}, {5, 5, 5, 5, 5, 5, 5, 5});
+  const cv::Mat R =
+      row8uc3({0, 20, 40, 60, 80, 100, 250, 250}, {70, 70, 70, 70, 70, 70, 70, 70}, {5, 5, 5, 5, 5, 5, 5, 5});
   const cv::Mat w = ms::textureWeight(L);
   const ms::CostVolume v20 = ms::computeCostVolume(L, R, params(0, 0, 20.0f, 1));
   const ms::CostVolume v5 = ms::computeCostVolume(L, R, params(0, 0, 5.0f, 1));
@@ -478,8 +478,8 @@ TEST(WinnerTakesAll, TiesGoToSmallerDisparityAndRangeIsClamped) {
 // --------------------------------------------------------------- histogram --
 
 TEST(DisparityHistogram, CountsRoundedDisparitiesInRange) {
-  cv::Mat d = (cv::Mat_<float>(2, 4) << 0.4f, 0.6f, 1.49f, 2.5f, -0.2f, 7.0f,
-               std::numeric_limits<float>::quiet_NaN(), 3.0f);
+  cv::Mat d =
+      (cv::Mat_<float>(2, 4) << 0.4f, 0.6f, 1.49f, 2.5f, -0.2f, 7.0f, std::numeric_limits<float>::quiet_NaN(), 3.0f);
   std::vector<double> h = ms::disparityHistogram(d, 0, 3);
   EXPECT_EQ(h, (std::vector<double>{2, 2, 0, 2}));
   cv::Mat mask = (cv::Mat_<uchar>(2, 4) << 255, 0, 1, 255, 0, 255, 255, 0);
@@ -515,7 +515,7 @@ int otsu(const std::vector<double>& h, int lo, double* muB = nullptr, double* mu
     for (int i = 0; i < static_cast<int>(h.size()); ++i)
       (i <= t ? vb : vf) += h[i] * (i - (i <= t ? mb : mf)) * (i - (i <= t ? mb : mf));
     const double within = vb + vf;  // = w_B sigma_B^2 + w_F sigma_F^2 (unnormalised)
-    if (within < best) {  // first minimum
+    if (within < best) {            // first minimum
       best = within;
       bt = lo + t;
       if (muB) *muB = lo + mb;

@@ -322,10 +322,10 @@ double bruteEnergy(const ms::CostVolume& v, const ms::PairwiseWeights& pw, const
       for (int k = 0; k < 4; ++k) {
         const int qx = x + dx[k], qy = y + dy[k];
         if (qx < 0 || qy < 0 || qx >= v.width() || qy >= v.height()) continue;
-        const double u = dx[k] == 1 ? pw.right.at<float>(y, x)
+        const double u = dx[k] == 1    ? pw.right.at<float>(y, x)
                          : dx[k] == -1 ? pw.right.at<float>(y, qx)
-                         : dy[k] == 1 ? pw.down.at<float>(y, x)
-                                      : pw.down.at<float>(qy, x);
+                         : dy[k] == 1  ? pw.down.at<float>(y, x)
+                                       : pw.down.at<float>(qy, x);
         e += 0.5 * u * V(dp, static_cast<int>(d.at<float>(qy, qx)));
       }
     }

@@ -106,26 +106,39 @@ std::vector<LayerCase> layerCases() {
       {"2 layers 80x60 64 levels", 80, 60, 0, 63, 40, {{10, 10, 30, 40, 7}}},
       {"3 layers 60x45 16 levels", 60, 45, 0, 15, 1, {{5, 5, 30, 25, 8}, {25, 15, 28, 24, 15}}},
       {"3 layers 60x45 64 levels offset dmin", 60, 45, 4, 67, 9, {{5, 5, 30, 25, 40}, {25, 15, 28, 24, 66}}},
-      {"5 layers 80x60 16 levels", 80, 60, 0, 15, 0, {{4, 4, 30, 24, 4}, {40, 6, 30, 20, 7}, {10, 32, 28, 22, 12}, {45, 30, 30, 26, 15}}},
-      {"5 layers 80x60 64 levels", 80, 60, 0, 63, 3, {{4, 4, 30, 24, 17}, {40, 6, 30, 20, 29}, {10, 32, 28, 22, 45}, {30, 20, 30, 26, 62}}},
+      {"5 layers 80x60 16 levels",
+       80,
+       60,
+       0,
+       15,
+       0,
+       {{4, 4, 30, 24, 4}, {40, 6, 30, 20, 7}, {10, 32, 28, 22, 12}, {45, 30, 30, 26, 15}}},
+      {"5 layers 80x60 64 levels",
+       80,
+       60,
+       0,
+       63,
+       3,
+       {{4, 4, 30, 24, 17}, {40, 6, 30, 20, 29}, {10, 32, 28, 22, 45}, {30, 20, 30, 26, 62}}},
   };
 }
 
 }  // namespace
 
 TEST(Hbds, RecoversSyntheticFrontoParallelLayers) {
-  for (const LayerCase& c : layerCases()) for (int overlap : {0, 1, 2}) {
-    SCOPED_TRACE(c.name + std::string(", overlap ") + std::to_string(overlap));
-    const cv::Mat truth = layers(c.width, c.height, c.bg, c.rects);
-    const CostVolume vol = syntheticVolume(truth, c.dmin, c.dmax, 0.2f);
-    const SmoothParams sp = smoothParams();
-    const OptimizerResult r = hbds(vol, edgeWeights(truth, sp.u_max, sp.u_min), sp, 2, overlap);
-    expectValidResult(r, vol);
-    EXPECT_EQ(countDifferent(r.disparity, truth), 0);
-    EXPECT_GE(r.cuts, 1);
-    EXPECT_GE(r.layers, 1);
-    EXPECT_NEAR(r.energy.data, 0.0, 1e-9);  // every pixel at its zero-cost disparity
-  }
+  for (const LayerCase& c : layerCases())
+    for (int overlap : {0, 1, 2}) {
+      SCOPED_TRACE(c.name + std::string(", overlap ") + std::to_string(overlap));
+      const cv::Mat truth = layers(c.width, c.height, c.bg, c.rects);
+      const CostVolume vol = syntheticVolume(truth, c.dmin, c.dmax, 0.2f);
+      const SmoothParams sp = smoothParams();
+      const OptimizerResult r = hbds(vol, edgeWeights(truth, sp.u_max, sp.u_min), sp, 2, overlap);
+      expectValidResult(r, vol);
+      EXPECT_EQ(countDifferent(r.disparity, truth), 0);
+      EXPECT_GE(r.cuts, 1);
+      EXPECT_GE(r.layers, 1);
+      EXPECT_NEAR(r.energy.data, 0.0, 1e-9);  // every pixel at its zero-cost disparity
+    }
 }
 
 TEST(Hbds, RecoversLayersWithWeightsFromPairwiseWeights) {
@@ -191,22 +204,23 @@ TEST(Hbds, EnergyIsLabellingEnergyOfTheResult) {
 }
 
 TEST(Hbds, DeterministicAcrossThreadCounts) {
-  const cv::Mat truth = layers(80, 60, 3, {{4, 4, 30, 24, 17}, {40, 6, 30, 20, 29}, {10, 32, 28, 22, 45}, {30, 20, 30, 26, 62}});
+  const cv::Mat truth =
+      layers(80, 60, 3, {{4, 4, 30, 24, 17}, {40, 6, 30, 20, 29}, {10, 32, 28, 22, 45}, {30, 20, 30, 26, 62}});
   const CostVolume vol = syntheticVolume(truth, 0, 63, 0.0f, 7);  // noisy: many non-trivial cuts
   const SmoothParams sp = smoothParams(0.03f, 0.005f);
   const PairwiseWeights w = edgeWeights(truth, sp.u_max, sp.u_min);
   for (int overlap : {0, 1}) {
-  const OptimizerResult r1 = hbds(vol, w, sp, 1, overlap);
-  for (int threads : {2, 3, 0}) {
-    SCOPED_TRACE("threads " + std::to_string(threads) + ", overlap " + std::to_string(overlap));
-    const OptimizerResult rn = hbds(vol, w, sp, threads, overlap);
-    EXPECT_EQ(countDifferent(r1.disparity, rn.disparity), 0);
-    EXPECT_EQ(r1.cuts, rn.cuts);
-    EXPECT_EQ(r1.layers, rn.layers);
-    EXPECT_EQ(r1.energy.data, rn.energy.data);
-    EXPECT_EQ(r1.energy.smooth, rn.energy.smooth);
-  }
-  EXPECT_GT(r1.cuts, 10);
+    const OptimizerResult r1 = hbds(vol, w, sp, 1, overlap);
+    for (int threads : {2, 3, 0}) {
+      SCOPED_TRACE("threads " + std::to_string(threads) + ", overlap " + std::to_string(overlap));
+      const OptimizerResult rn = hbds(vol, w, sp, threads, overlap);
+      EXPECT_EQ(countDifferent(r1.disparity, rn.disparity), 0);
+      EXPECT_EQ(r1.cuts, rn.cuts);
+      EXPECT_EQ(r1.layers, rn.layers);
+      EXPECT_EQ(r1.energy.data, rn.energy.data);
+      EXPECT_EQ(r1.energy.smooth, rn.energy.smooth);
+    }
+    EXPECT_GT(r1.cuts, 10);
   }
 }
 
@@ -292,8 +306,8 @@ TEST(Hbds, SmoothnessRemovesSaltNoise) {
   const SmoothParams sp = smoothParams(0.1f, 0.01f);
   const OptimizerResult smooth = hbds(vol, edgeWeights(truth, sp.u_max, sp.u_min), sp);
   EXPECT_EQ(countDifferent(smooth.disparity, truth), 0);
-  EXPECT_LT(smooth.energy.total(), labellingEnergy(vol, edgeWeights(truth, sp.u_max, sp.u_min), raw.disparity,
-                                                   sp.truncation).total());
+  EXPECT_LT(smooth.energy.total(),
+            labellingEnergy(vol, edgeWeights(truth, sp.u_max, sp.u_min), raw.disparity, sp.truncation).total());
 }
 
 TEST(Hbds, PairsCrossingTheLayerBoundaryPullTowardsTheNeighboursSet) {

@@ -208,7 +208,7 @@ TEST(RecoverDisparity, NanPixelsGetAValueOnlyFromVoters) {
   const cv::Mat img = sceneImage();
   cv::Mat d = trueDisparity();
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  d(cv::Rect(10, 10, 5, 5)).setTo(nan);       // a hole in the background: filled
+  d(cv::Rect(10, 10, 5, 5)).setTo(nan);        // a hole in the background: filled
   d(cv::Rect(kW - 30, 0, 30, kH)).setTo(nan);  // a wide invalid strip: only its part near voters is filled
   ms::RefineParams p;
   p.window = 11;
@@ -262,7 +262,8 @@ TEST(Refine, BadInputThrowsNamingTheProblem) {
   cv::Mat inf = d.clone();
   inf.at<float>(3, 4) = std::numeric_limits<float>::infinity();
   expectThrowsWith([&] { ms::refineDisparity(img, inf, p); }, "infinite disparity at (4, 3)");
-  expectThrowsWith([&] { ms::recoverDisparity(img, d, cv::Mat(10, 10, CV_8U), p); }, "mask and disparity map sizes differ");
+  expectThrowsWith([&] { ms::recoverDisparity(img, d, cv::Mat(10, 10, CV_8U), p); },
+                   "mask and disparity map sizes differ");
   expectThrowsWith([&] { ms::recoverDisparity(img, d, cv::Mat(kH, kW, CV_32F), p); }, "mask must be CV_8UC1");
   ms::RefineParams bad;
   bad.window = 4;

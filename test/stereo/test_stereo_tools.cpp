@@ -2,9 +2,10 @@
 // with a clear message and a non-zero exit status.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <fstream>
-#include <sstream>
 #include <random>
+#include <sstream>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -22,6 +23,12 @@ namespace fs = std::filesystem;
 const std::string kMatch = STEREO_MATCH_TOOL;
 const std::string kEval = STEREO_EVAL_TOOL;
 const std::string kBench = STEREO_BENCH_TOOL;
+
+/// The shared data sets, as the tools find them: $MASSAGE_CELL_DATA, else ../shared/data beside the package.
+std::string sharedData() {
+  const char* env = std::getenv("MASSAGE_CELL_DATA");
+  return env != nullptr ? std::string(env) : std::string(MASSAGE_CELL_SOURCE_DIR) + "/../shared/data";
+}
 
 /// A random-texture pair whose right view is the left shifted by `d`.
 void writePair(const TempDir& dir, int d, cv::Size size = {96, 64}) {
@@ -64,12 +71,15 @@ TEST(StereoMatch, BadInputFailsWithAMessage) {
   std::ofstream(dir.path() / "empty.png").close();
   const std::string out = " -o " + (dir.path() / "out").string();
   expectFailure(kMatch + " " + l + " " + (dir.path() / "small.png").string() + " --dmax 8" + out, 1, "size");
-  expectFailure(kMatch + " " + l + " " + (dir.path() / "empty.png").string() + " --dmax 8" + out, 1, "cannot read image");
+  expectFailure(kMatch + " " + l + " " + (dir.path() / "empty.png").string() + " --dmax 8" + out, 1,
+                "cannot read image");
   expectFailure(kMatch + " " + l + " " + r + " --dmin 5 --dmax 5" + out, 2, "--dmax must be greater than --dmin");
   expectFailure(kMatch + " " + l + " " + r + " --dmax 200" + out, 1, "wider than the image");
-  expectFailure(kMatch + " " + (dir.path() / "deep.png").string() + " " + (dir.path() / "deep.png").string() + " --dmax 8" + out,
-                1, "type");
-  expectFailure(kMatch + " " + l + " /nonexistent/right.png --dmax 8" + out, 1, "missing image '/nonexistent/right.png'");
+  expectFailure(
+      kMatch + " " + (dir.path() / "deep.png").string() + " " + (dir.path() / "deep.png").string() + " --dmax 8" + out,
+      1, "type");
+  expectFailure(kMatch + " " + l + " /nonexistent/right.png --dmax 8" + out, 1,
+                "missing image '/nonexistent/right.png'");
   expectFailure(kMatch + " " + l + " " + r + " --dmax 8 --method magic" + out, 2, "unknown method 'magic'");
   expectFailure(kMatch + " " + l + " " + r + " --dmax 8", 2, "-o OUT is required");
 }
@@ -109,8 +119,9 @@ TEST(StereoBench, CellFramesPrintTimesAndAccuracy) {
   // The table holds both scenes for each method with bad-pixel percentages
   // against the simulator's exact GT; HBDS (polished or not) must beat the
   // winner-takes-all map it starts from by a wide margin at 1 px.
-  const auto r = runCommand(kBench + " --scenes '' --frame --frame-size 320x240 --frame-levels 32 --repeat 1"
-                                     " --frame-methods hbds,wta --polish 1",
+  const auto r = runCommand(kBench +
+                                " --scenes '' --frame --frame-size 320x240 --frame-levels 32 --repeat 1"
+                                " --frame-methods hbds,wta --polish 1",
                             180);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("Cell scenes (simulator) at 320x240, 32 levels"), std::string::npos) << r.output;
@@ -137,7 +148,7 @@ TEST(StereoBench, CellFramesPrintTimesAndAccuracy) {
 }
 
 TEST(StereoEval, CsvOnMiddlebury) {
-  const std::string root = massage_cell::stereo::middleburyRoot();
+  const std::string root = massage_cell::stereo::middleburyRoot(sharedData());
   if (!fs::exists(fs::path(root) / "tsukuba" / "left.png")) {
     GTEST_SKIP() << "Middlebury data not found at " << root << " (set MASSAGE_CELL_MIDDLEBURY)";
   }
@@ -156,7 +167,7 @@ TEST(StereoEval, CsvOnMiddlebury) {
 
 TEST(StereoEval, Middlebury2005ScenesAndTheSgbmReference) {
   namespace stereo = massage_cell::stereo;
-  const std::string root = stereo::middlebury2005Root();
+  const std::string root = stereo::middlebury2005Root(sharedData());
   if (!fs::exists(fs::path(root) / "dolls" / "left.png")) {
     GTEST_SKIP() << "Middlebury 2005 data not found at " << root << " (set MASSAGE_CELL_MIDDLEBURY2005)";
   }
@@ -192,7 +203,7 @@ TEST(StereoEval, Middlebury2005ScenesAndTheSgbmReference) {
 }
 
 TEST(StereoEval, PicturesOnMiddlebury) {
-  const std::string root = massage_cell::stereo::middleburyRoot();
+  const std::string root = massage_cell::stereo::middleburyRoot(sharedData());
   if (!fs::exists(fs::path(root) / "tsukuba" / "left.png")) {
     GTEST_SKIP() << "Middlebury data not found at " << root << " (set MASSAGE_CELL_MIDDLEBURY)";
   }

@@ -30,10 +30,10 @@ class ArmConfigError : public std::runtime_error {
 
 /// Soft limits of one prismatic joint.
 struct JointLimits {
-  double min = 0.0;               ///< m
-  double max = 0.0;               ///< m
-  double max_velocity = 0.05;     ///< m/s
-  double max_acceleration = 0.25; ///< m/s^2
+  double min = 0.0;                ///< m
+  double max = 0.0;                ///< m
+  double max_velocity = 0.05;      ///< m/s
+  double max_acceleration = 0.25;  ///< m/s^2
 };
 
 /// Press limits of one body region (back_acupoints.md, safety notes).
@@ -45,23 +45,23 @@ struct RegionLimits {
 /// The press routine: approach above the target, descend along the surface
 /// normal to the depth, hold, retract; travel between targets at a safe height.
 struct PressConfig {
-  double approach_height = 0.03;   ///< m above the surface point along the normal
-  double travel_height = 0.28;     ///< m, tool-tip z in the arm base frame for moves between targets
-  double speed = 0.01;             ///< m/s, default approach / descent speed
-  double max_speed = 0.03;         ///< m/s, the most a request may ask for
-  double acceleration = 0.1;       ///< m/s^2 along the press path
-  double retract_speed = 0.02;     ///< m/s
-  double hold = 2.0;               ///< s, default hold time at depth
-  double max_hold = 30.0;          ///< s
-  int max_repeats = 10;            ///< presses per target
-  int max_targets = 50;            ///< targets in one request
+  double approach_height = 0.03;  ///< m above the surface point along the normal
+  double travel_height = 0.28;    ///< m, tool-tip z in the arm base frame for moves between targets
+  double speed = 0.01;            ///< m/s, default approach / descent speed
+  double max_speed = 0.03;        ///< m/s, the most a request may ask for
+  double acceleration = 0.1;      ///< m/s^2 along the press path
+  double retract_speed = 0.02;    ///< m/s
+  double hold = 2.0;              ///< s, default hold time at depth
+  double max_hold = 30.0;         ///< s
+  int max_repeats = 10;           ///< presses per target
+  int max_targets = 50;           ///< targets in one request
   /// After an e-stop with the tool in contact: back off along the press line to
   /// the approach point at retract_speed, then stay stopped (false: stop in place).
   bool estop_release = true;
-  double max_normal_tilt = 0.7854; ///< rad between the outward normal and +z (config: degrees)
-  double knead_radius = 0.004;     ///< m, circle in the tangent plane while kneading
-  double knead_period = 1.0;       ///< s per circle
-  int knead_segments = 8;          ///< straight segments per circle
+  double max_normal_tilt = 0.7854;  ///< rad between the outward normal and +z (config: degrees)
+  double knead_radius = 0.004;      ///< m, circle in the tangent plane while kneading
+  double knead_period = 1.0;        ///< s per circle
+  int knead_segments = 8;           ///< straight segments per circle
 };
 
 /// Keeping out of the body (see checkBodyClearance in plan.h).
@@ -71,18 +71,18 @@ struct BodyConfig {
 };
 
 struct ArmConfig {
-  std::string source;                   ///< file it came from (for messages)
-  std::string can_config_path;          ///< resolved path of the CAN configuration
-  can::CanConfig can;                   ///< loaded from can_config_path
+  std::string source;                                    ///< file it came from (for messages)
+  std::string can_config_path;                           ///< resolved path of the CAN configuration
+  can::CanConfig can;                                    ///< loaded from can_config_path
   std::array<std::string, 3> axis_names{"X", "Y", "Z"};  ///< CAN axis of the x, y, z joint
   std::array<std::string, 3> joint_names{"arm_x_joint", "arm_y_joint", "arm_z_joint"};  ///< URDF joints
   std::array<JointLimits, 3> joints;
-  Eigen::Vector3d tool_offset = Eigen::Vector3d::Zero();   ///< m, tool tip - joint position (arm base frame)
-  Eigen::Vector3d workspace_min = Eigen::Vector3d::Zero(); ///< m, envelope of the tool tip (arm base frame)
+  Eigen::Vector3d tool_offset = Eigen::Vector3d::Zero();    ///< m, tool tip - joint position (arm base frame)
+  Eigen::Vector3d workspace_min = Eigen::Vector3d::Zero();  ///< m, envelope of the tool tip (arm base frame)
   Eigen::Vector3d workspace_max = Eigen::Vector3d::Zero();
-  double watchdog_timeout = 0.5;        ///< s without keepAlive() that ends a move or massage (0: off)
-  double bringup_timeout = 5.0;         ///< s for every node to become operational
-  double position_tolerance = 1e-4;     ///< m: a move that ends farther from its goal is a fault
+  double watchdog_timeout = 0.5;     ///< s without keepAlive() that ends a move or massage (0: off)
+  double bringup_timeout = 5.0;      ///< s for every node to become operational
+  double position_tolerance = 1e-4;  ///< m: a move that ends farther from its goal is a fault
   PressConfig press;
   BodyConfig body;
   std::map<std::string, RegionLimits> regions;

@@ -97,7 +97,7 @@ class TapBus final : public can::Bus {
 
 struct AxisStatus {
   std::string name;
-  bool valid = false;  ///< statusword received
+  bool valid = false;     ///< statusword received
   double position = 0.0;  ///< m
   can::Cia402State state = can::Cia402State::kUnknown;
   can::NodeState node = can::NodeState::kUnknown;
@@ -113,9 +113,9 @@ struct ArmStatus {
   std::array<AxisStatus, 3> axes;
   Eigen::Vector3d joints = Eigen::Vector3d::Zero();  ///< m
   Eigen::Vector3d tool = Eigen::Vector3d::Zero();    ///< m, arm base frame
-  std::vector<std::string> faults;  ///< why the arm is in fault (empty otherwise)
-  std::string activity;             ///< what the running command does now
-  std::string last_error;           ///< the last failure or refusal
+  std::vector<std::string> faults;                   ///< why the arm is in fault (empty otherwise)
+  std::string activity;                              ///< what the running command does now
+  std::string last_error;                            ///< the last failure or refusal
   can::BusState bus = can::BusState::kErrorActive;
   std::uint64_t cycles = 0;
   std::uint64_t command = 0;  ///< id of the running (or last) command

@@ -26,19 +26,19 @@ const char* toString(Technique t);
 
 /// One surface point to press, in the arm base frame.
 struct PressTarget {
-  std::string name;    ///< for messages (acupoint name, or "point 2")
-  std::string region;  ///< region key (config regions); empty: the default region
-  Eigen::Vector3d point = Eigen::Vector3d::Zero();          ///< on the skin, m
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();        ///< outward surface normal
+  std::string name;                                   ///< for messages (acupoint name, or "point 2")
+  std::string region;                                 ///< region key (config regions); empty: the default region
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();    ///< on the skin, m
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< outward surface normal
 };
 
 struct PressRequest {
   std::vector<PressTarget> targets;  ///< pressed in this order
   Technique technique = Technique::kPress;
-  double depth = 0.0;   ///< m past the surface point; 0: each region's default depth
-  double hold = -1.0;   ///< s at depth; < 0: config default
-  double speed = 0.0;   ///< m/s approach / descent; 0: config default
-  int repeats = 1;      ///< presses per target
+  double depth = 0.0;  ///< m past the surface point; 0: each region's default depth
+  double hold = -1.0;  ///< s at depth; < 0: config default
+  double speed = 0.0;  ///< m/s approach / descent; 0: config default
+  int repeats = 1;     ///< presses per target
 };
 
 /// One step of a plan.
@@ -46,13 +46,13 @@ struct Step {
   enum class Kind { kMove, kHold };
   Kind kind = Kind::kMove;
   Eigen::Vector3d tool = Eigen::Vector3d::Zero();  ///< goal of a move (tool tip, arm base frame)
-  double speed = 0.0;     ///< m/s along the path (0: joint limits only)
-  double accel = 0.0;     ///< m/s^2 along the path (0: joint limits only)
-  double duration = 0.0;  ///< s, of a hold
-  std::string label;      ///< "press 1/2 BL23_L: descend"
-  bool contact = false;   ///< the tool is below the approach point: an abort retracts first
-  bool retract = false;   ///< part of a retraction (never aborted, not watchdog-guarded)
-  int target = -1;        ///< index into the request's targets
+  double speed = 0.0;                              ///< m/s along the path (0: joint limits only)
+  double accel = 0.0;                              ///< m/s^2 along the path (0: joint limits only)
+  double duration = 0.0;                           ///< s, of a hold
+  std::string label;                               ///< "press 1/2 BL23_L: descend"
+  bool contact = false;                            ///< the tool is below the approach point: an abort retracts first
+  bool retract = false;                            ///< part of a retraction (never aborted, not watchdog-guarded)
+  int target = -1;                                 ///< index into the request's targets
   bool press_done = false;  ///< finishing this step completes one press (the retract after a hold)
   Eigen::Vector3d retreat = Eigen::Vector3d::Zero();  ///< where an abort during a contact step retracts to
 };

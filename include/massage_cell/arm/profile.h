@@ -18,10 +18,10 @@ struct SyncProfile {
   Eigen::Vector3d goal = Eigen::Vector3d::Zero();
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();      ///< per-axis peak speed, m/s (>= 0)
   Eigen::Vector3d acceleration = Eigen::Vector3d::Zero();  ///< per-axis acceleration = deceleration, m/s^2 (>= 0)
-  double peak = 0.0;       ///< normalised peak velocity V (1/s)
-  double accel = 0.0;      ///< normalised acceleration A (1/s^2)
-  double accel_time = 0.0; ///< s of acceleration (= of deceleration)
-  double duration = 0.0;   ///< s, start to arrival (0 for a null move)
+  double peak = 0.0;                                       ///< normalised peak velocity V (1/s)
+  double accel = 0.0;                                      ///< normalised acceleration A (1/s^2)
+  double accel_time = 0.0;                                 ///< s of acceleration (= of deceleration)
+  double duration = 0.0;                                   ///< s, start to arrival (0 for a null move)
 
   /// Normalised progress s(t) in [0, 1] (t clamped to [0, duration]).
   double progress(double t) const;

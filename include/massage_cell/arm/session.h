@@ -65,10 +65,10 @@ struct PressRecord {
   bool success = false;
   std::string message;  ///< the arm's answer
   double seconds = 0.0;
-  bool measured = false;             ///< the tool was seen holding at depth and the truth was known
-  Eigen::Vector3d tool_at_depth{};   ///< mean tool tip while holding, arm base frame
-  Eigen::Vector3d truth_at_depth{};  ///< ground-truth acupoint pushed `depth` down (-z of the arm base)
-  bool targeted = false;             ///< the acupoint's tf frame was seen while holding
+  bool measured = false;              ///< the tool was seen holding at depth and the truth was known
+  Eigen::Vector3d tool_at_depth{};    ///< mean tool tip while holding, arm base frame
+  Eigen::Vector3d truth_at_depth{};   ///< ground-truth acupoint pushed `depth` down (-z of the arm base)
+  bool targeted = false;              ///< the acupoint's tf frame was seen while holding
   Eigen::Vector3d target_at_depth{};  ///< CECT's acupoint (its tf frame) pushed `depth` down, likewise
   double error() const { return (tool_at_depth - truth_at_depth).norm(); }
   /// The arm's own share: the tool against where it was sent (CECT's acupoint).

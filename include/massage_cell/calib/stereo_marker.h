@@ -72,12 +72,12 @@ struct DetectOptions {
 /// The marker in one stereo pair.
 struct MarkerDetection {
   bool found = false;
-  std::string problem;               ///< why not found (empty when found)
+  std::string problem;                              ///< why not found (empty when found)
   Eigen::Vector3d point = Eigen::Vector3d::Zero();  ///< reference point, left optical frame, metres
   Eigen::Isometry3d camera_from_board = Eigen::Isometry3d::Identity();
-  int corners = 0;                   ///< corners triangulated (seen in both views)
-  double fit_rms_mm = 0.0;           ///< board model vs triangulated corners
-  std::vector<int> ids;              ///< corner ids used
+  int corners = 0;                             ///< corners triangulated (seen in both views)
+  double fit_rms_mm = 0.0;                     ///< board model vs triangulated corners
+  std::vector<int> ids;                        ///< corner ids used
   std::vector<cv::Point2f> left_px, right_px;  ///< their rectified pixels
 };
 

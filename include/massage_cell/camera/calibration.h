@@ -25,16 +25,19 @@ struct CameraCalibration {
 };
 
 /// Problems of one camera's calibration against its images: size mismatch,
-/// non-positive focal lengths, non-rotation R, wrong number of distortion
-/// coefficients. Empty when usable. `which` names the camera in messages.
+/// non-positive focal lengths (K, P), P[10] not 1, a non-finite value in K,
+/// D, R or P (the field named), R not a rotation, an unknown distortion model
+/// or the wrong number of coefficients for it. Empty when usable (or when
+/// uncalibrated: K[0] = 0). `which` names the camera in messages. The one
+/// validator of calibrations: the drivers, StereoModel and the nodes use it.
 std::vector<std::string> checkCalibration(const CameraCalibration& calib, cv::Size image_size,
                                           const std::string& which);
 
-/// Problems of a stereo pair's calibrations: the two rectified projections
-/// must share fx, fy and cy, the left P must have Tx = 0 and the right one
-/// Tx = -fx * B with B > 0 (right camera to the right of the left one).
-std::vector<std::string> checkStereoCalibration(const CameraCalibration& left,
-                                                const CameraCalibration& right);
+/// Problems of a stereo pair's calibrations: one image size, the two
+/// rectified projections must share fx, fy and cy, the left P must have
+/// Tx = 0 and the right one Tx = -fx * B with B > 0 (right camera to the
+/// right of the left one) and Ty = P[7] = 0 (a horizontal pair).
+std::vector<std::string> checkStereoCalibration(const CameraCalibration& left, const CameraCalibration& right);
 
 /// The camera_info of images that are already rectified: D = 0, R = I and
 /// K = the left 3x3 block of P, so that image_proc's rectification is the

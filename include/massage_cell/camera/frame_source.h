@@ -69,9 +69,9 @@ void validate(const SourceConfig& config);
 struct Frame {
   std::vector<cv::Mat> views;
   std::chrono::system_clock::time_point capture_time;
-  std::int64_t index = -1;          ///< frame number within the source
-  double view_skew_s = 0.0;         ///< |left - right| capture time (two devices)
-  std::string name;                 ///< file name(s) of the frame, if any
+  std::int64_t index = -1;   ///< frame number within the source
+  double view_skew_s = 0.0;  ///< |left - right| capture time (two devices)
+  std::string name;          ///< file name(s) of the frame, if any
 };
 
 enum class ReadStatus {

@@ -53,8 +53,8 @@ constexpr std::uint16_t kDisableOperation = 0x0007;
 constexpr std::uint16_t kEnableOperation = 0x000F;
 constexpr std::uint16_t kQuickStop = 0x0002;
 constexpr std::uint16_t kDisableVoltage = 0x0000;
-constexpr std::uint16_t kFaultReset = 0x0080;     ///< acts on the rising edge
-constexpr std::uint16_t kNewSetPoint = 0x0010;    ///< bit 4 (PP) / homing start
+constexpr std::uint16_t kFaultReset = 0x0080;   ///< acts on the rising edge
+constexpr std::uint16_t kNewSetPoint = 0x0010;  ///< bit 4 (PP) / homing start
 constexpr std::uint16_t kChangeImmediately = 0x0020;
 constexpr std::uint16_t kRelative = 0x0040;
 constexpr std::uint16_t kHalt = 0x0100;
@@ -140,8 +140,19 @@ class Cia402Axis {
   std::vector<Cia402State> history() const;
 
  private:
-  enum class Phase { kStart, kWaitEdgeLow, kWaitAck, kWaitAckClear, kWaitReached, kSetMode, kCheckMode, kHomingRun,
-                     kRestoreMode, kRestoreCheck, kDone };
+  enum class Phase {
+    kStart,
+    kWaitEdgeLow,
+    kWaitAck,
+    kWaitAckClear,
+    kWaitReached,
+    kSetMode,
+    kCheckMode,
+    kHomingRun,
+    kRestoreMode,
+    kRestoreCheck,
+    kDone
+  };
   void begin(Operation op);
   void tick(TimePoint now);
   void succeed(const std::string& text);

@@ -21,38 +21,39 @@ class ConfigError : public std::runtime_error {
 /// Settings only the simulated drive uses (SimDrive).
 struct SimDriveSettings {
   std::string device_name = "massage_cell sim drive";  ///< 0x1008 (segmented SDO upload when > 4 chars)
-  double start_position = 0.0;      ///< m, actual position at power-up
-  double home_switch = 0.0;         ///< m, where the homing switch / index is
-  double max_velocity = 1.0;        ///< m/s, 0x607F max profile velocity
-  std::uint32_t device_type = 0x00020192;  ///< 0x1000: CiA 402 servo drive
+  double start_position = 0.0;                         ///< m, actual position at power-up
+  double home_switch = 0.0;                            ///< m, where the homing switch / index is
+  double max_velocity = 1.0;                           ///< m/s, 0x607F max profile velocity
+  std::uint32_t device_type = 0x00020192;              ///< 0x1000: CiA 402 servo drive
 };
 
 /// One axis: a CANopen node running a CiA 402 drive.
 struct AxisConfig {
-  std::string name;                  ///< required, unique ("X")
-  std::uint8_t node_id = 0;          ///< required, 1..127, unique
-  double counts_per_metre = 0.0;     ///< required, > 0
+  std::string name;               ///< required, unique ("X")
+  std::uint8_t node_id = 0;       ///< required, 1..127, unique
+  double counts_per_metre = 0.0;  ///< required, > 0
   // CANopen
-  std::uint16_t heartbeat_ms = 100;          ///< producer heartbeat time written to 0x1017
-  std::uint32_t heartbeat_timeout_ms = 0;    ///< consumer timeout; 0 = 3 x heartbeat_ms
-  bool velocity_pdo = false;                 ///< map 0x606C (+ 0x6061) into TPDO2
+  std::uint16_t heartbeat_ms = 100;        ///< producer heartbeat time written to 0x1017
+  std::uint32_t heartbeat_timeout_ms = 0;  ///< consumer timeout; 0 = 3 x heartbeat_ms
+  bool velocity_pdo = false;               ///< map 0x606C (+ 0x6061) into TPDO2
   // CiA 402 motion
-  double profile_velocity = 0.1;             ///< m/s, 0x6081
-  double profile_acceleration = 0.5;         ///< m/s^2, 0x6083
-  double profile_deceleration = 0.5;         ///< m/s^2, 0x6084
-  double quick_stop_deceleration = 2.0;      ///< m/s^2, 0x6085
-  int quick_stop_option = 2;                 ///< 0x605A (2: stop on the quick-stop ramp, then switch on disabled; 6: stay in quick stop active)
-  double min_position = -1.0;                ///< m, 0x607D:01 software limit
-  double max_position = 1.0;                 ///< m, 0x607D:02
-  double following_error_window = 0.005;     ///< m, 0x6065
-  std::uint32_t enable_timeout_ms = 500;     ///< per CiA 402 transition
-  std::uint32_t move_timeout_ms = 30000;     ///< profile-position move
+  double profile_velocity = 0.1;         ///< m/s, 0x6081
+  double profile_acceleration = 0.5;     ///< m/s^2, 0x6083
+  double profile_deceleration = 0.5;     ///< m/s^2, 0x6084
+  double quick_stop_deceleration = 2.0;  ///< m/s^2, 0x6085
+  int quick_stop_option =
+      2;  ///< 0x605A (2: stop on the quick-stop ramp, then switch on disabled; 6: stay in quick stop active)
+  double min_position = -1.0;             ///< m, 0x607D:01 software limit
+  double max_position = 1.0;              ///< m, 0x607D:02
+  double following_error_window = 0.005;  ///< m, 0x6065
+  std::uint32_t enable_timeout_ms = 500;  ///< per CiA 402 transition
+  std::uint32_t move_timeout_ms = 30000;  ///< profile-position move
   // Homing (0x6098 method, 0x607C offset, 0x6099 speeds)
-  int homing_method = 17;                    ///< CiA 402 homing method (17: negative limit switch)
-  double home_offset = 0.0;                  ///< m, 0x607C
-  double homing_speed = 0.05;                ///< m/s, 0x6099:01 and :02
-  std::uint32_t homing_timeout_ms = 10000;   ///< per attempt
-  int homing_retries = 2;                    ///< attempts after the first
+  int homing_method = 17;                   ///< CiA 402 homing method (17: negative limit switch)
+  double home_offset = 0.0;                 ///< m, 0x607C
+  double homing_speed = 0.05;               ///< m/s, 0x6099:01 and :02
+  std::uint32_t homing_timeout_ms = 10000;  ///< per attempt
+  int homing_retries = 2;                   ///< attempts after the first
   SimDriveSettings sim;
   // Consumer of the master's heartbeat in the drive (CiA 301 0x1016; CiA 402
   // 0x6007): 0 = the drive is not told to monitor the master (nothing is
@@ -60,7 +61,7 @@ struct AxisConfig {
   // 0x6007 = abort_connection_option, are written at start-up. Needs the
   // master's heartbeat (CanConfig::master_heartbeat_ms) to be shorter.
   std::uint32_t master_heartbeat_timeout_ms = 0;
-  int abort_connection_option = 1;           ///< 0x6007: 0 no action, 1 fault, 2 disable voltage, 3 quick stop
+  int abort_connection_option = 1;  ///< 0x6007: 0 no action, 1 fault, 2 disable voltage, 3 quick stop
 
   std::uint32_t heartbeatTimeoutMs() const { return heartbeat_timeout_ms ? heartbeat_timeout_ms : 3u * heartbeat_ms; }
   /// metres -> counts (rounded), counts -> metres.
@@ -75,8 +76,8 @@ struct CanConfig {
   std::uint32_t boot_timeout_ms = 2000;  ///< reset communication -> boot-up
   std::vector<AxisConfig> axes;
   // The master's own CANopen identity (CiA 301 heartbeat producer):
-  std::uint8_t master_node_id = 127;       ///< bus.master_node_id: heartbeat COB-ID 0x700 + id; no axis may use it
-  std::uint16_t master_heartbeat_ms = 100; ///< bus.master_heartbeat_ms: producer period; 0 = no heartbeat
+  std::uint8_t master_node_id = 127;        ///< bus.master_node_id: heartbeat COB-ID 0x700 + id; no axis may use it
+  std::uint16_t master_heartbeat_ms = 100;  ///< bus.master_heartbeat_ms: producer period; 0 = no heartbeat
 
   /// The axis with that node id / name, or nullptr.
   const AxisConfig* findNode(std::uint8_t node) const;

@@ -101,7 +101,7 @@ struct DriveFeedback {
   std::int32_t velocity = 0;  ///< counts/s
   std::int8_t mode_display = 0;
   TimePoint stamp{};
-  std::uint64_t count = 0;  ///< TPDO1s received
+  std::uint64_t count = 0;      ///< TPDO1s received
   std::uint16_t emcy_code = 0;  ///< last EMCY error code of the node (0x0000: reset / none)
   TimePoint emcy_stamp{};
 };

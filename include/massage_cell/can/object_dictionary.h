@@ -18,14 +18,15 @@ class ObjectDictionary {
 
   struct Entry {
     Access access = Access::kReadWrite;
-    std::size_t size = 0;       ///< bytes; 0 = variable length (VISIBLE_STRING / DOMAIN)
+    std::size_t size = 0;  ///< bytes; 0 = variable length (VISIBLE_STRING / DOMAIN)
     bool is_signed = false;
-    bool mappable = false;      ///< may be mapped into a PDO
+    bool mappable = false;  ///< may be mapped into a PDO
     std::vector<std::uint8_t> value;
   };
 
   /// Called before a client write is stored; returns an abort code to refuse it (0 = accept).
-  using WriteHook = std::function<std::uint32_t(std::uint16_t index, std::uint8_t sub, const std::vector<std::uint8_t>&)>;
+  using WriteHook =
+      std::function<std::uint32_t(std::uint16_t index, std::uint8_t sub, const std::vector<std::uint8_t>&)>;
 
   /// Adds (or replaces) an integer entry of `size` bytes (1, 2, 4).
   void add(std::uint16_t index, std::uint8_t sub, Access access, std::size_t size, std::int64_t value,

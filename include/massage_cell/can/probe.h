@@ -18,10 +18,10 @@ namespace massage_cell::can {
 struct ProbeResult {
   std::uint8_t node = 0;
   std::uint32_t device_type = 0;
-  std::optional<NmtState> nmt;             ///< from a heartbeat / boot-up seen during the scan
-  std::optional<std::uint16_t> statusword; ///< 0x6041, when the node has one
-  std::string device_name;                 ///< 0x1008 (empty when it has none)
-  std::string notes;                       ///< why a field is missing
+  std::optional<NmtState> nmt;              ///< from a heartbeat / boot-up seen during the scan
+  std::optional<std::uint16_t> statusword;  ///< 0x6041, when the node has one
+  std::string device_name;                  ///< 0x1008 (empty when it has none)
+  std::string notes;                        ///< why a field is missing
 };
 
 struct ProbeOptions {

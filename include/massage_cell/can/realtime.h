@@ -21,11 +21,11 @@ struct RealtimeOptions {
 
 /// What they got.
 struct RealtimeStatus {
-  int requested = 0;           ///< the priority asked for (0: normal scheduling)
-  int priority = 0;            ///< the SCHED_FIFO priority in effect (0: normal scheduling)
+  int requested = 0;  ///< the priority asked for (0: normal scheduling)
+  int priority = 0;   ///< the SCHED_FIFO priority in effect (0: normal scheduling)
   bool lock_requested = false;
   bool memory_locked = false;
-  std::string error;           ///< every refusal, with its fix; empty when all is as asked
+  std::string error;  ///< every refusal, with its fix; empty when all is as asked
   bool active() const { return priority > 0; }
   /// "SCHED_FIFO priority 50", "normal (SCHED_OTHER)", or
   /// "normal (SCHED_OTHER): SCHED_FIFO priority 50 refused: ..."; plus ", memory locked".

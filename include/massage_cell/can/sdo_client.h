@@ -21,7 +21,7 @@ struct SdoResult {
   bool ok = false;
   std::vector<std::uint8_t> data;  ///< uploaded bytes
   std::uint32_t abort_code = 0;    ///< server's or our own abort code on failure
-  std::string error;               ///< "node 1: SDO upload 0x6041:00 aborted by the server: 0x06020000 object does not exist ..."
+  std::string error;  ///< "node 1: SDO upload 0x6041:00 aborted by the server: 0x06020000 object does not exist ..."
 };
 
 class SdoClient {
@@ -75,11 +75,11 @@ class SdoClient {
   Transfer current_;
   Phase phase_ = Phase::kInitiate;
   bool toggle_ = false;
-  std::size_t offset_ = 0;          // download: bytes sent; upload: expected size
+  std::size_t offset_ = 0;  // download: bytes sent; upload: expected size
   std::uint32_t expected_size_ = 0;
   bool size_known_ = false;
   TimePoint deadline_{};
-  bool quarantine_ = false;       // a cancelled request may still be answered
+  bool quarantine_ = false;  // a cancelled request may still be answered
   TimePoint quarantine_until_{};
 };
 

@@ -60,8 +60,8 @@ class SimDrive {
   struct Stats {
     std::uint64_t syncs = 0, rpdos_applied = 0, rpdos_rejected = 0, tpdos = 0, sdo_requests = 0, sdo_aborts = 0;
     std::uint64_t emcys = 0, heartbeats = 0, frames_ignored = 0, sdo_dropped = 0;
-    std::uint64_t master_heartbeats = 0;       ///< heartbeats of the consumed producer (0x1016:01) received
-    std::uint64_t master_heartbeat_losses = 0; ///< consumer timeouts (EMCY 0x8130)
+    std::uint64_t master_heartbeats = 0;        ///< heartbeats of the consumed producer (0x1016:01) received
+    std::uint64_t master_heartbeat_losses = 0;  ///< consumer timeouts (EMCY 0x8130)
   };
 
   /// A powered-off drive for `config` (node id, scale, sim.* settings, and
@@ -99,11 +99,11 @@ class SimDrive {
   NmtState nmtState() const;
   Cia402State state() const;
   std::uint16_t statusword() const;
-  std::int32_t position() const;      ///< counts (0x6064)
-  double velocity() const;            ///< counts/s
+  std::int32_t position() const;  ///< counts (0x6064)
+  double velocity() const;        ///< counts/s
   std::int8_t modeDisplay() const;
   bool homed() const;
-  std::uint16_t errorCode() const;    ///< 0x603F
+  std::uint16_t errorCode() const;                                   ///< 0x603F
   std::int64_t object(std::uint16_t index, std::uint8_t sub) const;  ///< OD value (device-internal read)
   Stats stats() const;
   std::uint8_t node() const { return config_.node_id; }
@@ -178,7 +178,7 @@ class SimDrive {
   TimePoint last_advance_{};
   BusState bus_state_ = BusState::kErrorActive;
   // heartbeat consumer (0x1016:01)
-  bool consumer_armed_ = false;   // a heartbeat of the producer arrived since (re)configuration / the last loss
+  bool consumer_armed_ = false;  // a heartbeat of the producer arrived since (re)configuration / the last loss
   TimePoint consumer_last_{};
 
   // SDO server
@@ -196,11 +196,11 @@ class SimDrive {
   // CiA 402
   Cia402State state_ = Cia402State::kNotReadyToSwitchOn;
   std::uint16_t cw_prev_ = 0;
-  double actual_ = 0.0;   // counts, in the reported frame
-  double demand_ = 0.0;   // counts
-  double velocity_ = 0.0; // counts/s (of the demand)
+  double actual_ = 0.0;    // counts, in the reported frame
+  double demand_ = 0.0;    // counts
+  double velocity_ = 0.0;  // counts/s (of the demand)
   double switch_pos_ = 0.0;
-  double offset_ = 0.0;   // reported - physical (set by homing)
+  double offset_ = 0.0;  // reported - physical (set by homing)
   double pp_target_ = 0.0;
   bool moving_ = false;
   bool setpoint_ack_ = false;

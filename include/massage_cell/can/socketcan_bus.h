@@ -25,20 +25,20 @@ namespace massage_cell::can {
 
 /// Options of a SocketCanBus.
 struct SocketCanOptions {
-  std::string interface;                                  ///< e.g. "can0", "vcan0"
-  std::vector<can_filter> filters = acceptAllFilters();  ///< CAN_RAW_FILTER
-  can_err_mask_t error_mask = CAN_ERR_MASK;               ///< CAN_RAW_ERR_FILTER
-  bool loopback = true;                                   ///< CAN_RAW_LOOPBACK
-  bool receive_own = false;                               ///< CAN_RAW_RECV_OWN_MSGS
+  std::string interface;                                     ///< e.g. "can0", "vcan0"
+  std::vector<can_filter> filters = acceptAllFilters();      ///< CAN_RAW_FILTER
+  can_err_mask_t error_mask = CAN_ERR_MASK;                  ///< CAN_RAW_ERR_FILTER
+  bool loopback = true;                                      ///< CAN_RAW_LOOPBACK
+  bool receive_own = false;                                  ///< CAN_RAW_RECV_OWN_MSGS
   Duration reopen_initial = std::chrono::milliseconds(100);  ///< first back-off after bus-off / down
   Duration reopen_max = std::chrono::seconds(5);             ///< back-off cap
 };
 
 /// What one error frame (CAN_ERR_FLAG set) says.
 struct ErrorFrameInfo {
-  bool valid = false;               ///< it was an error frame
-  std::optional<BusState> state;    ///< new controller state, when the frame reports one
-  std::string text;                 ///< "bus-off; controller: rx error-passive; ..."
+  bool valid = false;             ///< it was an error frame
+  std::optional<BusState> state;  ///< new controller state, when the frame reports one
+  std::string text;               ///< "bus-off; controller: rx error-passive; ..."
 };
 /// Decodes an error frame of the Linux CAN error API (linux/can/error.h).
 ErrorFrameInfo decodeErrorFrame(const can_frame& frame);
@@ -72,13 +72,13 @@ class SocketCanBus final : public Bus {
   BusStatus status() const override;
 
  private:
-  int openSocket();                       // throws BusError
+  int openSocket();  // throws BusError
   void requestReopen(const std::string& reason, BusState state);
-  bool reopenIfDue();                     // true when a socket is open
+  bool reopenIfDue();  // true when a socket is open
   void noteState(BusState state, const std::string& text);
 
   SocketCanOptions options_;
-  mutable std::shared_mutex fd_mutex_;    // shared: I/O; unique: close / reopen
+  mutable std::shared_mutex fd_mutex_;  // shared: I/O; unique: close / reopen
   int fd_ = -1;
   std::atomic<bool> reopen_requested_{false};
   mutable std::mutex status_mutex_;

@@ -23,10 +23,10 @@
 namespace massage_cell::cect {
 
 struct AcupointSpec {
-  std::string name;      ///< frame-friendly name: "GV14", "BL23_L", "EX_B2_T5_R", "GB21_L"
-  std::string level;     ///< vertebral level "C7", "T1".."T12", "L1".."L5"
+  std::string name;          ///< frame-friendly name: "GV14", "BL23_L", "EX_B2_T5_R", "GB21_L"
+  std::string level;         ///< vertebral level "C7", "T1".."T12", "L1".."L5"
   double lateral_cun = 0.0;  ///< toward the subject's left (+) or right (-)
-  std::string region;    ///< "upper_back", "lower_back", "midline", "shoulder": the arm's press limits key on it
+  std::string region;        ///< "upper_back", "lower_back", "midline", "shoulder": the arm's press limits key on it
 };
 
 struct AcupointModel {
@@ -93,12 +93,12 @@ struct BackLandmarks {
   /// of the back to its bottom (x = middle of the back's extent on that row,
   /// smoothed).
   std::vector<cv::Point2f> midline;
-  cv::Point2f c7, l4;          ///< on the midline
-  double shoulder_row = 0.0;   ///< the shoulder line (widest row of the upper back)
-  double shoulder_width = 0.0; ///< pixels, across the back at the shoulder line
-  double waist_row = 0.0;      ///< narrowest row between shoulders and hips
-  double iliac_row = 0.0;      ///< iliac-crest line (~L4)
-  double top_row = 0.0;        ///< where the midline leaves the back at the head end (the neck base)
+  cv::Point2f c7, l4;           ///< on the midline
+  double shoulder_row = 0.0;    ///< the shoulder line (widest row of the upper back)
+  double shoulder_width = 0.0;  ///< pixels, across the back at the shoulder line
+  double waist_row = 0.0;       ///< narrowest row between shoulders and hips
+  double iliac_row = 0.0;       ///< iliac-crest line (~L4)
+  double top_row = 0.0;         ///< where the midline leaves the back at the head end (the neck base)
   /// Unit direction toward the subject's left, perpendicular to the midline (per midline row).
   std::vector<cv::Point2f> lateral;
   /// With the back's 3D (measureLevelsIn3D): per midline point, metres along
@@ -165,8 +165,8 @@ double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left
 /// at the same position along the body's axis as the waist's rims, moves the
 /// waist by that offset less the calibrated one, and places C7 and L4 again
 /// from the top and the waist. Call after correctMidlineParallax and before
-/// measureLevelsIn3D (it clears `along`, which is measured from C7). Returns the waist's move in rows of the body frame;
-/// leaves the landmarks as they are and returns NaN without the 3D points.
+/// measureLevelsIn3D (it clears `along`, which is measured from C7). Returns the waist's move in rows of the body
+/// frame; leaves the landmarks as they are and returns NaN without the 3D points.
 double correctWaistParallax(BackLandmarks* landmarks, const AcupointModel& model, const Segmentation& left,
                             const PointLookup& point);
 

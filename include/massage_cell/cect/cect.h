@@ -3,7 +3,7 @@
 // and captions, so the details below are our design). ROS-free.
 //
 // Per stereo pair (CectFrame::analyse):
-//  1. rectify both views (StereoGeometry), segment the back in each
+//  1. rectify both views (camera::StereoModel), segment the back in each
 //     (segmentation.h);
 //  2. foundational correspondences: left contour samples; each one's
 //     epipolar line (its rectified row) crosses the right view's back border
@@ -27,9 +27,9 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/cect/depth_gate.h"
 #include "massage_cell/cect/segmentation.h"
-#include "massage_cell/cect/stereo_geometry.h"
 
 namespace massage_cell::cect {
 
@@ -79,7 +79,7 @@ struct CectParams {
   /// many seed steps (0: keep all): they bridge gaps in the correspondences,
   /// and the pixels under them are extrapolated from the seeds instead.
   double max_triangle_edge = 2.0;
-  int seed_step = 16;           ///< interior seeds every N pixels (0: contour only, the plain thesis method)
+  int seed_step = 16;  ///< interior seeds every N pixels (0: contour only, the plain thesis method)
   /// ... and, in the final (seed_step) pass, every N columns (0: seed_step).
   /// Across the body the back has its finest relief: the spine's groove
   /// between the paraspinal ridges, ~40 px ridge to ridge at 640x480. With
@@ -88,7 +88,7 @@ struct CectParams {
   /// half-step columns make it independent of that. Along the body the back
   /// changes slowly.
   int seed_column_step = 8;
-  int ncc_radius = 11;          ///< matching window half-width r for the refinement along the epipolar line
+  int ncc_radius = 11;  ///< matching window half-width r for the refinement along the epipolar line
   /// Window half-height (0: = ncc_radius). Taller than wide suits the back:
   /// its few structures (spine groove, paraspinal ridges, scapulae) run
   /// along the body, across the epipolar lines, and depth changes slowly
@@ -111,7 +111,7 @@ struct CectParams {
   /// Seeds sit at least this many pixels inside the back's border (< 0:
   /// ncc_radius + 2, every window inside the back).
   double seed_margin = -1.0;
-  double seed_search = 10.0;    ///< pixels searched either side of a seed's barycentric prediction
+  double seed_search = 10.0;  ///< pixels searched either side of a seed's barycentric prediction
   /// How far the back may rise above its contour, metres: the first seeds,
   /// predicted from the contour alone, are searched that far nearer.
   double max_relief = 0.3;
@@ -144,7 +144,9 @@ struct CectParams {
   /// ~10 px of disparity within 20 px of its border) a window's peak can be
   /// several pixels off, and the linear interpolation from it worse still.
   bool rim_profile = true;
-  double query_search = 0.0;    ///< pixels searched either side of a query's prediction (0: transfer only, the default: single windows on skin are noisier than the smoothed seeds, and the reported sigma undercovers them: 78 % of the acupoints' errors within 2 sigma at query_search=2)
+  double query_search = 0.0;  ///< pixels searched either side of a query's prediction (0: transfer only, the default:
+                              ///< single windows on skin are noisier than the smoothed seeds, and the reported sigma
+                              ///< undercovers them: 78 % of the acupoints' errors within 2 sigma at query_search=2)
   /// Weakest accepted correlation peak. Low on purpose: on dark skin and
   /// under sheen the skin's texture correlates weakly, and a gap without
   /// seeds is extrapolated far worse (up to 30 mm) than weak seeds err;
@@ -214,7 +216,7 @@ double viewScale(double median_disparity, double baseline);
 /// max_disparity where given (> 0), else those of max_depth / min_depth for
 /// this calibration (at least 0.5 px, at most the image width - 1). An empty
 /// range ([0, 0]) for non-finite values.
-cv::Vec2d disparityRange(const CectParams& p, const StereoGeometry& geometry);
+cv::Vec2d disparityRange(const CectParams& p, const camera::StereoModel& geometry);
 
 /// `p` with its pixel parameters scaled by `scale`: sizes on the image
 /// (window, seed grid, band-pass and sheen sigmas, contour sampling, edge
@@ -247,14 +249,14 @@ struct Correspondence {
 
 struct LocalizedPoint {
   bool valid = false;
-  std::string reason;               ///< why not valid
-  cv::Point2f pixel;                ///< the query, raw left image
-  cv::Point2f rectified;            ///< the query, rectified left image
-  double disparity = 0.0;           ///< rectified pixels
-  double disparity_sigma = 0.0;     ///< pixels
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();      ///< left optical frame, metres
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();    ///< metres^2
-  double spread = 0.0;              ///< spread of the candidates, pixels (constraint 1)
+  std::string reason;                                    ///< why not valid
+  cv::Point2f pixel;                                     ///< the query, raw left image
+  cv::Point2f rectified;                                 ///< the query, rectified left image
+  double disparity = 0.0;                                ///< rectified pixels
+  double disparity_sigma = 0.0;                          ///< pixels
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();    ///< left optical frame, metres
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  ///< metres^2
+  double spread = 0.0;                                   ///< spread of the candidates, pixels (constraint 1)
   int candidates = 0;
   /// Outside the triangulation, from the seeds' local quadratic (see
   /// CectParams::max_extrapolation); its uncertainty grows with the distance.
@@ -268,14 +270,14 @@ struct CectTimings {
 
 /// What became of the interior seeds (both passes).
 struct SeedStats {
-  int tried = 0;       ///< grid points matched
-  int no_peak = 0;     ///< no texture, or the correlation peak at the end of the search range
-  int weak = 0;        ///< peak below min_ncc
-  int left_right = 0;  ///< failed constraint 3
-  int continuity = 0;  ///< failed constraint 2 against their grid neighbours
-  int smoothing = 0;   ///< dropped: too far from their local quadratic
+  int tried = 0;         ///< grid points matched
+  int no_peak = 0;       ///< no texture, or the correlation peak at the end of the search range
+  int weak = 0;          ///< peak below min_ncc
+  int left_right = 0;    ///< failed constraint 3
+  int continuity = 0;    ///< failed constraint 2 against their grid neighbours
+  int smoothing = 0;     ///< dropped: too far from their local quadratic
   int rim_outliers = 0;  ///< dropped: off the rim profile of the border beside them (rim_profile)
-  int accepted = 0;    ///< joined the triangulation (before smoothing)
+  int accepted = 0;      ///< joined the triangulation (before smoothing)
 };
 
 /// The analysis of one stereo pair; answers point queries afterwards.
@@ -285,7 +287,7 @@ class CectFrame {
   /// Analyses a pair (BGR CV_8UC3, raw or rectified as `geometry` says).
   /// Throws std::invalid_argument for images that do not match the geometry
   /// (size, type, empty); problems of content leave valid() false with a reason.
-  static CectFrame analyse(const cv::Mat& left, const cv::Mat& right, const StereoGeometry& geometry,
+  static CectFrame analyse(const cv::Mat& left, const cv::Mat& right, const camera::StereoModel& geometry,
                            const CectParams& params);
 
   bool valid() const { return valid_; }
@@ -300,7 +302,7 @@ class CectFrame {
   const std::vector<cv::Vec3i>& triangles() const { return triangles_; }
   const CectTimings& timings() const { return timings_; }
   const SeedStats& seedStats() const { return seed_stats_; }
-  const StereoGeometry& geometry() const { return geometry_; }
+  const camera::StereoModel& geometry() const { return geometry_; }
   /// The parameters used: with auto_scale, scaled to the view (scale()).
   const CectParams& params() const { return params_; }
   /// The view's scale against the reference (viewScale; 1 without
@@ -324,22 +326,22 @@ class CectFrame {
  private:
   bool valid_ = false;
   std::string reason_;
-  StereoGeometry geometry_;
+  camera::StereoModel geometry_;
   CectParams params_;
   double scale_ = 1.0;
   cv::Vec2d disparity_range_{0.0, 0.0};
   DepthGate background_;
   Segmentation left_seg_, right_seg_;
-  cv::Mat left_rect_, right_rect_;          ///< BGR
-  cv::Mat left_grey_, right_grey_;          ///< CV_32F
-  cv::Mat left_inner_, right_inner_;        ///< the masks 3 px in from the border (direct matches)
-  cv::Mat seed_region_;                     ///< left pixels at least seed_margin inside the border
-  int seed_margin_ = 0;                     ///< that margin, pixels
-  cv::Mat border_distance_;                 ///< CV_32F, rectified left: distance to the back's border, pixels
+  cv::Mat left_rect_, right_rect_;    ///< BGR
+  cv::Mat left_grey_, right_grey_;    ///< CV_32F
+  cv::Mat left_inner_, right_inner_;  ///< the masks 3 px in from the border (direct matches)
+  cv::Mat seed_region_;               ///< left pixels at least seed_margin inside the border
+  int seed_margin_ = 0;               ///< that margin, pixels
+  cv::Mat border_distance_;           ///< CV_32F, rectified left: distance to the back's border, pixels
   std::vector<Correspondence> vertices_;
   std::vector<cv::Vec3i> triangles_;
   std::vector<std::vector<int>> vertex_triangles_;  ///< triangles around each vertex
-  cv::Mat triangle_index_;                  ///< CV_32S, rectified left: containing triangle, -1 outside
+  cv::Mat triangle_index_;                          ///< CV_32S, rectified left: containing triangle, -1 outside
   CectTimings timings_;
   SeedStats seed_stats_;
 

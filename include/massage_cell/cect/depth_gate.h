@@ -12,7 +12,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "massage_cell/cect/stereo_geometry.h"
+#include "massage_cell/camera/stereo_model.h"
 
 namespace massage_cell::cect {
 
@@ -43,8 +43,8 @@ struct DepthGate {
   /// CV_8U 255 where a view's pixel was taken for the table (tablePixels)
   /// to retry its segmentation; empty where no retry was needed or helped.
   cv::Mat left_table, right_table;
-  double nearest_depth = 0.0;  ///< metres: the nearest surfaces' depth (0: not measured)
-  double far_depth = 0.0;      ///< metres: beyond this a pixel is far
+  double nearest_depth = 0.0;   ///< metres: the nearest surfaces' depth (0: not measured)
+  double far_depth = 0.0;       ///< metres: beyond this a pixel is far
   std::string summary() const;  ///< one line for diagnostics
 };
 
@@ -53,7 +53,7 @@ struct DepthGate {
 /// ([min, max] rectified pixels, disparityRange). Never throws for image
 /// content; throws std::invalid_argument for images of different sizes or
 /// types.
-DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, const StereoGeometry& geometry,
+DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, const camera::StereoModel& geometry,
                         const cv::Vec2d& range, const DepthGateParams& params = {});
 
 /// The pixels of one view (its coarse `depth`, CV_32F, NaN unknown; `far`,
@@ -63,6 +63,6 @@ DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, con
 /// behind it), refined by least squares. The view's own pixel coordinates
 /// are triangulated with `geometry`'s left camera (the plane is used only
 /// in that view). Empty when no plane holds 10 % of the points.
-cv::Mat tablePixels(const cv::Mat& depth, const cv::Mat& far, const StereoGeometry& geometry, double margin);
+cv::Mat tablePixels(const cv::Mat& depth, const cv::Mat& far, const camera::StereoModel& geometry, double margin);
 
 }  // namespace massage_cell::cect

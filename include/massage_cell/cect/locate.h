@@ -26,16 +26,16 @@ struct LocateOptions {
 struct LocatedAcupoint {
   std::string name;
   std::string region;
-  bool placed = false;      ///< the model put it on a left-image pixel
-  cv::Point2f rectified;    ///< that pixel, rectified left image
-  cv::Point2f raw;          ///< ... and raw left image
-  LocalizedPoint point;     ///< CECT's 3D point there (point.valid); its covariance is the matching's
+  bool placed = false;    ///< the model put it on a left-image pixel
+  cv::Point2f rectified;  ///< that pixel, rectified left image
+  cv::Point2f raw;        ///< ... and raw left image
+  LocalizedPoint point;   ///< CECT's 3D point there (point.valid); its covariance is the matching's
   /// The layout's uncertainty there (layoutCovariance) and the point's whole
   /// uncertainty, matching plus layout (metres^2, left optical frame).
   Eigen::Matrix3d layout_covariance = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-  bool valid = false;       ///< placed and localised
-  std::string reason;       ///< why not valid
+  bool valid = false;  ///< placed and localised
+  std::string reason;  ///< why not valid
 };
 
 struct LocatedAcupoints {

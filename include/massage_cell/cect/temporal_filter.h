@@ -17,18 +17,18 @@
 namespace massage_cell::cect {
 
 struct TemporalFilterParams {
-  double alpha = 0.5;        ///< weight of a new measurement, (0, 1]; 1 = no smoothing
-  double gate = 0.01;        ///< metres
-  int reacquire_after = 3;   ///< consecutive agreeing outliers before the filter follows them
-  double max_age = 2.0;      ///< seconds
+  double alpha = 0.5;       ///< weight of a new measurement, (0, 1]; 1 = no smoothing
+  double gate = 0.01;       ///< metres
+  int reacquire_after = 3;  ///< consecutive agreeing outliers before the filter follows them
+  double max_age = 2.0;     ///< seconds
 };
 
 struct FilteredPoint {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
-  double stamp = 0.0;   ///< seconds of the last accepted measurement
-  int updates = 0;      ///< accepted measurements
-  int outliers = 0;     ///< consecutive rejected measurements
+  double stamp = 0.0;                                 ///< seconds of the last accepted measurement
+  int updates = 0;                                    ///< accepted measurements
+  int outliers = 0;                                   ///< consecutive rejected measurements
   Eigen::Vector3d pending = Eigen::Vector3d::Zero();  ///< mean of the current outlier streak
 };
 

@@ -35,19 +35,20 @@ struct TrunkParams {
   /// cloth_sigma and 2 cloth_sigma, over the local brightness + 20 grey
   /// levels) above which a pixel is cloth, not skin.
   double cloth_contrast = 0.006;
-  double cloth_sigma = 0.6;   ///< band-pass scale, pixels
-  double cloth_window = 4.0;  ///< rms window (Gaussian sigma), pixels
-  int cloth_open_radius = 9;  ///< cloth patches narrower than twice this (moles, creases, edges) stay skin, pixels
+  double cloth_sigma = 0.6;       ///< band-pass scale, pixels
+  double cloth_window = 4.0;      ///< rms window (Gaussian sigma), pixels
+  int cloth_open_radius = 9;      ///< cloth patches narrower than twice this (moles, creases, edges) stay skin, pixels
   double cloth_min_area = 0.005;  ///< ... and those covering less than this fraction of the image
-  bool separate_arms = true;  ///< the central run and the creases (false: the skin region stays whole)
+  bool separate_arms = true;      ///< the central run and the creases (false: the skin region stays whole)
   /// The crease is searched between these fractions of the row's skin width from each end.
   double crease_min = 0.1;
   double crease_max = 0.33;
-  double crease_sigma = 2.0;     ///< smoothing of the log grey before the valley test, pixels
-  double crease_reach = 24.0;    ///< a valley is measured against the crests within this many pixels either side (~ an arm's half-width)
+  double crease_sigma = 2.0;  ///< smoothing of the log grey before the valley test, pixels
+  double crease_reach =
+      24.0;  ///< a valley is measured against the crests within this many pixels either side (~ an arm's half-width)
   /// Weakest valley, log-brightness units (0.02: the crease 2 % darker than the crests either side).
   double crease_strength = 0.02;
-  double crease_jump = 2.0;      ///< pixels a crease may move between rows
+  double crease_jump = 2.0;  ///< pixels a crease may move between rows
   /// An arm's crease runs without a break over at least this fraction of the
   /// trunk's rows (from the axilla down past the waist; a scapula's edge is shorter).
   double min_arm_fraction = 0.4;
@@ -55,13 +56,13 @@ struct TrunkParams {
 
 /// What cutToTrunk found.
 struct TrunkReport {
-  int cloth_pixels = 0;            ///< skin-coloured cloth removed
-  int side_run_pixels = 0;         ///< skin beside the central run removed (arms held away, hands)
-  bool arm_left = false;           ///< arm cut at a crease on the image's left
-  bool arm_right = false;          ///< ... on the image's right
-  int crease_rows_left = 0;        ///< rows of the crease on the image's left
+  int cloth_pixels = 0;      ///< skin-coloured cloth removed
+  int side_run_pixels = 0;   ///< skin beside the central run removed (arms held away, hands)
+  bool arm_left = false;     ///< arm cut at a crease on the image's left
+  bool arm_right = false;    ///< ... on the image's right
+  int crease_rows_left = 0;  ///< rows of the crease on the image's left
   int crease_rows_right = 0;
-  std::string summary() const;     ///< one line, e.g. "arms cut at creases: left, right; cloth 1200 px"
+  std::string summary() const;  ///< one line, e.g. "arms cut at creases: left, right; cloth 1200 px"
 };
 
 /// Cuts `mask` (CV_8U, 255 skin) of the BGR image `bgr` to the trunk (see

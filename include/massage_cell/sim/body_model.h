@@ -18,24 +18,24 @@
 namespace massage_cell::sim {
 
 struct BodyParameters {
-  double shoulder_width = 0.44;      ///< across the shoulders (acromion to acromion)
-  double waist_width = 0.31;         ///< narrowest, around L2
-  double hip_width = 0.36;           ///< at the iliac crests / upper buttocks
-  double torso_length = 0.50;        ///< C7 to the iliac-crest line (L4), along x
+  double shoulder_width = 0.44;  ///< across the shoulders (acromion to acromion)
+  double waist_width = 0.31;     ///< narrowest, around L2
+  double hip_width = 0.36;       ///< at the iliac crests / upper buttocks
+  double torso_length = 0.50;    ///< C7 to the iliac-crest line (L4), along x
   double neck_width = 0.12;
-  double back_height = 0.21;         ///< height of the back's top above the table at mid-back
-  double lateral_rounding = 1.0;     ///< how round the flanks are (0.6 flat .. 1.6 round)
-  double thoracic_curvature = 0.025; ///< rise of the upper back (kyphosis) above a flat line
-  double lumbar_curvature = 0.02;    ///< dip of the lower back (lordosis)
-  double spine_depth = 0.006;        ///< depth of the spine groove between the paraspinal muscles
-  double paraspinal_width = 0.035;   ///< half-width of the paraspinal muscle ridge
-  double scapula_prominence = 0.006; ///< how much the scapulae stand out
-  double scapula_medial_offset = 0.075; ///< midline to the medial scapular border (= 3 cun)
-  double shoulder_slope = 0.25;      ///< radians: drop of the shoulders toward the arms
-  double buttock_height = 0.05;      ///< rise of the upper buttocks above the lower back
-  double spinous_prominence = 0.0;   ///< height of the spinous processes' bumps in the spine groove (lean builds)
+  double back_height = 0.21;             ///< height of the back's top above the table at mid-back
+  double lateral_rounding = 1.0;         ///< how round the flanks are (0.6 flat .. 1.6 round)
+  double thoracic_curvature = 0.025;     ///< rise of the upper back (kyphosis) above a flat line
+  double lumbar_curvature = 0.02;        ///< dip of the lower back (lordosis)
+  double spine_depth = 0.006;            ///< depth of the spine groove between the paraspinal muscles
+  double paraspinal_width = 0.035;       ///< half-width of the paraspinal muscle ridge
+  double scapula_prominence = 0.006;     ///< how much the scapulae stand out
+  double scapula_medial_offset = 0.075;  ///< midline to the medial scapular border (= 3 cun)
+  double shoulder_slope = 0.25;          ///< radians: drop of the shoulders toward the arms
+  double buttock_height = 0.05;          ///< rise of the upper buttocks above the lower back
+  double spinous_prominence = 0.0;       ///< height of the spinous processes' bumps in the spine groove (lean builds)
   Eigen::Vector3f skin_albedo{0.78f, 0.57f, 0.47f};  ///< linear RGB
-  int moles = 4;                     ///< number of small dark spots on the skin
+  int moles = 4;                                     ///< number of small dark spots on the skin
   std::uint32_t skin_seed = 1;
 
   /// The mean subject.
@@ -57,9 +57,9 @@ struct BodyParameters {
 /// stature and Fitzpatrick skin type.
 struct Build {
   bool female = false;
-  double bmi = 24.0;       ///< kg/m^2, 16..42
-  double stature = 1.75;   ///< metres, 1.40..2.05
-  int skin_type = 2;       ///< Fitzpatrick I..VI as 1..6
+  double bmi = 24.0;      ///< kg/m^2, 16..42
+  double stature = 1.75;  ///< metres, 1.40..2.05
+  int skin_type = 2;      ///< Fitzpatrick I..VI as 1..6
   int moles = 4;
   std::uint32_t skin_seed = 1;
   /// Throws std::invalid_argument naming the first value out of range.

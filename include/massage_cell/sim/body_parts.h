@@ -29,9 +29,9 @@ struct TubeRing {
 };
 
 struct TubeOptions {
-  int segments = 40;           ///< vertices around each ring
-  bool cap_start = true;       ///< close the first end with a half ellipsoid
-  bool cap_end = true;         ///< close the last end with a half ellipsoid
+  int segments = 40;      ///< vertices around each ring
+  bool cap_start = true;  ///< close the first end with a half ellipsoid
+  bool cap_end = true;    ///< close the last end with a half ellipsoid
   /// Part of the ring swept, radians from the horizontal normal (0) over the
   /// top (pi/2); the default full ring puts its seam underneath.
   double angle_from = -1.5707963267948966;
@@ -51,8 +51,8 @@ Mesh makeTube(const std::string& name, const std::vector<TubeRing>& rings, const
 /// axis * axes[0], azimuth * axes[1]) in metres, so that meridians run from
 /// the first axis' pole. Throws std::invalid_argument.
 Mesh makeEllipsoid(const std::string& name, const Eigen::Vector3d& centre, const Eigen::Matrix3d& rotation,
-                   const Eigen::Vector3d& axes, int rings, int segments, const Material& material,
-                   std::uint8_t label, const std::function<bool(const Eigen::Vector3d&)>& keep = {});
+                   const Eigen::Vector3d& axes, int rings, int segments, const Material& material, std::uint8_t label,
+                   const std::function<bool(const Eigen::Vector3d&)>& keep = {});
 
 /// Recomputes per-vertex normals as area-weighted triangle normals.
 void smoothNormals(Mesh& mesh);
@@ -64,10 +64,10 @@ void smoothNormals(Mesh& mesh);
 class LowerBody {
  public:
   explicit LowerBody(const BackModel& back);
-  double xStart() const { return x_start_; }       ///< where it joins the back (full height)
-  double xEnd() const { return x_end_; }           ///< caudal end (upper-to-mid thighs)
-  double foldX() const { return x_fold_; }         ///< the gluteal fold
-  double halfWidth(double x) const;                ///< 0 outside [xEnd, xStart]
+  double xStart() const { return x_start_; }  ///< where it joins the back (full height)
+  double xEnd() const { return x_end_; }      ///< caudal end (upper-to-mid thighs)
+  double foldX() const { return x_fold_; }    ///< the gluteal fold
+  double halfWidth(double x) const;           ///< 0 outside [xEnd, xStart]
   /// Height of the skin at (x, y); NaN outside the outline.
   double height(double x, double y) const;
   /// Mesh with the back's skin material; `spacing` metres between rows.

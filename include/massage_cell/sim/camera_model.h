@@ -49,8 +49,8 @@ struct StereoPairModel {
 struct RigParameters {
   int width = 640;
   int height = 480;
-  double fx = 500.0;        ///< pixels (fy = fx), principal point at the image centre
-  double baseline = 0.10;   ///< metres, along the image x axis (left camera on the image left)
+  double fx = 500.0;       ///< pixels (fy = fx), principal point at the image centre
+  double baseline = 0.10;  ///< metres, along the image x axis (left camera on the image left)
   /// World position of the midpoint between the two camera centres. The
   /// cameras look straight down (optical z = -world z) with the subject's head
   /// at the top of the image (optical y = -world x, optical x = -world y).

@@ -60,7 +60,7 @@ struct Dressing {
   /// Neck and head face-down in a face cradle at the table's head end (the
   /// table then ends at the shoulders).
   bool head = false;
-  std::optional<Cloth> cradle_cover;  ///< unset: dark vinyl
+  std::optional<Cloth> cradle_cover;     ///< unset: dark vinyl
   HairLength hair = HairLength::kShort;  ///< with the head only
   HairColour hair_colour = HairColour::kBrown;
 
@@ -92,13 +92,13 @@ Scene makeCellScene(const BackModel& back, std::uint32_t seed, const Dressing& d
 
 /// Where the dressed scene puts the head and its cradle (for tests, framing).
 struct HeadLayout {
-  double table_end_x = 0.0;       ///< the table's head end when the head lies in the cradle
-  double neck_start_x = 0.0;      ///< the neck tube starts inside the back here
-  double neck_top_z = 0.0;        ///< top of the neck at the back's neck base
-  double hairline_x = 0.0;        ///< posterior hairline (3 cun above C7)
+  double table_end_x = 0.0;   ///< the table's head end when the head lies in the cradle
+  double neck_start_x = 0.0;  ///< the neck tube starts inside the back here
+  double neck_top_z = 0.0;    ///< top of the neck at the back's neck base
+  double hairline_x = 0.0;    ///< posterior hairline (3 cun above C7)
   Eigen::Vector3d head_centre{0.0, 0.0, 0.0};
   Eigen::Vector3d head_axes{0.1, 0.075, 0.095};  ///< semi-axes along x (crown), y, z (occiput up)
-  double cradle_top_z = 0.0;      ///< top of the cradle's pad
+  double cradle_top_z = 0.0;                     ///< top of the cradle's pad
 };
 HeadLayout headLayout(const BackModel& back);
 

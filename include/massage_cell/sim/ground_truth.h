@@ -27,7 +27,8 @@ struct PointTruth {
   /// Inside both images, on the back's skin at its left pixel (label kLabelBack, the surface
   /// there within the tolerance of the point: not under a towel, arm or hair) and seen by the right camera.
   bool in_view = false;
-  std::string reason;  ///< why not in view ("below the image's bottom edge", "under the towel", ...); empty when in view
+  std::string
+      reason;  ///< why not in view ("below the image's bottom edge", "under the towel", ...); empty when in view
 };
 
 /// Truth of every point of `world_points` (e.g. BackModel::acupoints() or

@@ -72,9 +72,8 @@ struct MarkerPose {
 /// such edges), then Gaussian sensor noise of options.noise_sigma grey levels
 /// seeded by options.noise_seed and `seed`. Throws std::invalid_argument for
 /// blur_sigma outside 0..5.
-MarkerPose renderMarkerPose(const StereoPairModel& pair, const Eigen::Vector3d& tip_in_base,
-                            const MarkerMount& mount, const RenderOptions& options, std::uint32_t seed,
-                            double blur_sigma = 0.7);
+MarkerPose renderMarkerPose(const StereoPairModel& pair, const Eigen::Vector3d& tip_in_base, const MarkerMount& mount,
+                            const RenderOptions& options, std::uint32_t seed, double blur_sigma = 0.7);
 
 /// The exact camera <- arm base transform of `pair`'s left camera.
 Eigen::Isometry3d trueCameraFromBase(const StereoPairModel& pair);

@@ -21,32 +21,33 @@ enum class LightPreset { kTopLeft, kTopCentre, kTopRight };
 
 struct Lighting {
   Eigen::Vector3f direction_to_light{0.35f, 0.0f, 0.94f};  ///< world frame, unit
-  float intensity = 0.85f;  ///< directional light
-  float ambient = 0.30f;    ///< ambient light
+  float intensity = 0.85f;                                 ///< directional light
+  float ambient = 0.30f;                                   ///< ambient light
   /// Light from the preset's direction (image left = world +y, top = world +x).
   static Lighting preset(LightPreset preset);
 };
 
 struct RenderOptions {
-  int supersample = 2;          ///< rays per pixel = supersample^2, on a regular sub-pixel grid
-  float noise_sigma = 1.0f;     ///< Gaussian sensor noise, grey levels (8-bit)
-  float exposure = 1.0f;        ///< multiplies the linear radiance before encoding
-  std::uint32_t noise_seed = 0; ///< seeds the noise; same seed, same image
+  int supersample = 2;           ///< rays per pixel = supersample^2, on a regular sub-pixel grid
+  float noise_sigma = 1.0f;      ///< Gaussian sensor noise, grey levels (8-bit)
+  float exposure = 1.0f;         ///< multiplies the linear radiance before encoding
+  std::uint32_t noise_seed = 0;  ///< seeds the noise; same seed, same image
   bool shadows = true;
 };
 
 /// One rendered view and its ground truth (all at the view's size).
 struct ViewRender {
   cv::Mat image;   ///< CV_8UC3 BGR, sRGB-encoded
-  cv::Mat depth;   ///< CV_32F: z of the surface in the camera's optical frame (metres) at the pixel centre; NaN where nothing is hit
+  cv::Mat depth;   ///< CV_32F: z of the surface in the camera's optical frame (metres) at the pixel centre; NaN where
+                   ///< nothing is hit
   cv::Mat points;  ///< CV_32FC3: world-frame XYZ of that surface point; NaN where nothing is hit
   cv::Mat labels;  ///< CV_8U: Label of that surface (kLabelBackground where nothing is hit)
 };
 
 struct Hit {
-  double distance = 0.0;      ///< along the ray, metres
-  Eigen::Vector3d point;      ///< world frame
-  Eigen::Vector3d normal;     ///< world frame, unit, facing the ray origin
+  double distance = 0.0;   ///< along the ray, metres
+  Eigen::Vector3d point;   ///< world frame
+  Eigen::Vector3d normal;  ///< world frame, unit, facing the ray origin
   std::uint8_t label = kLabelBackground;
   int mesh = -1;
 };

@@ -59,7 +59,7 @@ struct Material {
   float feature_size = 0.01f;  ///< metres: scale of the pattern
   float contrast = 0.0f;       ///< pattern amplitude, 0 = uniform, ~0.03 for skin, ~0.6 for textures
   std::uint32_t seed = 0;
-  std::vector<Spot> spots;     ///< skin only
+  std::vector<Spot> spots;  ///< skin only
 };
 
 /// Albedo of `material` at surface coordinates `uv` (metres). Deterministic.

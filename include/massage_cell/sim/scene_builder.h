@@ -35,8 +35,8 @@ struct EfficiencySet {
   Scene scene;
   CameraModel left;
   std::vector<CameraModel> rights;
-  std::vector<double> baselines;  ///< metres, per right view
-  std::vector<int> levels;        ///< disparity levels spanned, per right view
+  std::vector<double> baselines;     ///< metres, per right view
+  std::vector<int> levels;           ///< disparity levels spanned, per right view
   double z_near = 0.0, z_far = 0.0;  ///< depth range of the scene in the left view (metres)
 };
 

@@ -22,12 +22,12 @@ namespace massage_cell::sim {
 
 /// An ideal rectified stereo pair (no distortion, identical intrinsics).
 struct StereoRig {
-  int width = 320;   ///< image width, pixels
-  int height = 240;  ///< image height, pixels
-  double fx = 300;   ///< focal length along x, pixels
-  double fy = 300;   ///< focal length along y, pixels
-  double cx = 159.5; ///< principal point x, pixels
-  double cy = 119.5; ///< principal point y, pixels
+  int width = 320;         ///< image width, pixels
+  int height = 240;        ///< image height, pixels
+  double fx = 300;         ///< focal length along x, pixels
+  double fy = 300;         ///< focal length along y, pixels
+  double cx = 159.5;       ///< principal point x, pixels
+  double cy = 119.5;       ///< principal point y, pixels
   double baseline = 0.06;  ///< metres; right camera centre at (+baseline, 0, 0) in the left optical frame
 };
 
@@ -42,10 +42,10 @@ struct StereoRig {
 /// fronto-parallel plane e1 = x and e2 = y, so u grows to the right and v
 /// downwards in the image.
 struct TexturedPlane {
-  Eigen::Vector3d point{0, 0, 0.8};     ///< a point on the plane, metres, left optical frame
-  Eigen::Vector3d normal{0, 0, -1};     ///< plane normal (either sign, need not be unit; not zero)
-  double feature_size = 0.01;           ///< metres: typical size of the texture blobs
-  std::uint32_t seed = 1;               ///< texture seed: same seed, same texture
+  Eigen::Vector3d point{0, 0, 0.8};  ///< a point on the plane, metres, left optical frame
+  Eigen::Vector3d normal{0, 0, -1};  ///< plane normal (either sign, need not be unit; not zero)
+  double feature_size = 0.01;        ///< metres: typical size of the texture blobs
+  std::uint32_t seed = 1;            ///< texture seed: same seed, same texture
   /// Metres, added to the plane coordinates before the texture is evaluated:
   /// increasing texture_offset.x() slides the pattern along -e1 (to the left
   /// in the image for a fronto-parallel plane). Use it to animate motion.

@@ -27,10 +27,10 @@ DataTerm parseDataTerm(const std::string& name);  ///< "thesis" | "census" | "ad
 std::string toString(DataTerm term);
 
 struct CostParams {
-  int dmin = 0;             ///< smallest disparity searched (pixels)
-  int dmax = 15;            ///< largest disparity searched, inclusive
-  float eta = 20.0f;        ///< colour-cost truncation eta of Eq. 2.7, grey levels (0..255)
-  int ncc_window = 5;       ///< odd side of the NCC window W of Eq. 2.8
+  int dmin = 0;        ///< smallest disparity searched (pixels)
+  int dmax = 15;       ///< largest disparity searched, inclusive
+  float eta = 20.0f;   ///< colour-cost truncation eta of Eq. 2.7, grey levels (0..255)
+  int ncc_window = 5;  ///< odd side of the NCC window W of Eq. 2.8
   /// How the texture weight w of Eq. 2.6 is normalised: 0 divides the Sobel
   /// magnitude by its image maximum (the thesis's literal reading); > 0 divides
   /// by this magnitude and clamps at 1 (w = 1 from this much gradient on).
@@ -40,7 +40,7 @@ struct CostParams {
   int census_height = 7;
   float census_lambda = 30.0f;  ///< ad-census: the census distance (bits) where its term reaches 1 - 1/e
   float ad_lambda = 10.0f;      ///< ad-census: the mean channel difference (grey levels) likewise
-  int threads = 0;          ///< worker threads, 0 = all cores
+  int threads = 0;              ///< worker threads, 0 = all cores
 };
 
 /// S(x, y, d) in [0, 1] for d in [dmin, dmax], stored disparity-major: the

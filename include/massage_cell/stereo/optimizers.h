@@ -11,11 +11,11 @@
 namespace massage_cell::stereo {
 
 struct OptimizerResult {
-  cv::Mat disparity;   ///< CV_32F integer disparities
-  Energy energy;       ///< under Eq. 2.2 with the run's weights and truncation
-  int cuts = 0;        ///< binary graph cuts solved
-  int cycles = 0;      ///< expansion / swap cycles (0 for HBDS)
-  int layers = 0;      ///< HBDS: depth of the hierarchy
+  cv::Mat disparity;  ///< CV_32F integer disparities
+  Energy energy;      ///< under Eq. 2.2 with the run's weights and truncation
+  int cuts = 0;       ///< binary graph cuts solved
+  int cycles = 0;     ///< expansion / swap cycles (0 for HBDS)
+  int layers = 0;     ///< HBDS: depth of the hierarchy
 };
 
 /// HBDS: hierarchical bilateral disparity structure. The set [dmin, dmax] is

@@ -42,7 +42,7 @@ struct StereoParams {
   /// within polish_window levels of alpha) lower the Eq. 2.2 energy of the
   /// HBDS labelling; 0 = pure HBDS as in the thesis (default).
   int polish_window = 0;
-  int polish_cycles = 1;  ///< cycles of the polish (it stops earlier when a cycle changes nothing)
+  int polish_cycles = 1;                  ///< cycles of the polish (it stops earlier when a cycle changes nothing)
   Refinement refine = Refinement::kNone;  ///< after any method (none: the method's own output)
   RefineParams refine_params;             ///< detect_fattening is set from `refine`
   FilterParams filter_params;             ///< the 2dbf / 3dbf / wmf refiners
@@ -57,8 +57,17 @@ struct StereoParams {
   /// and filled from the background side along their row.
   bool lr_check = false;
   float lr_tolerance = 1.0f;
-  int threads = 0;      ///< 0 = all cores
+  int threads = 0;  ///< 0 = all cores
 };
+
+/// A value of StereoParams that match() refuses.
+struct ParamProblem {
+  std::string name;     ///< the parameter as the hbds node names it (cfg/HBDS.cfg), e.g. "ncc_window"
+  std::string problem;  ///< what is wrong with its value, e.g. "must be odd and >= 1"
+};
+/// Every problem of `params` (empty when match() accepts them), the one check the node's parameters and the tools'
+/// options go through. The disparity range is checked against the images by match() itself.
+std::vector<ParamProblem> checkParams(const StereoParams& params);
 
 struct MatchResult {
   cv::Mat disparity;         ///< CV_32F, NaN where the method gives none (SGBM); sub-pixel with `subpixel`
@@ -80,9 +89,10 @@ struct MatchResult {
 /// then serves large blocks (cost volumes, max-flow graphs: 10-80 MB, made
 /// and freed for every cut and frame) from its heap and keeps freed memory
 /// for reuse instead of unmapping it, so later cuts and frames do not pay
-/// the kernel's page faults again (measured: HBDS + polish on Teddy 440 ->
-/// 380 ms). The process keeps its peak heap. Called by the stereo tools and
-/// the HBDS nodelet; a no-op where glibc's mallopt is unavailable.
+/// the kernel's page faults again (HBDS + polish on Teddy 440 -> 380 ms).
+/// The process keeps its peak heap. Called by the stereo tools and the
+/// stand-alone hbds node's main, never by a nodelet (it may share its
+/// manager's process); a no-op where glibc's mallopt is unavailable.
 void retainFreedMemory();
 
 /// Runs `method` on a rectified pair (CV_8UC1 / CV_8UC3, same size). Throws
@@ -96,16 +106,16 @@ MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, cons
 struct MiddleburyScene {
   std::string name;
   cv::Mat left, right;
-  cv::Mat ground_truth;          ///< CV_32F pixels, 0 = unknown
-  cv::Mat nonocc, all, disc;     ///< CV_8U masks, non-zero (255) = evaluated
-  int dmax = 0;                  ///< search range 0..dmax (official for 2003; 79 for 2005's GT up to 75)
-  int scale = 1;                 ///< GT value / scale = disparity
+  cv::Mat ground_truth;       ///< CV_32F pixels, 0 = unknown
+  cv::Mat nonocc, all, disc;  ///< CV_8U masks, non-zero (255) = evaluated
+  int dmax = 0;               ///< search range 0..dmax (official for 2003; 79 for 2005's GT up to 75)
+  int scale = 1;              ///< GT value / scale = disparity
 };
 
 /// The folders of the Middlebury data: $MASSAGE_CELL_MIDDLEBURY (2003) / $MASSAGE_CELL_MIDDLEBURY2005 if
-/// set, else ../shared/data/middlebury2003 / middlebury2005 next to the package's source folder.
-std::string middleburyRoot();
-std::string middlebury2005Root();
+/// set, else `shared_data`/middlebury2003 / middlebury2005.
+std::string middleburyRoot(const std::string& shared_data);
+std::string middlebury2005Root(const std::string& shared_data);
 /// The scene names in the order of the thesis's tables, and the two 2005 scenes.
 const std::vector<std::string>& middleburyScenes();
 const std::vector<std::string>& middlebury2005Scenes();

@@ -88,28 +88,28 @@ enum class Superpixels { kSlic, kSlico, kSeeds };
 struct RefineParams {
   // --- FFD (§2.3.1)
   Superpixels superpixels = Superpixels::kSlic;
-  int region_size = 12;            ///< average superpixel side (pixels), >= 4
-  float ruler = 15.0f;             ///< SLIC compactness (ignored by SLICO / SEEDS)
-  int slic_iterations = 10;        ///< SLIC / SEEDS iterations, >= 1
-  float canny_low = 2.0f;          ///< Canny hysteresis low threshold, disparity jump (px) > 0
-  float canny_high = 3.0f;         ///< Canny high threshold, disparity jump (px) >= canny_low
-  float edge_tolerance = 1.5f;     ///< max distance (px) of a disparity edge to a segment boundary to coincide, >= 0
+  int region_size = 12;         ///< average superpixel side (pixels), >= 4
+  float ruler = 15.0f;          ///< SLIC compactness (ignored by SLICO / SEEDS)
+  int slic_iterations = 10;     ///< SLIC / SEEDS iterations, >= 1
+  float canny_low = 2.0f;       ///< Canny hysteresis low threshold, disparity jump (px) > 0
+  float canny_high = 3.0f;      ///< Canny high threshold, disparity jump (px) >= canny_low
+  float edge_tolerance = 1.5f;  ///< max distance (px) of a disparity edge to a segment boundary to coincide, >= 0
   /// A segment boundary counts only between segments whose mean CIELab
   /// colours differ by at least this (ΔE); 0 = every boundary (thesis literal).
   float boundary_contrast = 8.0f;
   /// A split region's larger-disparity class is fattening only if its mean
   /// CIELab colour is within this ΔE of the smaller-disparity class's; 0 = no check.
   float max_fattening_contrast = 5.0f;
-  int min_edge_pixels = 8;         ///< interior edge pixels needed to split a segment, >= 1
-  float min_jump = 2.0f;           ///< least disparity gap between the two classes of a split segment (px) > 0
+  int min_edge_pixels = 8;           ///< interior edge pixels needed to split a segment, >= 1
+  float min_jump = 2.0f;             ///< least disparity gap between the two classes of a split segment (px) > 0
   float min_class_fraction = 0.03f;  ///< significant disparity level: this share of the segment's pixels, [0, 0.5)
   // --- MDC (§2.3.2)
-  int window = 21;                 ///< odd side of the support window W, >= 1
-  float gamma_c = 7.0f;            ///< γc of the adaptive support weight (CIELab units) > 0
-  float gamma_g = 10.5f;           ///< γg (pixels) > 0
+  int window = 21;        ///< odd side of the support window W, >= 1
+  float gamma_c = 7.0f;   ///< γc of the adaptive support weight (CIELab units) > 0
+  float gamma_g = 10.5f;  ///< γg (pixels) > 0
   // --- refineDisparity
-  bool detect_fattening = true;    ///< false: plain calibration (Gu) without FFD
-  int threads = 0;                 ///< MDC worker stripes over rows, 0 = OpenCV's default (all cores); FFD is single-threaded
+  bool detect_fattening = true;  ///< false: plain calibration (Gu) without FFD
+  int threads = 0;  ///< MDC worker stripes over rows, 0 = OpenCV's default (all cores); FFD is single-threaded
 };
 
 /// Throws std::invalid_argument naming the first bad parameter.
