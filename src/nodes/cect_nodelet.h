@@ -55,7 +55,7 @@
 #include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
-#include "massage_cell/cect/temporal_filter.h"
+#include "massage_cell/cect/tracker.h"
 #include "stereo_pair_input.h"
 
 namespace massage_cell::nodes {
@@ -76,25 +76,6 @@ class CectNodelet : public nodelet::Nodelet {
     camera::Decimation decimation;  ///< the frame's pixels against the camera's
   };
 
-  /// The last published estimate of one acupoint, for ~get_acupoint.
-  struct Estimate {
-    bool valid = false;
-    std::string reason;  ///< why not valid
-    Eigen::Vector3d position = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-    std_msgs::Header header;  ///< of the pair it was published with
-  };
-
-  /// This pair's outcome for one acupoint of the model.
-  struct PointResult {
-    bool placed = false;    ///< the model placed it in the left view
-    cv::Point2f rectified;  ///< its pixel, rectified left view (when placed)
-    cv::Point2f raw;        ///< its pixel, raw left view (when placed)
-    bool measured = false;  ///< localised in 3D in this pair
-    bool accepted = false;  ///< ... and taken by the temporal filter
-    std::string reason;     ///< why not measured / not accepted
-  };
-
   void onInit() override;  ///< init(); a parameter of the wrong type: FATAL, the node exits 1
   void init();
   void loadModel();
@@ -102,10 +83,12 @@ class CectNodelet : public nodelet::Nodelet {
   void onPair(const StereoPair& pair);  // the input's worker thread
   void process(const StereoPair& pair, const Config& config);
   void updateGeometry(const CameraInfo& left, const CameraInfo& right);
-  void publish(const std_msgs::Header& header, const cect::CectFrame& frame, const std::vector<PointResult>& results,
-               const std::string& frame_problem, const Config& config);
-  void publishDebugImage(const std_msgs::Header& header, const cect::CectFrame& frame,
-                         const std::vector<PointResult>& results);
+  cect::TrackerUpdate track(const cect::CectFrame& frame, const std_msgs::Header& header,
+                            const camera::Decimation& decimation, const Config& config);
+  void publish(const std_msgs::Header& header, const cect::CectFrame& frame, const cect::TrackerUpdate& update,
+               const Config& config);
+  void recordStatus(const cect::CectFrame& frame, const cect::TrackerUpdate& update, double elapsed_ms,
+                    double waited_ms);
   void badPair(const std::string& problem);
   bool localizePixels(massage_cell::LocalizePixels::Request& request, massage_cell::LocalizePixels::Response& response);
   bool getAcupoint(massage_cell::GetAcupoint::Request& request, massage_cell::GetAcupoint::Response& response);
@@ -123,9 +106,12 @@ class CectNodelet : public nodelet::Nodelet {
   ros::ServiceServer localize_service_, acupoint_service_;
   std::string frame_prefix_ = "acupoint/";
 
-  // The acupoint model (read once at start-up; constant afterwards).
-  cect::AcupointModel model_;
+  // The acupoint model (read once at start-up) and the acupoints tracked over the pairs: written by the worker,
+  // read by ~get_acupoint (guarded by tracker_mutex_).
   std::string model_path_;
+  std::mutex tracker_mutex_;
+  std::unique_ptr<cect::AcupointTracker> tracker_;
+  std_msgs::Header tracker_header_;  ///< of the pair the tracker's estimates were last published with
 
   // Parameters (dynamic_reconfigure; the server locks config_mutex_ around configCb).
   boost::recursive_mutex config_mutex_;
@@ -137,15 +123,11 @@ class CectNodelet : public nodelet::Nodelet {
   std::shared_ptr<const camera::StereoModel> geometry_;  ///< of the decimated images
   int max_width_ = 0;                                    ///< ~max_width: images wider are decimated (0: never)
   camera::Decimation decimation_;                        ///< of the current calibration
-  cect::TemporalFilter filter_;
-  ros::Time last_stamp_;
-  ProblemThrottle log_throttle_;  // per-problem log throttling
+  ProblemThrottle log_throttle_;                         // per-problem log throttling
 
   // What the services read.
   std::mutex latest_mutex_;
   Analysed latest_;
-  std::mutex estimates_mutex_;
-  std::map<std::string, Estimate> estimates_;
 
   // Status for the diagnostics (guarded by status_mutex_).
   std::unique_ptr<diagnostic_updater::Updater> updater_;
@@ -163,9 +145,6 @@ class CectNodelet : public nodelet::Nodelet {
   std::string last_landmarks_;    ///< which landmarks the last pair measured and which it inferred
   std::string last_trunk_;        ///< what the last pair's segmentation cut away (arms, cloth)
   std::string last_background_;   ///< what the last pair's depth gate called far background
-  /// Per acupoint, the layout's uncertainty of the pair that last measured it
-  /// (the filter averages the matching's noise over pairs, not the layout's).
-  std::map<std::string, Eigen::Matrix3d> layout_covariance_;
   std::string geometry_summary_;
 };
 

@@ -548,7 +548,7 @@ void run(const Options& o) {
   cect::CectParams params;
   if (o.seed_step >= 0) params.seed_step = o.seed_step;
   if (o.query_search >= 0) params.query_search = o.query_search;
-  for (const auto& [name, value] : o.params) tools::paramSetters().at(name)(params, value);
+  tools::applyParams(params, o.params);
 
   std::vector<Condition> conditions;
   auto range = [](int n) {

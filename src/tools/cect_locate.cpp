@@ -253,7 +253,7 @@ cect::CectParams cectParams(const Options& o) {
   cect::CectParams p;
   if (std::isfinite(o.min_depth)) p.min_depth = o.min_depth;
   if (std::isfinite(o.max_depth)) p.max_depth = o.max_depth;
-  for (const auto& [name, value] : o.params) tools::paramSetters().at(name)(p, value);
+  tools::applyParams(p, o.params);
   return p;
 }
 
@@ -659,8 +659,16 @@ void checkOptions(const Options& o) {
   require(missing.empty(), "missing " + list +
                                " (a stereo pair needs --left, --right, --left-info and "
                                "--right-info; one image: --layout-only IMAGE)");
-  const cect::CectParams p = cectParams(o);
-  require(p.min_depth < p.max_depth, "--min-depth must be less than --max-depth (the defaults are 0.25 and 2.5 m)");
+  cect::CectParams depths;
+  if (std::isfinite(o.min_depth)) depths.min_depth = o.min_depth;
+  if (std::isfinite(o.max_depth)) depths.max_depth = o.max_depth;
+  require(depths.min_depth < depths.max_depth,
+          "--min-depth must be less than --max-depth (the defaults are 0.25 and 2.5 m)");
+  try {
+    cectParams(o);  // --param values checked with the rest
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
 }
 
 }  // namespace

@@ -4,7 +4,10 @@
 
 #include <functional>
 #include <map>
+#include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "massage_cell/cect/cect.h"
 
@@ -60,6 +63,14 @@ inline const std::map<std::string, std::function<void(cect::CectParams&, double)
       {"min_arm_fraction", [](P& p, double v) { p.segmentation.trunk.min_arm_fraction = v; }},
   };
   return m;
+}
+
+/// `params` with each --param NAME=VALUE set, then checked (cect::checkParams): throws std::invalid_argument
+/// naming the first problem.
+inline void applyParams(cect::CectParams& params, const std::vector<std::pair<std::string, double>>& values) {
+  for (const auto& [name, value] : values) paramSetters().at(name)(params, value);
+  const std::vector<std::string> problems = cect::checkParams(params);
+  if (!problems.empty()) throw std::invalid_argument("CECT parameters: " + problems.front());
 }
 
 }  // namespace massage_cell::tools

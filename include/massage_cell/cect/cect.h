@@ -212,6 +212,11 @@ struct CectParams {
 /// the body (d 51-59 px at B 0.1 m). 1 for a non-positive disparity or baseline.
 double viewScale(double median_disparity, double baseline);
 
+/// Every problem of `params` that CECT cannot work with (empty when none): depths and disparities out of order,
+/// non-positive steps, windows and uncertainties, NaN; each names the parameter (the cect node's and --param's name).
+/// The one check the node's parameters and the tools' go through.
+std::vector<std::string> checkParams(const CectParams& params);
+
 /// The disparities searched, [min, max] rectified pixels: min_disparity /
 /// max_disparity where given (> 0), else those of max_depth / min_depth for
 /// this calibration (at least 0.5 px, at most the image width - 1). An empty

@@ -1,0 +1,68 @@
+#include "acupoint_markers.h"
+
+#include <string>
+
+#include <std_msgs/ColorRGBA.h>
+
+namespace massage_cell::nodes {
+
+namespace {
+
+constexpr double kMarkerLifetime = 1.0;  // s
+
+/// Marker colour of a region (measured in this pair); held estimates are grey.
+std_msgs::ColorRGBA regionColour(const std::string& region, bool measured) {
+  std_msgs::ColorRGBA c;
+  c.a = 1.0f;
+  if (!measured) {
+    c.r = c.g = c.b = 0.6f;
+    c.a = 0.7f;
+  } else if (region == "upper_back") {
+    c.r = 1.0f, c.g = 0.55f, c.b = 0.0f;
+  } else if (region == "lower_back") {
+    c.r = 0.1f, c.g = 0.4f, c.b = 1.0f;
+  } else if (region == "midline") {
+    c.r = 0.1f, c.g = 0.85f, c.b = 0.2f;
+  } else if (region == "shoulder") {
+    c.r = 0.9f, c.g = 0.1f, c.b = 0.9f;
+  } else {
+    c.r = c.g = c.b = 1.0f;
+  }
+  return c;
+}
+
+}  // namespace
+
+void addAcupointMarkers(const std_msgs::Header& header, int index, const cect::TrackedAcupoint& p,
+                        visualization_msgs::MarkerArray* markers) {
+  visualization_msgs::Marker sphere;
+  sphere.header = header;
+  sphere.ns = "acupoints";
+  sphere.id = 2 * index;
+  sphere.lifetime = ros::Duration(kMarkerLifetime);
+  visualization_msgs::Marker text = sphere;
+  text.id = sphere.id + 1;
+  if (!p.valid) {
+    sphere.action = text.action = visualization_msgs::Marker::DELETE;
+  } else {
+    sphere.type = visualization_msgs::Marker::SPHERE;
+    sphere.action = visualization_msgs::Marker::ADD;
+    sphere.pose.position.x = p.position.x();
+    sphere.pose.position.y = p.position.y();
+    sphere.pose.position.z = p.position.z();
+    sphere.pose.orientation.w = 1.0;
+    sphere.scale.x = sphere.scale.y = sphere.scale.z = 0.012;
+    sphere.color = regionColour(p.region, p.accepted);
+    text.type = visualization_msgs::Marker::TEXT_VIEW_FACING;
+    text.action = visualization_msgs::Marker::ADD;
+    text.pose = sphere.pose;
+    text.pose.position.z -= 0.015;  // toward the camera (optical z looks at the back)
+    text.scale.z = 0.01;
+    text.color = sphere.color;
+    text.text = p.name;
+  }
+  markers->markers.push_back(sphere);
+  markers->markers.push_back(text);
+}
+
+}  // namespace massage_cell::nodes
