@@ -59,7 +59,9 @@
 #include <functional>
 #include <limits>
 #include <stdexcept>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
@@ -342,41 +344,38 @@ void fillRaisedSkin(const cv::Mat& score, const cv::Mat& depth, double ring_dept
   *mask |= raised;
 }
 
-}  // namespace
+using LogTable = std::array<float, 256>;
 
-Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, const cv::Mat& background,
-                         const cv::Mat& depth) {
-  if (bgr.empty()) throw std::invalid_argument("segmentBack: empty image");
-  if (bgr.type() != CV_8UC3) throw std::invalid_argument("segmentBack: expected a CV_8UC3 (BGR) image");
-  if (!background.empty() && (background.type() != CV_8UC1 || background.size() != bgr.size()))
-    throw std::invalid_argument("segmentBack: the background mask must be CV_8U of the image's size");
-  if (!depth.empty() && (depth.type() != CV_32FC1 || depth.size() != bgr.size()))
-    throw std::invalid_argument("segmentBack: the depth map must be CV_32F of the image's size");
-  const cv::Size size = bgr.size();
-  std::array<float, 256> log_table;
-  for (int i = 0; i < 256; ++i) log_table[static_cast<std::size_t>(i)] = static_cast<float>(std::log(i + kLogOffset));
+/// Stage A: the most chromatic large region on a reduced copy (about kDetectionRows rows).
+struct Detection {
+  std::string problem;  ///< non-empty: no back in view, and why
+  int factor = 1;       ///< full-size pixels per reduced pixel
+  cv::Mat uv;           ///< CV_32FC2 (u, v) chroma of the reduced copy, blurred
+  cv::Mat region;       ///< CV_8U, the detected region on the reduced copy
+  int area = 0;         ///< its pixels
+};
 
-  // --- stage A: detection on a reduced copy -------------------------------
+Detection detectSkinRegion(const cv::Mat& bgr, const SegmentationParams& params, const cv::Mat& background,
+                           const LogTable& log_table) {
+  Detection d;
   // Chroma of the reduced image, blurred by blur_sigma (in full-size pixels).
-  const int factor = std::max(1, size.height / kDetectionRows);
-  cv::Mat bgr_small;
-  if (factor > 1) {
-    cv::resize(bgr, bgr_small, cv::Size(size.width / factor, size.height / factor), 0, 0, cv::INTER_AREA);
-  } else {
-    bgr_small = bgr;
+  d.factor = std::max(1, bgr.rows / kDetectionRows);
+  cv::Mat bgr_small = bgr;
+  if (d.factor > 1) {
+    cv::resize(bgr, bgr_small, cv::Size(bgr.cols / d.factor, bgr.rows / d.factor), 0, 0, cv::INTER_AREA);
   }
   const cv::Size small = bgr_small.size();
-  cv::Mat uv(small, CV_32FC2);  // (u, v) = (ln R - ln G, ln G - ln B)
+  d.uv.create(small, CV_32FC2);  // (u, v) = (ln R - ln G, ln G - ln B)
   for (int y = 0; y < small.height; ++y) {
     const cv::Vec3b* p = bgr_small.ptr<cv::Vec3b>(y);
-    cv::Vec2f* c = uv.ptr<cv::Vec2f>(y);
+    cv::Vec2f* c = d.uv.ptr<cv::Vec2f>(y);
     for (int x = 0; x < small.width; ++x) {
       const float lb = log_table[p[x][0]], lg = log_table[p[x][1]], lr = log_table[p[x][2]];
       c[x] = cv::Vec2f(lr - lg, lg - lb);
     }
   }
-  const double sigma_small = params.blur_sigma / factor;
-  if (sigma_small > 0.0) cv::GaussianBlur(uv, uv, cv::Size(), sigma_small, sigma_small, cv::BORDER_REPLICATE);
+  const double sigma_small = params.blur_sigma / d.factor;
+  if (sigma_small > 0.0) cv::GaussianBlur(d.uv, d.uv, cv::Size(), sigma_small, sigma_small, cv::BORDER_REPLICATE);
 
   // Detection likelihood and its histogram (known background left out).
   cv::Mat background_small;
@@ -385,7 +384,7 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
   std::vector<double> hist(kHistBins, 0.0);
   const double bin_scale = kHistBins / (kHistHigh - kHistLow);
   for (int y = 0; y < small.height; ++y) {
-    const cv::Vec2f* c = uv.ptr<cv::Vec2f>(y);
+    const cv::Vec2f* c = d.uv.ptr<cv::Vec2f>(y);
     float* l = like.ptr<float>(y);
     const unsigned char* bg = background_small.empty() ? nullptr : background_small.ptr<unsigned char>(y);
     for (int x = 0; x < small.width; ++x) {
@@ -401,136 +400,169 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
   }
   const double min_pixels = params.min_area_fraction * small.area();
   const std::vector<int> bins = skinThresholds(hist, min_pixels);
-  if (bins.empty()) return invalid(size, "no back in view: the image has a single colour");
+  if (bins.empty()) {
+    d.problem = "no back in view: the image has a single colour";
+    return d;
+  }
   // The largest region above the most chromatic class's threshold; when that
   // class is only scattered patches, the next threshold's.
   cv::Mat cc_labels;
-  int best = 0, best_area = 0, top_area = -1;
+  int best = 0, top_area = -1;
   for (const int bin : bins) {
-    largestComponent(like > static_cast<float>(kHistLow + bin / bin_scale), &cc_labels, &best, &best_area);
-    if (top_area < 0) top_area = best_area;
-    if (best_area >= min_pixels) break;
+    largestComponent(like > static_cast<float>(kHistLow + bin / bin_scale), &cc_labels, &best, &d.area);
+    if (top_area < 0) top_area = d.area;
+    if (d.area >= min_pixels) break;
   }
-  if (best_area < min_pixels) {
-    return invalid(size, "no back in view: the largest skin-coloured region covers " +
-                             percent(double(top_area) / small.area()) + " of the image (at least " +
-                             percent(params.min_area_fraction) + " needed)");
+  if (d.area < min_pixels) {
+    d.problem = "no back in view: the largest skin-coloured region covers " + percent(double(top_area) / small.area()) +
+                " of the image (at least " + percent(params.min_area_fraction) + " needed)";
+    return d;
   }
-  const cv::Mat region = cc_labels == best;
+  d.region = cc_labels == best;
+  return d;
+}
 
-  // --- stage B: the back's skin against its own surroundings --------------
+/// Stage B: the back's skin against its own surroundings, as a linear chroma score
+/// w . (u, v) + bias that is +0.5 on the skin and -0.5 around it.
+struct SkinModel {
+  std::string problem;                                           ///< non-empty: no back in view, and why
+  cv::Vec2d w;                                                   ///< score weights of (u, v)
+  double bias = 0.0;                                             ///< score offset
+  double ring_depth = std::numeric_limits<double>::quiet_NaN();  ///< median depth around the region (with depth)
+};
+
+/// Chroma samples of the region, its core, the ring just outside it and all beyond the transition.
+struct ChromaSamples {
+  std::vector<float> sl, su, sv, bu, bv, ou, ov;
+  std::vector<float> ring_depth;  ///< the ring's depths (with a depth map)
+};
+
+ChromaSamples sampleChroma(const Detection& d, const SegmentationParams& params, const cv::Mat& depth, cv::Size size) {
   // Its core (beyond the blurred transition) and a ring just outside it.
   // (Square neighbourhoods: rectangular erosion / dilation are cheap.)
-  const int transition = static_cast<int>(std::ceil((3.0 * params.blur_sigma + 1.0) / factor)) + 1;
+  const int transition = static_cast<int>(std::ceil((3.0 * params.blur_sigma + 1.0) / d.factor)) + 1;
   const int ring_width = std::max(4, 2 * transition);
   auto square = [](int r) { return cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * r + 1, 2 * r + 1)); };
   cv::Mat core, near_region, ring_outer;
-  cv::erode(region, core, square(transition));
-  cv::dilate(region, near_region, square(transition));
-  cv::dilate(region, ring_outer, square(transition + ring_width));
+  cv::erode(d.region, core, square(transition));
+  cv::dilate(d.region, near_region, square(transition));
+  cv::dilate(d.region, ring_outer, square(transition + ring_width));
   // Every `stride`-th pixel is enough for the medians (a few thousand samples).
-  const int stride = std::max(1, static_cast<int>(std::sqrt(best_area / 4000.0)));
-  std::vector<float> sl, su, sv, bu, bv, ou, ov;  // region, its core, ring, all beyond the transition
-  std::vector<float> ring_depth;                  // the ring's depths (with a depth map)
-  for (int y = 0; y < small.height; y += stride) {
-    const cv::Vec2f* c = uv.ptr<cv::Vec2f>(y);
-    const unsigned char* in_region = region.ptr<unsigned char>(y);
+  const int stride = std::max(1, static_cast<int>(std::sqrt(d.area / 4000.0)));
+  ChromaSamples s;
+  for (int y = 0; y < d.uv.rows; y += stride) {
+    const cv::Vec2f* c = d.uv.ptr<cv::Vec2f>(y);
+    const unsigned char* in_region = d.region.ptr<unsigned char>(y);
     const unsigned char* in_core = core.ptr<unsigned char>(y);
     const unsigned char* in_near = near_region.ptr<unsigned char>(y);
     const unsigned char* in_ring = ring_outer.ptr<unsigned char>(y);
-    for (int x = 0; x < small.width; x += stride) {
-      if (in_region[x]) sl.push_back(c[x][0] + c[x][1]);
+    for (int x = 0; x < d.uv.cols; x += stride) {
+      if (in_region[x]) s.sl.push_back(c[x][0] + c[x][1]);
       if (in_core[x]) {
-        su.push_back(c[x][0]);
-        sv.push_back(c[x][1]);
+        s.su.push_back(c[x][0]);
+        s.sv.push_back(c[x][1]);
       } else if (!in_near[x]) {
         if (in_ring[x]) {
-          bu.push_back(c[x][0]);
-          bv.push_back(c[x][1]);
+          s.bu.push_back(c[x][0]);
+          s.bv.push_back(c[x][1]);
           if (!depth.empty()) {
-            const float z = depth.at<float>(std::min(y * factor + factor / 2, size.height - 1),
-                                            std::min(x * factor + factor / 2, size.width - 1));
-            if (std::isfinite(z)) ring_depth.push_back(z);
+            const float z = depth.at<float>(std::min(y * d.factor + d.factor / 2, size.height - 1),
+                                            std::min(x * d.factor + d.factor / 2, size.width - 1));
+            if (std::isfinite(z)) s.ring_depth.push_back(z);
           }
         }
-        ou.push_back(c[x][0]);
-        ov.push_back(c[x][1]);
+        s.ou.push_back(c[x][0]);
+        s.ov.push_back(c[x][1]);
       }
     }
   }
-  const double skin_chroma = median(sl);
+  return s;
+}
+
+SkinModel skinModel(const Detection& d, const SegmentationParams& params, const cv::Mat& depth, cv::Size size) {
+  SkinModel m;
+  ChromaSamples s = sampleChroma(d, params, depth, size);
+  const double skin_chroma = median(s.sl);
   if (skin_chroma < kMinSkinChroma) {
     char buf[160];
     std::snprintf(buf, sizeof(buf),
                   "no back in view: no skin-coloured region (the most chromatic region has ln(R/B) = %.3f, skin "
                   "needs %.2f)",
                   skin_chroma, kMinSkinChroma);
-    return invalid(size, buf);
+    m.problem = buf;
+    return m;
   }
-  if (su.size() < 10) return invalid(size, "no back in view: the skin-coloured region is too thin");
-  if (bu.size() < 10) {  // nothing around the region (it fills the view): use whatever is outside
-    bu = std::move(ou);
-    bv = std::move(ov);
+  if (s.su.size() < 10) {
+    m.problem = "no back in view: the skin-coloured region is too thin";
+    return m;
   }
-  if (bu.size() < 10) return invalid(size, "no back in view: skin colour everywhere, no surroundings to tell it from");
-  const cv::Vec2d mu_s(median(su), median(sv)), mu_b(median(bu), median(bv));
-  const cv::Vec2d d = mu_s - mu_b;
-  const double contrast = cv::norm(d);
+  if (s.bu.size() < 10) {  // nothing around the region (it fills the view): use whatever is outside
+    s.bu = std::move(s.ou);
+    s.bv = std::move(s.ov);
+  }
+  if (s.bu.size() < 10) {
+    m.problem = "no back in view: skin colour everywhere, no surroundings to tell it from";
+    return m;
+  }
+  const cv::Vec2d mu_s(median(s.su), median(s.sv)), mu_b(median(s.bu), median(s.bv));
+  const cv::Vec2d diff = mu_s - mu_b;
+  const double contrast = cv::norm(diff);
   if (contrast < kMinContrast) {
-    return invalid(size, "no back in view: the skin-coloured region hardly differs from its surroundings");
+    m.problem = "no back in view: the skin-coloured region hardly differs from its surroundings";
+    return m;
   }
   // score = w . (u, v) + bias: +0.5 at mu_s, -0.5 at mu_b.
-  const cv::Vec2d w = d / (contrast * contrast);
-  const double bias = -0.5 * (mu_s + mu_b).dot(w);
-
+  m.w = diff / (contrast * contrast);
+  m.bias = -0.5 * (mu_s + mu_b).dot(m.w);
   // Skin is uniform in chroma: robust spread (MAD) of the core's score.
-  {
-    std::vector<float> core_score(su.size());
-    for (std::size_t i = 0; i < su.size(); ++i) core_score[i] = static_cast<float>(w[0] * su[i] + w[1] * sv[i]);
-    const double med = median(core_score);
-    for (float& x : core_score) x = static_cast<float>(std::abs(x - med));
-    const double spread = 1.4826 * median(core_score);
-    if (spread > kMaxSkinSpread) {
-      char buf[160];
-      std::snprintf(buf, sizeof(buf),
-                    "no back in view: the skin-coloured region is multi-coloured (chroma spread %.2f of its "
-                    "contrast to the surroundings, skin has less than %.2f)",
-                    spread, kMaxSkinSpread);
-      return invalid(size, buf);
-    }
+  std::vector<float> core_score(s.su.size());
+  for (std::size_t i = 0; i < s.su.size(); ++i) core_score[i] = static_cast<float>(m.w[0] * s.su[i] + m.w[1] * s.sv[i]);
+  const double med = median(core_score);
+  for (float& x : core_score) x = static_cast<float>(std::abs(x - med));
+  const double spread = 1.4826 * median(core_score);
+  if (spread > kMaxSkinSpread) {
+    char buf[160];
+    std::snprintf(buf, sizeof(buf),
+                  "no back in view: the skin-coloured region is multi-coloured (chroma spread %.2f of its "
+                  "contrast to the surroundings, skin has less than %.2f)",
+                  spread, kMaxSkinSpread);
+    m.problem = buf;
+    return m;
   }
+  if (s.ring_depth.size() >= 10) m.ring_depth = median(s.ring_depth);
+  return m;
+}
 
-  // Full-size score. It is linear in (u, v), so blurring the score is
-  // blurring the chroma: score = TR[R] + TG[G] + TB[B], then the Gaussian.
+/// The full-size score. It is linear in (u, v), so blurring the score is blurring the chroma:
+/// score = TR[R] + TG[G] + TB[B], then the Gaussian.
+cv::Mat scoreImage(const cv::Mat& bgr, const SkinModel& model, const LogTable& log_table, double blur_sigma) {
   std::array<float, 256> tr, tg, tb;
   for (std::size_t i = 0; i < 256; ++i) {
-    tr[i] = static_cast<float>(w[0] * log_table[i]);
-    tg[i] = static_cast<float>((w[1] - w[0]) * log_table[i]);
-    tb[i] = static_cast<float>(-w[1] * log_table[i] + bias);
+    tr[i] = static_cast<float>(model.w[0] * log_table[i]);
+    tg[i] = static_cast<float>((model.w[1] - model.w[0]) * log_table[i]);
+    tb[i] = static_cast<float>(-model.w[1] * log_table[i] + model.bias);
   }
-  Segmentation seg;
-  seg.score.create(size, CV_32F);
-  for (int y = 0; y < size.height; ++y) {
+  cv::Mat score(bgr.size(), CV_32F);
+  for (int y = 0; y < bgr.rows; ++y) {
     const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(y);
-    float* s = seg.score.ptr<float>(y);
-    for (int x = 0; x < size.width; ++x) s[x] = tb[p[x][0]] + tg[p[x][1]] + tr[p[x][2]];
+    float* s = score.ptr<float>(y);
+    for (int x = 0; x < bgr.cols; ++x) s[x] = tb[p[x][0]] + tg[p[x][1]] + tr[p[x][2]];
   }
-  if (params.blur_sigma > 0.0) {
-    cv::GaussianBlur(seg.score, seg.score, cv::Size(), params.blur_sigma, params.blur_sigma, cv::BORDER_REPLICATE);
-  }
+  if (blur_sigma > 0.0) cv::GaussianBlur(score, score, cv::Size(), blur_sigma, blur_sigma, cv::BORDER_REPLICATE);
+  return score;
+}
 
-  // --- mask: threshold, clean, the region of the detection, holes filled --
-  // Skin lies about +0.5; far more chromatic than skin, beyond kMaxScore,
-  // is something else of a skin-like hue (red hair, a red towel).
-  cv::Mat m = (seg.score > 0) & (seg.score < kMaxScore);
-  if (ring_depth.size() >= 10) fillRaisedSkin(seg.score, depth, median(ring_depth), &m);
-  if (!background.empty()) m.setTo(0, background);
-  morphology(&m, cv::MORPH_OPEN, params.open_radius);
-  morphology(&m, cv::MORPH_CLOSE, params.close_radius);
-  seg.trunk = cutToTrunk(bgr, &m, params.trunk);
-  // Outer contours of the cleaned regions (holes ignored, i.e. filled), each
-  // drawn filled with its own label; the back is the one holding most of
-  // the detection.
+/// Of the cleaned mask's regions (holes filled), the one holding most of the detection: its mask and outer border.
+struct Back {
+  std::string problem;  ///< non-empty: no back in view, and why
+  cv::Mat mask;
+  std::vector<cv::Point> border;
+};
+
+Back chooseBack(cv::Mat& m, const Detection& d, const SegmentationParams& params) {
+  Back back;
+  const cv::Size size = m.size();
+  // Outer contours of the cleaned regions (holes ignored, i.e. filled), each drawn filled with its own label.
   std::vector<std::vector<cv::Point>> outer;
   cv::findContours(m, outer, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
   std::vector<std::pair<double, int>> candidates;  // (area, index), largest first, at most 255
@@ -541,8 +573,9 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
     if (a >= params.min_area_fraction * size.area()) candidates.emplace_back(a, static_cast<int>(i));
   }
   if (candidates.empty()) {
-    return invalid(size, "no back in view: the largest skin region covers " + percent(largest / size.area()) +
-                             " of the image (at least " + percent(params.min_area_fraction) + " needed)");
+    back.problem = "no back in view: the largest skin region covers " + percent(largest / size.area()) +
+                   " of the image (at least " + percent(params.min_area_fraction) + " needed)";
+    return back;
   }
   std::sort(candidates.begin(), candidates.end(), std::greater<>());
   if (candidates.size() > 255) candidates.resize(255);
@@ -556,29 +589,32 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
                      cv::LINE_8);
   }
   std::array<int, 256> overlap{};
-  for (int y = 0; y < small.height; ++y) {
-    const unsigned char* r = region.ptr<unsigned char>(y);
-    const unsigned char* lab = labels.ptr<unsigned char>(std::min(y * factor + factor / 2, size.height - 1));
-    for (int x = 0; x < small.width; ++x) {
-      if (r[x]) ++overlap[lab[std::min(x * factor + factor / 2, size.width - 1)]];
+  for (int y = 0; y < d.region.rows; ++y) {
+    const unsigned char* r = d.region.ptr<unsigned char>(y);
+    const unsigned char* lab = labels.ptr<unsigned char>(std::min(y * d.factor + d.factor / 2, size.height - 1));
+    for (int x = 0; x < d.region.cols; ++x) {
+      if (r[x]) ++overlap[lab[std::min(x * d.factor + d.factor / 2, size.width - 1)]];
     }
   }
   overlap[0] = 0;
   const auto label = std::max_element(overlap.begin(), overlap.end()) - overlap.begin();
   if (overlap[static_cast<std::size_t>(label)] == 0) {
-    return invalid(size, "no back in view: the skin-coloured region does not survive the cleaning");
+    back.problem = "no back in view: the skin-coloured region does not survive the cleaning";
+    return back;
   }
   const std::size_t chosen = single ? 0 : static_cast<std::size_t>(label - 1);
-  const std::vector<cv::Point>& border = outer[static_cast<std::size_t>(candidates[chosen].second)];
-  seg.mask = single ? labels : (labels == static_cast<double>(label));
+  back.border = outer[static_cast<std::size_t>(candidates[chosen].second)];
+  back.mask = single ? labels : (labels == static_cast<double>(label));
+  return back;
+}
 
-  // The score agrees with the mask in sign: holes and pixels the closing
-  // added become positive; pixels the opening removed and skin elsewhere
-  // (other regions) negative. Untouched where the two already agree.
-  for (int y = 0; y < size.height; ++y) {
-    float* s = seg.score.ptr<float>(y);
-    const unsigned char* mk = seg.mask.ptr<unsigned char>(y);
-    for (int x = 0; x < size.width; ++x) {
+/// The score agrees with the mask in sign: holes and pixels the closing added become positive; pixels the opening
+/// removed and skin elsewhere (other regions) negative. Untouched where the two already agree.
+void agreeWithMask(const cv::Mat& mask, cv::Mat* score) {
+  for (int y = 0; y < mask.rows; ++y) {
+    float* s = score->ptr<float>(y);
+    const unsigned char* mk = mask.ptr<unsigned char>(y);
+    for (int x = 0; x < mask.cols; ++x) {
       if (mk[x]) {
         if (!(s[x] > 0.f)) s[x] = kForcedScore;
       } else if (!(s[x] < 0.f)) {
@@ -586,20 +622,61 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
       }
     }
   }
+}
 
-  // --- contour: smoothed, resampled, counter-clockwise, on the crossing ---
-  seg.contour = resampleClosed(smoothClosed(border, params.contour_smoothing), std::max(params.contour_spacing, 0.1));
-  if (signedArea(seg.contour) > 0) {  // clockwise as seen on the image: reverse, keeping the first sample
-    std::reverse(seg.contour.begin() + 1, seg.contour.end());
+/// The contour: smoothed, resampled, counter-clockwise, on the score's zero crossing; and the fraction of it on
+/// the image's border.
+void traceContour(const std::vector<cv::Point>& border, const SegmentationParams& params, Segmentation* seg) {
+  const cv::Size size = seg->score.size();
+  seg->contour = resampleClosed(smoothClosed(border, params.contour_smoothing), std::max(params.contour_spacing, 0.1));
+  if (signedArea(seg->contour) > 0) {  // clockwise as seen on the image: reverse, keeping the first sample
+    std::reverse(seg->contour.begin() + 1, seg->contour.end());
   }
-  snapToCrossings(seg.score, &seg.contour);
+  snapToCrossings(seg->score, &seg->contour);
   int on_border = 0;
   const float margin = static_cast<float>(params.border_margin);
-  for (const cv::Point2f& p : seg.contour) {
+  for (const cv::Point2f& p : seg->contour) {
     const float to_border = std::min(std::min(p.x, p.y), std::min(size.width - 1 - p.x, size.height - 1 - p.y));
     if (to_border < margin) ++on_border;
   }
-  seg.border_fraction = seg.contour.empty() ? 0.0 : double(on_border) / seg.contour.size();
+  seg->border_fraction = seg->contour.empty() ? 0.0 : double(on_border) / seg->contour.size();
+}
+
+}  // namespace
+
+Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, const cv::Mat& background,
+                         const cv::Mat& depth) {
+  if (bgr.empty()) throw std::invalid_argument("segmentBack: empty image");
+  if (bgr.type() != CV_8UC3) throw std::invalid_argument("segmentBack: expected a CV_8UC3 (BGR) image");
+  if (!background.empty() && (background.type() != CV_8UC1 || background.size() != bgr.size()))
+    throw std::invalid_argument("segmentBack: the background mask must be CV_8U of the image's size");
+  if (!depth.empty() && (depth.type() != CV_32FC1 || depth.size() != bgr.size()))
+    throw std::invalid_argument("segmentBack: the depth map must be CV_32F of the image's size");
+  const cv::Size size = bgr.size();
+  LogTable log_table;
+  for (int i = 0; i < 256; ++i) log_table[static_cast<std::size_t>(i)] = static_cast<float>(std::log(i + kLogOffset));
+
+  // Stage A: detection on a reduced copy; stage B: the skin's chroma model against its surroundings.
+  const Detection detection = detectSkinRegion(bgr, params, background, log_table);
+  if (!detection.problem.empty()) return invalid(size, detection.problem);
+  const SkinModel model = skinModel(detection, params, depth, size);
+  if (!model.problem.empty()) return invalid(size, model.problem);
+  Segmentation seg;
+  seg.score = scoreImage(bgr, model, log_table, params.blur_sigma);
+
+  // Mask: threshold, clean, the region of the detection, holes filled. Skin lies about +0.5; far more chromatic
+  // than skin, beyond kMaxScore, is something else of a skin-like hue (red hair, a red towel).
+  cv::Mat m = (seg.score > 0) & (seg.score < kMaxScore);
+  if (std::isfinite(model.ring_depth)) fillRaisedSkin(seg.score, depth, model.ring_depth, &m);
+  if (!background.empty()) m.setTo(0, background);
+  morphology(&m, cv::MORPH_OPEN, params.open_radius);
+  morphology(&m, cv::MORPH_CLOSE, params.close_radius);
+  seg.trunk = cutToTrunk(bgr, &m, params.trunk);
+  const Back back = chooseBack(m, detection, params);
+  if (!back.problem.empty()) return invalid(size, back.problem);
+  seg.mask = back.mask;
+  agreeWithMask(seg.mask, &seg.score);
+  traceContour(back.border, params, &seg);
   seg.valid = true;
   return seg;
 }

@@ -399,69 +399,51 @@ constexpr int kMinChunk = 16384;
 // Smallest node cut coarse to fine (Context::coarse > 1): smaller cuts are fast.
 constexpr int kCoarseMinPixels = 8192;
 
-// One bilateral disparity estimation (Eq. 2.3) on `node`; the compact index of
-// the node's pixels must already be set and their relation bits must be those
-// left by the node's ancestors. `helpers`: threads available to this node's
-// data-term passes (the graph cut itself is sequential).
-void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOutput& out) {
-  const CostVolume& vol = *ctx.volume;
-  const std::vector<int>& pix = node.pixels;
-  const int n = static_cast<int>(pix.size());
-  const int lo = node.lo, hi = node.hi;
+/// Start of chunk c of `chunks` equal chunks of `total` items.
+std::size_t chunkBegin(int c, int chunks, std::size_t total) { return total * static_cast<std::size_t>(c) / chunks; }
 
-  // Pass 1: min over [lo, hi] and its argmin (ties: smaller d), per pixel.
-  // Children inherit them from their parent's passes (the minimum over a
-  // subset and its argmin are what the parent computed for that side), so
-  // only the root runs this pass. Pixel chunks are independent; a node solved
-  // alone at its depth (the root) splits them over `helpers` threads.
-  const int chunks = std::max(1, std::min(helpers, n / kMinChunk));
-  auto chunkBegin = [&](int c, std::size_t total) { return total * static_cast<std::size_t>(c) / chunks; };
+// Pass 1: min over [lo, hi] and its argmin (ties: smaller d), per pixel. Children inherit them from their
+// parent's passes (the minimum over a subset and its argmin are what the parent computed for that side), so only
+// the root runs this pass. Pixel chunks are independent: `chunks` of them in parallel.
+void setMinima(const Context& ctx, const Node& node, int chunks, Scratch& s) {
+  const int n = static_cast<int>(node.pixels.size());
   if (!node.best.empty()) {
     s.best.assign(node.best.begin(), node.best.end());
     s.arg.assign(node.arg.begin(), node.arg.end());
-  } else {
-    s.best.resize(n);
-    s.arg.resize(n);
-    runParallel(chunks, chunks, [&](int c, int) {
-      const int i0 = static_cast<int>(chunkBegin(c, n)), i1 = static_cast<int>(chunkBegin(c + 1, n));
-      const int* px = pix.data();
-      float* best = s.best.data();
-      int* arg = s.arg.data();
-      const float* sl = vol.slice(lo);
+    return;
+  }
+  const CostVolume& vol = *ctx.volume;
+  s.best.resize(n);
+  s.arg.resize(n);
+  runParallel(chunks, chunks, [&](int c, int) {
+    const int i0 = static_cast<int>(chunkBegin(c, chunks, n)), i1 = static_cast<int>(chunkBegin(c + 1, chunks, n));
+    const int* px = node.pixels.data();
+    float* best = s.best.data();
+    int* arg = s.arg.data();
+    const float* sl = vol.slice(node.lo);
+    for (int i = i0; i < i1; ++i) {
+      best[i] = sl[px[i]];
+      arg[i] = node.lo;
+    }
+    for (int d = node.lo + 1; d <= node.hi; ++d) {
+      sl = vol.slice(d);
       for (int i = i0; i < i1; ++i) {
-        best[i] = sl[px[i]];
-        arg[i] = lo;
-      }
-      for (int d = lo + 1; d <= hi; ++d) {
-        sl = vol.slice(d);
-        for (int i = i0; i < i1; ++i) {
-          const float cost = sl[px[i]];
-          if (cost < best[i]) {
-            best[i] = cost;
-            arg[i] = d;
-          }
+        const float cost = sl[px[i]];
+        if (cost < best[i]) {
+          best[i] = cost;
+          arg[i] = d;
         }
       }
-    });
-  }
+    }
+  });
+}
 
-  // Break point (Eq. 2.9-2.10) on the rough within-set WTA histogram.
-  s.hist.assign(static_cast<std::size_t>(hi - lo + 1), 0.0);
-  for (int i = 0; i < n; ++i) s.hist[s.arg[i] - lo] += 1.0;
-  const int psi = breakPoint(s.hist, lo, hi);
-  if (psi < lo || psi >= hi) throw std::logic_error("hbds: breakPoint returned psi outside [lo, hi)");
-
-  // The children's sets: B = [lo, b_hi], F = [f_lo, hi]. Without overlap
-  // they split [lo, hi] at psi (the thesis); with overlap m they both reach m
-  // levels across it (b_hi = psi + m, f_lo = psi + 1 - m), each kept strictly
-  // smaller than [lo, hi] so that the recursion ends.
-  const int b_hi = std::min(psi + ctx.overlap, hi - 1);
-  const int f_lo = std::max(psi + 1 - ctx.overlap, lo + 1);
-
-  // Pass 2 (Eq. 2.4): a side holding the set's argmin has min = best and the
-  // same argmin; the other side's minimum is computed only for the pixels
-  // that need it (with overlap, a pixel whose argmin lies in both sets needs
-  // no pass at all).
+// Pass 2 (Eq. 2.4): each pixel's minimum over B = [lo, b_hi] and over F = [f_lo, hi]. A side holding the set's
+// argmin has min = best and the same argmin; the other side's minimum is computed only for the pixels that need it
+// (with overlap, a pixel whose argmin lies in both sets needs no pass at all).
+void setSideMinima(const Context& ctx, const Node& node, int b_hi, int f_lo, int chunks, Scratch& s) {
+  const CostVolume& vol = *ctx.volume;
+  const int n = static_cast<int>(node.pixels.size());
   s.min_b.resize(n);
   s.arg_b.resize(n);
   s.min_f.resize(n);
@@ -486,7 +468,7 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
   }
   auto sideMin = [&](std::size_t begin, std::size_t end, int d0, int d1, float* out, int* out_arg) {
     const int* pend = s.pending.data();
-    const int* px = pix.data();
+    const int* px = node.pixels.data();
     const float* sl = vol.slice(d0);
     for (std::size_t k = begin; k < end; ++k) {
       out[pend[k]] = sl[px[pend[k]]];
@@ -505,26 +487,19 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
     }
   };
   runParallel(chunks, chunks, [&](int c, int) {
-    sideMin(chunkBegin(c, needB), chunkBegin(c + 1, needB), lo, b_hi, s.min_b.data(), s.arg_b.data());
+    sideMin(chunkBegin(c, chunks, needB), chunkBegin(c + 1, chunks, needB), node.lo, b_hi, s.min_b.data(),
+            s.arg_b.data());
     const std::size_t needF = s.pending.size() - needB;
-    sideMin(needB + chunkBegin(c, needF), needB + chunkBegin(c + 1, needF), f_lo, hi, s.min_f.data(), s.arg_f.data());
+    sideMin(needB + chunkBegin(c, chunks, needF), needB + chunkBegin(c + 1, chunks, needF), f_lo, node.hi,
+            s.min_f.data(), s.arg_f.data());
   });
+}
 
-  // The cut (source side = B), on every pixel or coarse to fine.
-  const double half = 0.5 * static_cast<double>(hi - lo + 1);  // |D*| / 2 of Eq. 2.5
-  const int W = ctx.width;
-  const int N = ctx.width * ctx.height;
-  unaries(ctx, node, half, s);
-  s.side.resize(n);
-  s.graph_id.resize(n);
-  int free_count = n;
-  if (ctx.coarse > 1 && n >= kCoarseMinPixels) {
-    free_count = coarseCut(ctx, node, half, s);
-  } else {
-    for (int i = 0; i < n; ++i) s.graph_id[i] = i;
-  }
-  if (free_count > 0) cutPixels(ctx, node, half, free_count, s);
-
+// The two children of a cut node (source side = B), each inheriting its side's minimum and argmin (pass 1 of the
+// child); and the relation bits of every pair the cut separates (both pixels are the node's).
+void splitNode(Context& ctx, const Node& node, int b_hi, int f_lo, const Scratch& s, NodeOutput& out) {
+  const std::vector<int>& pix = node.pixels;
+  const int n = static_cast<int>(pix.size());
   Node back, fore;
   back.pixels.reserve(n);
   fore.pixels.reserve(n);
@@ -532,12 +507,11 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
     child->best.reserve(n);
     child->arg.reserve(n);
   }
-  back.lo = lo;
+  back.lo = node.lo;
   back.hi = b_hi;
   fore.lo = f_lo;
-  fore.hi = hi;
-  // Each child inherits its side's minimum and argmin (pass 1 of the child).
-  const bool inherit_back = b_hi > lo, inherit_fore = hi > f_lo;  // single-level children need none
+  fore.hi = node.hi;
+  const bool inherit_back = b_hi > node.lo, inherit_fore = node.hi > f_lo;  // single-level children need none
   for (int i = 0; i < n; ++i) {
     const bool to_back = s.side[i] != 0;
     Node& child = to_back ? back : fore;
@@ -546,7 +520,7 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
     child.best.push_back(to_back ? s.min_b[i] : s.min_f[i]);
     child.arg.push_back(to_back ? s.arg_b[i] : s.arg_f[i]);
   }
-  // Record the pairs this cut separates (both pixels are the node's).
+  const int W = ctx.width, N = ctx.width * ctx.height;
   for (int i = 0; i < n; ++i) {
     const int p = pix[i];
     const bool p_back = s.side[i] != 0;
@@ -560,10 +534,147 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
     if (p % W + 1 < W) separate(p + 1, kRight, kLeft);
     if (p + W < N) separate(p + W, kDown, kUp);
   }
-
   out.children.clear();
   for (Node* child : {&back, &fore})
     if (!child->pixels.empty()) out.children.push_back(std::move(*child));
+}
+
+// One bilateral disparity estimation (Eq. 2.3) on `node`; the compact index of
+// the node's pixels must already be set and their relation bits must be those
+// left by the node's ancestors. `helpers`: threads available to this node's
+// data-term passes (the graph cut itself is sequential).
+void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOutput& out) {
+  const int n = static_cast<int>(node.pixels.size());
+  const int lo = node.lo, hi = node.hi;
+  // A node solved alone at its depth (the root) splits its pixel chunks over `helpers` threads.
+  const int chunks = std::max(1, std::min(helpers, n / kMinChunk));
+  setMinima(ctx, node, chunks, s);
+
+  // Break point (Eq. 2.9-2.10) on the rough within-set WTA histogram.
+  s.hist.assign(static_cast<std::size_t>(hi - lo + 1), 0.0);
+  for (int i = 0; i < n; ++i) s.hist[s.arg[i] - lo] += 1.0;
+  const int psi = breakPoint(s.hist, lo, hi);
+  if (psi < lo || psi >= hi) throw std::logic_error("hbds: breakPoint returned psi outside [lo, hi)");
+
+  // The children's sets: B = [lo, b_hi], F = [f_lo, hi]. Without overlap
+  // they split [lo, hi] at psi (the thesis); with overlap m they both reach m
+  // levels across it (b_hi = psi + m, f_lo = psi + 1 - m), each kept strictly
+  // smaller than [lo, hi] so that the recursion ends.
+  const int b_hi = std::min(psi + ctx.overlap, hi - 1);
+  const int f_lo = std::max(psi + 1 - ctx.overlap, lo + 1);
+  setSideMinima(ctx, node, b_hi, f_lo, chunks, s);
+
+  // The cut (source side = B), on every pixel or coarse to fine.
+  const double half = 0.5 * static_cast<double>(hi - lo + 1);  // |D*| / 2 of Eq. 2.5
+  unaries(ctx, node, half, s);
+  s.side.resize(n);
+  s.graph_id.resize(n);
+  int free_count = n;
+  if (ctx.coarse > 1 && n >= kCoarseMinPixels) {
+    free_count = coarseCut(ctx, node, half, s);
+  } else {
+    for (int i = 0; i < n; ++i) s.graph_id[i] = i;
+  }
+  if (free_count > 0) cutPixels(ctx, node, half, free_count, s);
+  splitNode(ctx, node, b_hi, f_lo, s, out);
+}
+
+// Cuts the whole hierarchy from the root [dmin, dmax] down to single levels, writing ctx.disparity. Nodes of any
+// depth run as soon as their parent is cut (no barrier per depth), largest first, on `threads` workers (this thread
+// is worker 0); the schedule does not influence the results.
+void cutHierarchy(Context& ctx, int threads, OptimizerResult& result) {
+  const CostVolume& volume = *ctx.volume;
+  const std::size_t N = static_cast<std::size_t>(ctx.width) * ctx.height;
+  struct Task {
+    Node node;
+    int depth = 0;
+  };
+  // Nodes waiting to be cut, largest first (ties: the order of arrival;
+  // the schedule does not influence the results).
+  std::vector<Task> queue;
+  std::mutex mutex;
+  std::condition_variable wake;
+  int busy = 0;        // nodes being processed
+  int max_depth = -1;  // deepest node cut so far
+  bool failed = false;
+  std::exception_ptr error;
+  std::vector<Scratch> scratch(threads);
+
+  Task root;
+  root.node.lo = volume.dmin();
+  root.node.hi = volume.dmax();
+  root.node.pixels.resize(N);
+  for (std::size_t p = 0; p < N; ++p) root.node.pixels[p] = static_cast<int>(p);
+  queue.push_back(std::move(root));
+
+  // Cuts one node, then writes the final disparity of single-level
+  // children and queues the others. Correctness of running nodes
+  // concurrently: a node reads and writes only data of its own pixels (their
+  // compact index, their relation bits, their inherited minima); a
+  // neighbour outside the node is known through the relation bits the
+  // ancestor that separated them wrote before this node was queued.
+  auto runTask = [&](Task& task, int worker, int helpers, std::vector<Task>& children) {
+    const Node& node = task.node;
+    for (std::size_t i = 0; i < node.pixels.size(); ++i) ctx.index[node.pixels[i]] = static_cast<int>(i);
+    NodeOutput out;
+    processNode(ctx, node, helpers, scratch[worker], out);
+    for (Node& child : out.children) {
+      if (child.lo == child.hi) {
+        assignLevel(ctx, child.pixels, child.lo);
+      } else {
+        Task t;
+        t.node = std::move(child);
+        t.depth = task.depth + 1;
+        children.push_back(std::move(t));
+      }
+    }
+  };
+  auto bySize = [](const Task& a, const Task& b) { return a.node.pixels.size() < b.node.pixels.size(); };
+  auto body = [&](int worker) {
+    std::vector<Task> children;
+    std::unique_lock<std::mutex> lock(mutex);
+    for (;;) {
+      wake.wait(lock, [&] { return failed || !queue.empty() || busy == 0; });
+      if (failed || queue.empty()) break;  // error, or nothing queued and nothing running: done
+      // Largest waiting node; stable among equal sizes (first queued).
+      auto it = queue.begin();
+      for (auto j = queue.begin(); j != queue.end(); ++j)
+        if (bySize(*it, *j)) it = j;
+      Task task = std::move(*it);
+      queue.erase(it);
+      ++busy;
+      // A node started while nothing else can run (the root) shares its
+      // data-term passes with the idle threads.
+      const int helpers = (busy == 1 && queue.empty()) ? threads : 1;
+      lock.unlock();
+      children.clear();
+      try {
+        runTask(task, worker, helpers, children);
+      } catch (...) {
+        lock.lock();
+        if (!failed) error = std::current_exception();
+        failed = true;
+        --busy;
+        wake.notify_all();
+        break;
+      }
+      lock.lock();
+      --busy;
+      ++result.cuts;
+      max_depth = std::max(max_depth, task.depth);
+      for (Task& c : children) queue.push_back(std::move(c));
+      wake.notify_all();
+    }
+  };
+  // Nodes of any depth run as soon as their parent is cut (no barrier per
+  // depth), on `threads` workers (this thread is worker 0).
+  std::vector<std::thread> pool;
+  pool.reserve(threads - 1);
+  for (int w = 1; w < threads; ++w) pool.emplace_back(body, w);
+  body(0);
+  for (auto& th : pool) th.join();
+  result.layers = max_depth + 1;
+  if (error) std::rethrow_exception(error);
 }
 
 }  // namespace
@@ -603,98 +714,7 @@ OptimizerResult hbds(const CostVolume& volume, const PairwiseWeights& weights, c
   ctx.index.assign(N, 0);
   ctx.disparity = result.disparity.ptr<float>();
 
-  if (volume.dmin() < volume.dmax()) {
-    struct Task {
-      Node node;
-      int depth = 0;
-    };
-    // Nodes waiting to be cut, largest first (ties: the order of arrival;
-    // the schedule does not influence the results).
-    std::vector<Task> queue;
-    std::mutex mutex;
-    std::condition_variable wake;
-    int busy = 0;        // nodes being processed
-    int max_depth = -1;  // deepest node cut so far
-    bool failed = false;
-    std::exception_ptr error;
-    std::vector<Scratch> scratch(threads);
-
-    Task root;
-    root.node.lo = volume.dmin();
-    root.node.hi = volume.dmax();
-    root.node.pixels.resize(N);
-    for (std::size_t p = 0; p < N; ++p) root.node.pixels[p] = static_cast<int>(p);
-    queue.push_back(std::move(root));
-
-    // Cuts one node, then writes the final disparity of single-level
-    // children and queues the others. Correctness of running nodes
-    // concurrently: a node reads and writes only data of its own pixels (their
-    // compact index, their relation bits, their inherited minima); a
-    // neighbour outside the node is known through the relation bits the
-    // ancestor that separated them wrote before this node was queued.
-    auto runTask = [&](Task& task, int worker, int helpers, std::vector<Task>& children) {
-      const Node& node = task.node;
-      for (std::size_t i = 0; i < node.pixels.size(); ++i) ctx.index[node.pixels[i]] = static_cast<int>(i);
-      NodeOutput out;
-      processNode(ctx, node, helpers, scratch[worker], out);
-      for (Node& child : out.children) {
-        if (child.lo == child.hi) {
-          assignLevel(ctx, child.pixels, child.lo);
-        } else {
-          Task t;
-          t.node = std::move(child);
-          t.depth = task.depth + 1;
-          children.push_back(std::move(t));
-        }
-      }
-    };
-    auto bySize = [](const Task& a, const Task& b) { return a.node.pixels.size() < b.node.pixels.size(); };
-    auto body = [&](int worker) {
-      std::vector<Task> children;
-      std::unique_lock<std::mutex> lock(mutex);
-      for (;;) {
-        wake.wait(lock, [&] { return failed || !queue.empty() || busy == 0; });
-        if (failed || queue.empty()) break;  // error, or nothing queued and nothing running: done
-        // Largest waiting node; stable among equal sizes (first queued).
-        auto it = queue.begin();
-        for (auto j = queue.begin(); j != queue.end(); ++j)
-          if (bySize(*it, *j)) it = j;
-        Task task = std::move(*it);
-        queue.erase(it);
-        ++busy;
-        // A node started while nothing else can run (the root) shares its
-        // data-term passes with the idle threads.
-        const int helpers = (busy == 1 && queue.empty()) ? threads : 1;
-        lock.unlock();
-        children.clear();
-        try {
-          runTask(task, worker, helpers, children);
-        } catch (...) {
-          lock.lock();
-          if (!failed) error = std::current_exception();
-          failed = true;
-          --busy;
-          wake.notify_all();
-          break;
-        }
-        lock.lock();
-        --busy;
-        ++result.cuts;
-        max_depth = std::max(max_depth, task.depth);
-        for (Task& c : children) queue.push_back(std::move(c));
-        wake.notify_all();
-      }
-    };
-    // Nodes of any depth run as soon as their parent is cut (no barrier per
-    // depth), on `threads` workers (this thread is worker 0).
-    std::vector<std::thread> pool;
-    pool.reserve(threads - 1);
-    for (int w = 1; w < threads; ++w) pool.emplace_back(body, w);
-    body(0);
-    for (auto& th : pool) th.join();
-    result.layers = max_depth + 1;
-    if (error) std::rethrow_exception(error);
-  }
+  if (volume.dmin() < volume.dmax()) cutHierarchy(ctx, threads, result);
 
   result.energy = labellingEnergy(volume, weights, result.disparity, smooth.truncation);
   return result;

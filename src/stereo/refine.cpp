@@ -124,36 +124,33 @@ void validate(const RefineParams& p) {
 
 // ---------------------------------------------------------------------- FFD --
 
-cv::Mat detectFattening(const cv::Mat& left, const cv::Mat& disparity, const RefineParams& params) {
-  checkImage("detectFattening", left, disparity);
-  validate(params);
-  const int W = disparity.cols, H = disparity.rows;
-  cv::Mat mask = cv::Mat::zeros(disparity.size(), CV_8U);
-  int lo, hi;
-  const cv::Mat levels = roundedLevels(disparity, lo, hi);
-  if (lo > hi) return mask;  // no valid disparity
+namespace {
 
-  // Disparity edges: Canny on the integer map (NaN: smaller nearest valid on the row).
-  cv::Mat filled(disparity.size(), CV_16S);
+constexpr int kInvalidLevel = std::numeric_limits<int>::min();
+
+/// Disparity edges: Canny on the integer map (NaN: the smaller nearest valid level on the row).
+cv::Mat disparityEdges(const cv::Mat& levels, int lo, const RefineParams& params) {
+  const int W = levels.cols, H = levels.rows;
+  cv::Mat filled(levels.size(), CV_16S);
+  std::vector<int> left_valid(W), right_valid(W);
   for (int y = 0; y < H; ++y) {
     const int* l = levels.ptr<int>(y);
     short* f = filled.ptr<short>(y);
-    std::vector<int> left_valid(W), right_valid(W);
-    int last = std::numeric_limits<int>::min();
-    for (int x = 0; x < W; ++x) left_valid[x] = last = (l[x] != std::numeric_limits<int>::min() ? l[x] : last);
-    last = std::numeric_limits<int>::min();
-    for (int x = W - 1; x >= 0; --x) right_valid[x] = last = (l[x] != std::numeric_limits<int>::min() ? l[x] : last);
+    int last = kInvalidLevel;
+    for (int x = 0; x < W; ++x) left_valid[x] = last = (l[x] != kInvalidLevel ? l[x] : last);
+    last = kInvalidLevel;
+    for (int x = W - 1; x >= 0; --x) right_valid[x] = last = (l[x] != kInvalidLevel ? l[x] : last);
     for (int x = 0; x < W; ++x) {
       int v = l[x];
-      if (v == std::numeric_limits<int>::min()) {
+      if (v == kInvalidLevel) {
         const int a = left_valid[x], b = right_valid[x];
-        if (a == std::numeric_limits<int>::min())
+        if (a == kInvalidLevel)
           v = b;
-        else if (b == std::numeric_limits<int>::min())
+        else if (b == kInvalidLevel)
           v = a;
         else
           v = std::min(a, b);
-        if (v == std::numeric_limits<int>::min()) v = lo;  // whole row invalid
+        if (v == kInvalidLevel) v = lo;  // whole row invalid
       }
       // Offset by lo and saturate: Sobel on CV_16S saturates, jumps stay edges.
       f[x] = static_cast<short>(std::min<long long>(static_cast<long long>(v) - lo, 8000));
@@ -163,13 +160,24 @@ cv::Mat detectFattening(const cv::Mat& left, const cv::Mat& disparity, const Ref
   cv::Sobel(filled, dx, CV_16S, 1, 0, 3, 1, 0, cv::BORDER_REPLICATE);
   cv::Sobel(filled, dy, CV_16S, 0, 1, 3, 1, 0, cv::BORDER_REPLICATE);
   cv::Canny(dx, dy, edges, 4.0 * params.canny_low, 4.0 * params.canny_high, true);
+  return edges;
+}
 
-  // Superpixels of the reference image.
-  cv::Mat seg_input;
+/// Superpixels of the reference image and their mean CIELab colours (L 0..100).
+struct SegmentedImage {
+  cv::Mat image;   ///< what they were taken on: Lab, or the grey image
+  cv::Mat labels;  ///< CV_32S
+  int segments = 0;
+  std::vector<cv::Vec3d> mean_colour;
+};
+
+SegmentedImage superpixels(const cv::Mat& left, const RefineParams& params) {
+  SegmentedImage sp;
   if (left.channels() == 3)
-    cv::cvtColor(left, seg_input, cv::COLOR_BGR2Lab);
+    cv::cvtColor(left, sp.image, cv::COLOR_BGR2Lab);
   else
-    seg_input = left;
+    sp.image = left;
+  const int W = left.cols, H = left.rows;
   // OpenCV's SEEDS and SLIC read out of bounds or loop forever when a
   // superpixel is too large for the image (found by fuzz_stereo_match):
   // superpixels of at most a third (SEEDS) / half (SLIC) of the smaller
@@ -177,52 +185,53 @@ cv::Mat detectFattening(const cv::Mat& left, const cv::Mat& disparity, const Ref
   const int side = std::min(W, H);
   const bool use_seeds = params.superpixels == Superpixels::kSeeds;
   const int region_size = std::min(params.region_size, side / (use_seeds ? 3 : 2));
-  cv::Mat labels;
   if (region_size < 2) {
-    labels = cv::Mat::zeros(H, W, CV_32S);
+    sp.labels = cv::Mat::zeros(H, W, CV_32S);
   } else if (use_seeds) {
     const int n = std::max(1, (W * H) / (region_size * region_size));
-    auto seeds = cv::ximgproc::createSuperpixelSEEDS(W, H, seg_input.channels(), n, 4, 2, 5, false);
-    seeds->iterate(seg_input, params.slic_iterations);
-    seeds->getLabels(labels);
+    auto seeds = cv::ximgproc::createSuperpixelSEEDS(W, H, sp.image.channels(), n, 4, 2, 5, false);
+    seeds->iterate(sp.image, params.slic_iterations);
+    seeds->getLabels(sp.labels);
   } else {
     const int algorithm = params.superpixels == Superpixels::kSlico ? cv::ximgproc::SLICO : cv::ximgproc::SLIC;
-    auto slic = cv::ximgproc::createSuperpixelSLIC(seg_input, algorithm, region_size, params.ruler);
+    auto slic = cv::ximgproc::createSuperpixelSLIC(sp.image, algorithm, region_size, params.ruler);
     slic->iterate(params.slic_iterations);
     slic->enforceLabelConnectivity(25);
-    slic->getLabels(labels);
+    slic->getLabels(sp.labels);
   }
   double max_label = 0;
-  cv::minMaxLoc(labels, nullptr, &max_label);
-  const int segments = static_cast<int>(max_label) + 1;
-
-  // Mean CIELab colour of every segment (L 0..100).
-  std::vector<cv::Vec3d> mean_colour(segments, cv::Vec3d(0, 0, 0));
-  std::vector<int> size(segments, 0);
+  cv::minMaxLoc(sp.labels, nullptr, &max_label);
+  sp.segments = static_cast<int>(max_label) + 1;
+  sp.mean_colour.assign(sp.segments, cv::Vec3d(0, 0, 0));
+  std::vector<int> size(sp.segments, 0);
   for (int y = 0; y < H; ++y) {
-    const int* s = labels.ptr<int>(y);
+    const int* s = sp.labels.ptr<int>(y);
     for (int x = 0; x < W; ++x) {
       ++size[s[x]];
-      if (seg_input.channels() == 3) {
-        const cv::Vec3b c = seg_input.at<cv::Vec3b>(y, x);
-        mean_colour[s[x]] += cv::Vec3d(c[0] * 100.0 / 255.0, c[1] - 128.0, c[2] - 128.0);
+      if (sp.image.channels() == 3) {
+        const cv::Vec3b c = sp.image.at<cv::Vec3b>(y, x);
+        sp.mean_colour[s[x]] += cv::Vec3d(c[0] * 100.0 / 255.0, c[1] - 128.0, c[2] - 128.0);
       } else {
-        mean_colour[s[x]][0] += seg_input.at<uchar>(y, x) * 100.0 / 255.0;
+        sp.mean_colour[s[x]][0] += sp.image.at<uchar>(y, x) * 100.0 / 255.0;
       }
     }
   }
-  for (int i = 0; i < segments; ++i)
-    if (size[i] > 0) mean_colour[i] /= size[i];
-  const double contrast2 = static_cast<double>(params.boundary_contrast) * params.boundary_contrast;
-  auto strong = [&](int a, int b) {
-    return a != b && cv::norm(mean_colour[a] - mean_colour[b], cv::NORM_L2SQR) >= contrast2;
-  };
+  for (int i = 0; i < sp.segments; ++i)
+    if (size[i] > 0) sp.mean_colour[i] /= size[i];
+  return sp;
+}
 
-  // Distance of every pixel to the nearest (strong) segment-boundary pixel.
-  cv::Mat not_boundary(disparity.size(), CV_8U, cv::Scalar(255));
+/// Distance of every pixel to the nearest boundary between two segments of contrasting colour.
+cv::Mat boundaryDistance(const SegmentedImage& sp, float boundary_contrast) {
+  const int W = sp.labels.cols, H = sp.labels.rows;
+  const double contrast2 = static_cast<double>(boundary_contrast) * boundary_contrast;
+  auto strong = [&](int a, int b) {
+    return a != b && cv::norm(sp.mean_colour[a] - sp.mean_colour[b], cv::NORM_L2SQR) >= contrast2;
+  };
+  cv::Mat not_boundary(sp.labels.size(), CV_8U, cv::Scalar(255));
   for (int y = 0; y < H; ++y) {
-    const int* s = labels.ptr<int>(y);
-    const int* s_below = y + 1 < H ? labels.ptr<int>(y + 1) : nullptr;
+    const int* s = sp.labels.ptr<int>(y);
+    const int* s_below = y + 1 < H ? sp.labels.ptr<int>(y + 1) : nullptr;
     for (int x = 0; x < W; ++x) {
       if (x + 1 < W && strong(s[x + 1], s[x])) not_boundary.at<uchar>(y, x) = not_boundary.at<uchar>(y, x + 1) = 0;
       if (s_below && strong(s_below[x], s[x])) not_boundary.at<uchar>(y, x) = not_boundary.at<uchar>(y + 1, x) = 0;
@@ -230,118 +239,313 @@ cv::Mat detectFattening(const cv::Mat& left, const cv::Mat& disparity, const Ref
   }
   cv::Mat distance;
   cv::distanceTransform(not_boundary, distance, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  return distance;
+}
 
-  // Interior edge pixels of each segment; pixels of each segment (counting sort).
-  std::vector<int> start(segments + 1, 0);
-  std::vector<std::vector<int>> interior(segments);
+/// The pixels of every segment (counting sort: segment k's are pixels[start[k] .. start[k + 1])) and each segment's
+/// interior disparity-edge pixels (beyond edge_tolerance of a contrasting boundary).
+struct SegmentPixels {
+  std::vector<int> start, pixels;
+  std::vector<std::vector<int>> interior;
+};
+
+SegmentPixels segmentPixels(const SegmentedImage& sp, const cv::Mat& edges, const cv::Mat& distance,
+                            float edge_tolerance) {
+  const int W = sp.labels.cols, H = sp.labels.rows;
+  SegmentPixels out;
+  out.start.assign(sp.segments + 1, 0);
+  out.interior.resize(sp.segments);
   for (int y = 0; y < H; ++y) {
-    const int* s = labels.ptr<int>(y);
+    const int* s = sp.labels.ptr<int>(y);
     const uchar* e = edges.ptr<uchar>(y);
     const float* dist = distance.ptr<float>(y);
     for (int x = 0; x < W; ++x) {
-      ++start[s[x] + 1];
-      if (e[x] && dist[x] > params.edge_tolerance) interior[s[x]].push_back(y * W + x);
+      ++out.start[s[x] + 1];
+      if (e[x] && dist[x] > edge_tolerance) out.interior[s[x]].push_back(y * W + x);
     }
   }
-  for (int i = 0; i < segments; ++i) start[i + 1] += start[i];
-  std::vector<int> pixels(static_cast<std::size_t>(W) * H);
-  {
-    std::vector<int> fill(start.begin(), start.end() - 1);
-    for (int y = 0; y < H; ++y) {
-      const int* s = labels.ptr<int>(y);
-      for (int x = 0; x < W; ++x) pixels[fill[s[x]]++] = y * W + x;
-    }
+  for (int i = 0; i < sp.segments; ++i) out.start[i + 1] += out.start[i];
+  out.pixels.resize(static_cast<std::size_t>(W) * H);
+  std::vector<int> fill(out.start.begin(), out.start.end() - 1);
+  for (int y = 0; y < H; ++y) {
+    const int* s = sp.labels.ptr<int>(y);
+    for (int x = 0; x < W; ++x) out.pixels[fill[s[x]]++] = y * W + x;
+  }
+  return out;
+}
+
+/// The FFD test of one segment with an interior disparity edge: its region (the segment and the segments across
+/// weak boundaries within reach of the edge), the region's two disparity classes, whether their split runs along
+/// the edge and whether the larger-disparity class wears the smaller one's colour - then that class is fattening.
+class FatteningTest {
+ public:
+  FatteningTest(const cv::Mat& levels, const SegmentedImage& sp, const SegmentPixels& pixels,
+                const RefineParams& params)
+      : W_(levels.cols),
+        H_(levels.rows),
+        lev_(levels.ptr<int>(0)),
+        lab_(sp.labels.ptr<int>(0)),
+        sp_(sp),
+        pixels_(pixels),
+        params_(params),
+        member_stamp_(sp.segments, -1) {}
+
+  /// Marks segment `sgm`'s fattening pixels 255 in `out` (CV_8U, continuous).
+  void mark(int sgm, uchar* out) {
+    const std::vector<int>& interior = pixels_.interior[sgm];
+    if (static_cast<int>(interior.size()) < params_.min_edge_pixels) return;
+    collectRegion(sgm);
+    double split = 0.0;
+    if (!splitLevels(&split) || !splitRunsAlongEdge(sgm, split) || !looksLikeBackground(split)) return;
+    for (const int i : region_pixels_)
+      if (lev_[i] != kInvalidLevel && lev_[i] > split) out[i] = 255;
   }
 
-  const int* lev = levels.ptr<int>(0);
-  const int* lab = labels.ptr<int>(0);
-  uchar* out = mask.ptr<uchar>(0);
-  const int invalid = std::numeric_limits<int>::min();
-  const int reach = static_cast<int>(std::ceil(params.edge_tolerance)) + 1;
-  std::vector<int> hist, significant, region, member_stamp(segments, -1);
-  std::vector<int> region_pixels;
-  for (int sgm = 0; sgm < segments; ++sgm) {
-    if (static_cast<int>(interior[sgm].size()) < params.min_edge_pixels) continue;
-    // The region split: the segment and the segments across weak boundaries
-    // within reach of its interior edge pixels (one hop).
-    region.assign(1, sgm);
-    member_stamp[sgm] = sgm;
-    for (const int i : interior[sgm]) {
-      const int x = i % W, y = i / W;
-      for (int yy = std::max(0, y - reach); yy <= std::min(H - 1, y + reach); ++yy)
-        for (int xx = std::max(0, x - reach); xx <= std::min(W - 1, x + reach); ++xx) {
-          const int other = lab[yy * W + xx];
-          if (member_stamp[other] != sgm) {
-            member_stamp[other] = sgm;
-            region.push_back(other);
+ private:
+  /// The segment and the segments across weak boundaries within reach of its interior edge pixels (one hop).
+  void collectRegion(int sgm) {
+    const int reach = static_cast<int>(std::ceil(params_.edge_tolerance)) + 1;
+    region_.assign(1, sgm);
+    member_stamp_[sgm] = sgm;
+    for (const int i : pixels_.interior[sgm]) {
+      const int x = i % W_, y = i / W_;
+      for (int yy = std::max(0, y - reach); yy <= std::min(H_ - 1, y + reach); ++yy)
+        for (int xx = std::max(0, x - reach); xx <= std::min(W_ - 1, x + reach); ++xx) {
+          const int other = lab_[yy * W_ + xx];
+          if (member_stamp_[other] != sgm) {
+            member_stamp_[other] = sgm;
+            region_.push_back(other);
           }
         }
     }
-    region_pixels.clear();
-    for (const int r : region)
-      for (int k = start[r]; k < start[r + 1]; ++k) region_pixels.push_back(pixels[k]);
-    // Histogram of the region's valid levels.
+    region_pixels_.clear();
+    for (const int r : region_)
+      for (int k = pixels_.start[r]; k < pixels_.start[r + 1]; ++k) region_pixels_.push_back(pixels_.pixels[k]);
+  }
+
+  /// Two classes of the region's levels: the largest gap between consecutive significant levels (first on ties)
+  /// of at least min_jump; `split` halfway across it.
+  bool splitLevels(double* split) {
     int smin = std::numeric_limits<int>::max(), smax = std::numeric_limits<int>::min(), n = 0;
-    for (const int i : region_pixels) {
-      const int v = lev[i];
-      if (v == invalid) continue;
+    for (const int i : region_pixels_) {
+      const int v = lev_[i];
+      if (v == kInvalidLevel) continue;
       smin = std::min(smin, v);
       smax = std::max(smax, v);
       ++n;
     }
-    if (n == 0 || smax - smin < params.min_jump) continue;
-    hist.assign(static_cast<std::size_t>(smax - smin) + 1, 0);
-    for (const int i : region_pixels)
-      if (lev[i] != invalid) ++hist[lev[i] - smin];
-    const double need = std::max(2.0, static_cast<double>(params.min_class_fraction) * n);
-    significant.clear();
-    for (int i = 0; i < static_cast<int>(hist.size()); ++i)
-      if (hist[i] >= need) significant.push_back(i + smin);
-    // Largest gap between consecutive significant levels (first on ties).
+    if (n == 0 || smax - smin < params_.min_jump) return false;
+    hist_.assign(static_cast<std::size_t>(smax - smin) + 1, 0);
+    for (const int i : region_pixels_)
+      if (lev_[i] != kInvalidLevel) ++hist_[lev_[i] - smin];
+    const double need = std::max(2.0, static_cast<double>(params_.min_class_fraction) * n);
+    significant_.clear();
+    for (int i = 0; i < static_cast<int>(hist_.size()); ++i)
+      if (hist_[i] >= need) significant_.push_back(i + smin);
     int gap = 0, below = 0;
-    for (std::size_t i = 1; i < significant.size(); ++i)
-      if (significant[i] - significant[i - 1] > gap) {
-        gap = significant[i] - significant[i - 1];
-        below = significant[i - 1];
+    for (std::size_t i = 1; i < significant_.size(); ++i)
+      if (significant_[i] - significant_[i - 1] > gap) {
+        gap = significant_[i] - significant_[i - 1];
+        below = significant_[i - 1];
       }
-    if (gap < params.min_jump) continue;
-    const double split = below + 0.5 * gap;  // level > split: the larger-disparity class
-    // Does the split run along the interior edge?
-    int along = 0;
-    for (const int i : interior[sgm]) {
-      const int x = i % W, y = i / W;
-      bool high = false, low = false;
-      for (int yy = std::max(0, y - 1); yy <= std::min(H - 1, y + 1); ++yy)
-        for (int xx = std::max(0, x - 1); xx <= std::min(W - 1, x + 1); ++xx) {
-          const int j = yy * W + xx;
-          if (member_stamp[lab[j]] != sgm || lev[j] == invalid) continue;
-          (lev[j] > split ? high : low) = true;
-        }
-      if (high && low && ++along >= params.min_edge_pixels) break;
-    }
-    if (along < params.min_edge_pixels) continue;
-    // A fattening region wears the colour of the background beside it; a
-    // high class of another colour is a real object the segmentation missed.
-    if (params.max_fattening_contrast > 0.0f) {
-      cv::Vec3d colour[2] = {cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0)};
-      int count[2] = {0, 0};
-      for (const int i : region_pixels) {
-        if (lev[i] == invalid) continue;
-        const int c = lev[i] > split ? 1 : 0;
-        colour[c] += pixelLab(seg_input, i);
-        ++count[c];
-      }
-      if (count[0] == 0 || count[1] == 0) continue;
-      const double contrast = cv::norm(colour[1] / count[1] - colour[0] / count[0]);
-      if (contrast >= params.max_fattening_contrast) continue;
-    }
-    for (const int i : region_pixels)
-      if (lev[i] != invalid && lev[i] > split) out[i] = 255;
+    if (gap < params_.min_jump) return false;
+    *split = below + 0.5 * gap;  // level > split: the larger-disparity class
+    return true;
   }
+
+  /// At least min_edge_pixels interior edge pixels see both classes of the region around them.
+  bool splitRunsAlongEdge(int sgm, double split) const {
+    int along = 0;
+    for (const int i : pixels_.interior[sgm]) {
+      const int x = i % W_, y = i / W_;
+      bool high = false, low = false;
+      for (int yy = std::max(0, y - 1); yy <= std::min(H_ - 1, y + 1); ++yy)
+        for (int xx = std::max(0, x - 1); xx <= std::min(W_ - 1, x + 1); ++xx) {
+          const int j = yy * W_ + xx;
+          if (member_stamp_[lab_[j]] != sgm || lev_[j] == kInvalidLevel) continue;
+          (lev_[j] > split ? high : low) = true;
+        }
+      if (high && low && ++along >= params_.min_edge_pixels) return true;
+    }
+    return false;
+  }
+
+  /// A fattening region wears the colour of the background beside it; a high class of another colour is a real
+  /// object the segmentation missed.
+  bool looksLikeBackground(double split) const {
+    if (!(params_.max_fattening_contrast > 0.0f)) return true;
+    cv::Vec3d colour[2] = {cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0)};
+    int count[2] = {0, 0};
+    for (const int i : region_pixels_) {
+      if (lev_[i] == kInvalidLevel) continue;
+      const int c = lev_[i] > split ? 1 : 0;
+      colour[c] += pixelLab(sp_.image, i);
+      ++count[c];
+    }
+    if (count[0] == 0 || count[1] == 0) return false;
+    return cv::norm(colour[1] / count[1] - colour[0] / count[0]) < params_.max_fattening_contrast;
+  }
+
+  const int W_, H_;
+  const int* lev_;
+  const int* lab_;
+  const SegmentedImage& sp_;
+  const SegmentPixels& pixels_;
+  const RefineParams& params_;
+  std::vector<int> member_stamp_, region_, region_pixels_, hist_, significant_;
+};
+
+}  // namespace
+
+cv::Mat detectFattening(const cv::Mat& left, const cv::Mat& disparity, const RefineParams& params) {
+  checkImage("detectFattening", left, disparity);
+  validate(params);
+  cv::Mat mask = cv::Mat::zeros(disparity.size(), CV_8U);
+  int lo, hi;
+  const cv::Mat levels = roundedLevels(disparity, lo, hi);
+  if (lo > hi) return mask;  // no valid disparity
+  const cv::Mat edges = disparityEdges(levels, lo, params);
+  const SegmentedImage sp = superpixels(left, params);
+  const SegmentPixels pixels =
+      segmentPixels(sp, edges, boundaryDistance(sp, params.boundary_contrast), params.edge_tolerance);
+  FatteningTest test(levels, sp, pixels, params);
+  for (int sgm = 0; sgm < sp.segments; ++sgm) test.mark(sgm, mask.ptr<uchar>(0));
   return mask;
 }
 
 // ---------------------------------------------------------------------- MDC --
+
+namespace {
+
+/// MDC's voters: each pixel's level (index from lo; -1: not a voter - invalid or in the fattening mask) and the
+/// smallest / largest voter level within the window around every pixel (FLT_MAX / -FLT_MAX: none).
+struct Voters {
+  cv::Mat level, window_min, window_max;
+};
+
+Voters voters(const cv::Mat& levels, int lo, const cv::Mat& fattening_mask, int window) {
+  Voters v;
+  v.level.create(levels.size(), CV_32S);
+  v.window_min.create(levels.size(), CV_32F);
+  v.window_max.create(levels.size(), CV_32F);
+  for (int y = 0; y < levels.rows; ++y) {
+    const int* l = levels.ptr<int>(y);
+    const uchar* m = fattening_mask.empty() ? nullptr : fattening_mask.ptr<uchar>(y);
+    int* own = v.level.ptr<int>(y);
+    float* a = v.window_min.ptr<float>(y);
+    float* b = v.window_max.ptr<float>(y);
+    for (int x = 0; x < levels.cols; ++x) {
+      const bool ok = l[x] != kInvalidLevel && !(m && m[x]);
+      own[x] = ok ? l[x] - lo : -1;
+      a[x] = ok ? static_cast<float>(own[x]) : std::numeric_limits<float>::max();
+      b[x] = ok ? static_cast<float>(own[x]) : -std::numeric_limits<float>::max();
+    }
+  }
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(window, window));
+  cv::erode(v.window_min, v.window_min, kernel, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT,
+            cv::Scalar(std::numeric_limits<float>::max()));
+  cv::dilate(v.window_max, v.window_max, kernel, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT,
+             cv::Scalar(-std::numeric_limits<float>::max()));
+  return v;
+}
+
+/// MDC's colour-weighted vote over the window (thesis Sec. 2.3): each voter q adds exp(-Δc(p,q)/γc) exp(-Δg/γg) to
+/// its level; the level with the most weight wins (ties: the pixel's own level, else the smallest). One per thread.
+class WeightedVote {
+ public:
+  WeightedVote(const cv::Mat (&lab)[3], const Voters& voters, int nlevels, const RefineParams& params)
+      : lab_(lab),
+        voters_(voters),
+        r_(params.window / 2),
+        side_(params.window),
+        score_(nlevels, 0.0f),
+        stamp_(nlevels, -1),
+        index_(params.window + 8) {
+    // exp(-Δc/γc) in steps of γc/64 up to float underflow; exp(-Δg/γg) per offset.
+    const int table_size = static_cast<int>(88.0f * kSteps) + 1;
+    colour_weight_.resize(table_size);
+    for (int i = 0; i < table_size; ++i)
+      colour_weight_[i] = static_cast<float>(std::exp(-i / static_cast<double>(kSteps)));
+    colour_weight_.back() = 0.0f;
+    to_index_ = kSteps / params.gamma_c;
+    spatial_.resize(static_cast<std::size_t>(side_) * side_);
+    for (int j = -r_; j <= r_; ++j)
+      for (int i = -r_; i <= r_; ++i)
+        spatial_[(j + r_) * side_ + (i + r_)] =
+            static_cast<float>(std::exp(-std::sqrt(double(i * i + j * j)) / params.gamma_g));
+    touched_.reserve(std::min(nlevels, side_ * side_));
+  }
+
+  /// The winning level (index from lo) at pixel (x, y) whose own level is `own` (-1: none).
+  int winner(int x, int y, int own) {
+    const int W = voters_.level.cols, H = voters_.level.rows;
+    const int pixel_id = y * W + x;
+    touched_.clear();
+    const float Lp = lab_[0].ptr<float>(y)[x], ap = lab_[1].ptr<float>(y)[x], bp = lab_[2].ptr<float>(y)[x];
+    const int x0 = std::max(0, x - r_), x1 = std::min(W - 1, x + r_), n = x1 - x0 + 1;
+    const int y0 = std::max(0, y - r_), y1 = std::min(H - 1, y + r_);
+    for (int yy = y0; yy <= y1; ++yy) {
+      colourIndices(yy, x0, n, Lp, ap, bp);
+      const int* vq = voters_.level.ptr<int>(yy) + x0;
+      const float* sw = spatial_.data() + (yy - y + r_) * side_ + (x0 - x + r_);
+      for (int i = 0; i < n; ++i) {
+        const int v = vq[i];
+        if (v < 0) continue;
+        if (stamp_[v] != pixel_id) {
+          stamp_[v] = pixel_id;
+          score_[v] = 0.0f;
+          touched_.push_back(v);
+        }
+        score_[v] += colour_weight_[index_[i]] * sw[i];
+      }
+    }
+    int winner = -1;
+    float best = -1.0f;
+    for (const int v : touched_) {
+      const float s = score_[v];
+      if (s > best || (s == best && v != winner && (winner != own && (v == own || v < winner)))) {
+        best = s;
+        winner = v;
+      }
+    }
+    return winner;
+  }
+
+ private:
+  static constexpr float kSteps = 64.0f;
+
+  /// index_[i]: the colour-weight table's entry for the window row yy's pixel x0 + i against (Lp, ap, bp).
+  void colourIndices(int yy, int x0, int n, float Lp, float ap, float bp) {
+    const float* Lq = lab_[0].ptr<float>(yy) + x0;
+    const float* aq = lab_[1].ptr<float>(yy) + x0;
+    const float* bq = lab_[2].ptr<float>(yy) + x0;
+    const int last = static_cast<int>(colour_weight_.size()) - 1;
+    int i = 0;
+#if CV_SIMD128
+    const cv::v_float32x4 vL = cv::v_setall_f32(Lp), va = cv::v_setall_f32(ap), vb = cv::v_setall_f32(bp);
+    const cv::v_float32x4 vscale = cv::v_setall_f32(to_index_);
+    const cv::v_int32x4 vlast = cv::v_setall_s32(last);
+    for (; i + 4 <= n; i += 4) {
+      const cv::v_float32x4 dL = cv::v_load(Lq + i) - vL, da = cv::v_load(aq + i) - va, db = cv::v_load(bq + i) - vb;
+      const cv::v_float32x4 dc = cv::v_sqrt(dL * dL + da * da + db * db) * vscale;
+      cv::v_store(index_.data() + i, cv::v_min(cv::v_round(dc), vlast));
+    }
+#endif
+    for (; i < n; ++i) {
+      const float dL = Lq[i] - Lp, da = aq[i] - ap, db = bq[i] - bp;
+      index_[i] = std::min(static_cast<int>(std::lround(std::sqrt(dL * dL + da * da + db * db) * to_index_)), last);
+    }
+  }
+
+  const cv::Mat (&lab_)[3];
+  const Voters& voters_;
+  const int r_, side_;
+  float to_index_ = 0.0f;
+  std::vector<float> colour_weight_, spatial_, score_;
+  std::vector<int> stamp_, touched_, index_;
+};
+
+}  // namespace
 
 cv::Mat recoverDisparity(const cv::Mat& left, const cv::Mat& disparity, const cv::Mat& fattening_mask,
                          const RefineParams& params) {
@@ -352,134 +556,35 @@ cv::Mat recoverDisparity(const cv::Mat& left, const cv::Mat& disparity, const cv
       fail("recoverDisparity", "fattening mask and disparity map sizes differ");
   }
   validate(params);
-  const int W = disparity.cols, H = disparity.rows;
   int lo, hi;
   const cv::Mat levels = roundedLevels(disparity, lo, hi);
   cv::Mat result = disparity.clone();
   if (lo > hi) return result;  // no voter anywhere
   if (static_cast<long long>(hi) - lo > 1 << 24) fail("recoverDisparity", "disparity range too wide");
   const int nlevels = hi - lo + 1;
-
-  // Voter levels (index from lo), -1 = not a voter; min / max of the voters' levels over the window.
-  const int invalid = std::numeric_limits<int>::min();
-  cv::Mat voter(disparity.size(), CV_32S), vmin(disparity.size(), CV_32F), vmax(disparity.size(), CV_32F);
-  for (int y = 0; y < H; ++y) {
-    const int* l = levels.ptr<int>(y);
-    const uchar* m = fattening_mask.empty() ? nullptr : fattening_mask.ptr<uchar>(y);
-    int* v = voter.ptr<int>(y);
-    float* a = vmin.ptr<float>(y);
-    float* b = vmax.ptr<float>(y);
-    for (int x = 0; x < W; ++x) {
-      const bool ok = l[x] != invalid && !(m && m[x]);
-      v[x] = ok ? l[x] - lo : -1;
-      a[x] = ok ? static_cast<float>(v[x]) : std::numeric_limits<float>::max();
-      b[x] = ok ? static_cast<float>(v[x]) : -std::numeric_limits<float>::max();
-    }
-  }
-  const int r = params.window / 2;
-  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(params.window, params.window));
-  cv::erode(vmin, vmin, kernel, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT,
-            cv::Scalar(std::numeric_limits<float>::max()));
-  cv::dilate(vmax, vmax, kernel, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT,
-             cv::Scalar(-std::numeric_limits<float>::max()));
-
+  const Voters v = voters(levels, lo, fattening_mask, params.window);
   cv::Mat lab[3];
   labPlanes(left, lab);
-
-  // exp(-Δc/γc) in steps of γc/64 up to float underflow; exp(-Δg/γg) per offset.
-  constexpr float kSteps = 64.0f;
-  const int table_size = static_cast<int>(88.0f * kSteps) + 1;
-  std::vector<float> colour_weight(table_size);
-  for (int i = 0; i < table_size; ++i)
-    colour_weight[i] = static_cast<float>(std::exp(-i / static_cast<double>(kSteps)));
-  colour_weight.back() = 0.0f;
-  const float to_index = kSteps / params.gamma_c;
-  const int side = params.window;
-  std::vector<float> spatial(static_cast<std::size_t>(side) * side);
-  for (int j = -r; j <= r; ++j)
-    for (int i = -r; i <= r; ++i)
-      spatial[(j + r) * side + (i + r)] =
-          static_cast<float>(std::exp(-std::sqrt(double(i * i + j * j)) / params.gamma_g));
-
   cv::parallel_for_(
-      cv::Range(0, H),
+      cv::Range(0, disparity.rows),
       [&](const cv::Range& rows) {
-        std::vector<float> score(nlevels, 0.0f);
-        std::vector<int> stamp(nlevels, -1), touched;
-        std::vector<int> index(side + 8);
-        touched.reserve(std::min(nlevels, side * side));
+        WeightedVote vote(lab, v, nlevels, params);
         for (int y = rows.start; y < rows.end; ++y) {
-          const float* dmin_row = vmin.ptr<float>(y);
-          const float* dmax_row = vmax.ptr<float>(y);
-          const float* din = disparity.ptr<float>(y);
+          const float* window_min = v.window_min.ptr<float>(y);
+          const float* window_max = v.window_max.ptr<float>(y);
           const int* own_row = levels.ptr<int>(y);
-          float* dout = result.ptr<float>(y);
-          const int y0 = std::max(0, y - r), y1 = std::min(H - 1, y + r);
-          for (int x = 0; x < W; ++x) {
-            const int own = own_row[x] == invalid ? -1 : own_row[x] - lo;
-            int winner;
-            if (dmin_row[x] == std::numeric_limits<float>::max()) {
-              continue;  // no voter: keep d(p)
-            } else if (dmin_row[x] == dmax_row[x]) {
-              winner = static_cast<int>(dmin_row[x]);
-            } else {
-              const int pixel_id = y * W + x;
-              touched.clear();
-              const float Lp = lab[0].ptr<float>(y)[x], ap = lab[1].ptr<float>(y)[x], bp = lab[2].ptr<float>(y)[x];
-              const int x0 = std::max(0, x - r), x1 = std::min(W - 1, x + r), n = x1 - x0 + 1;
-              for (int yy = y0; yy <= y1; ++yy) {
-                const float* Lq = lab[0].ptr<float>(yy) + x0;
-                const float* aq = lab[1].ptr<float>(yy) + x0;
-                const float* bq = lab[2].ptr<float>(yy) + x0;
-                const int* vq = voter.ptr<int>(yy) + x0;
-                const float* sw = spatial.data() + (yy - y + r) * side + (x0 - x + r);
-                int i = 0;
-#if CV_SIMD128
-                const cv::v_float32x4 vL = cv::v_setall_f32(Lp), va = cv::v_setall_f32(ap), vb = cv::v_setall_f32(bp);
-                const cv::v_float32x4 vscale = cv::v_setall_f32(to_index);
-                const cv::v_int32x4 vlast = cv::v_setall_s32(table_size - 1);
-                for (; i + 4 <= n; i += 4) {
-                  const cv::v_float32x4 dL = cv::v_load(Lq + i) - vL, da = cv::v_load(aq + i) - va,
-                                        db = cv::v_load(bq + i) - vb;
-                  const cv::v_float32x4 dc = cv::v_sqrt(dL * dL + da * da + db * db) * vscale;
-                  cv::v_store(index.data() + i, cv::v_min(cv::v_round(dc), vlast));
-                }
-#endif
-                for (; i < n; ++i) {
-                  const float dL = Lq[i] - Lp, da = aq[i] - ap, db = bq[i] - bp;
-                  index[i] = std::min(static_cast<int>(std::lround(std::sqrt(dL * dL + da * da + db * db) * to_index)),
-                                      table_size - 1);
-                }
-                for (i = 0; i < n; ++i) {
-                  const int v = vq[i];
-                  if (v < 0) continue;
-                  if (stamp[v] != pixel_id) {
-                    stamp[v] = pixel_id;
-                    score[v] = 0.0f;
-                    touched.push_back(v);
-                  }
-                  score[v] += colour_weight[index[i]] * sw[i];
-                }
-              }
-              // argmax; ties: own level, else the smallest level.
-              winner = -1;
-              float best = -1.0f;
-              for (const int v : touched) {
-                const float s = score[v];
-                if (s > best || (s == best && v != winner && (winner != own && (v == own || v < winner)))) {
-                  best = s;
-                  winner = v;
-                }
-              }
-            }
-            if (winner != own)
-              dout[x] = static_cast<float>(winner + lo);
-            else
-              dout[x] = din[x];
+          float* out = result.ptr<float>(y);
+          for (int x = 0; x < disparity.cols; ++x) {
+            if (window_min[x] == std::numeric_limits<float>::max()) continue;  // no voter: keep d(p)
+            const int own = own_row[x] == kInvalidLevel ? -1 : own_row[x] - lo;
+            // One level among the voters wins outright; else the vote.
+            const int winner =
+                window_min[x] == window_max[x] ? static_cast<int>(window_min[x]) : vote.winner(x, y, own);
+            if (winner != own) out[x] = static_cast<float>(winner + lo);
           }
         }
       },
-      stripes(params.threads, H));
+      stripes(params.threads, disparity.rows));
   return result;
 }
 
