@@ -215,6 +215,96 @@ Lighting Lighting::preset(LightPreset preset) {
 
 // ---------------------------------------------------------------------------
 
+namespace {
+
+/// One view's camera rays: exact ones at the pixel centres on a grid padded by one pixel (x = -1..W, y = -1..H),
+/// each scaled to unit optical depth (q = d / (d . z)), and the sampling of its pixels.
+struct ViewRays {
+  int W = 0, H = 0, n = 1;       ///< image size, sub-samples per pixel side
+  bool centre_is_sample = true;  ///< odd n: the middle sub-sample is the pixel centre
+  int middle = 0;                ///< its index
+  int samples_per_row = 0, rays_per_row = 0;
+  Eigen::Vector3d centre_d, optical_z;
+  Eigen::Vector3f centre;
+  std::shared_ptr<const std::vector<Eigen::Vector3d>> grid;
+
+  /// Unit direction through (sx, sy), -0.5 < sx < W - 0.5, -0.5 < sy < H - 0.5: q is affine in the pixel for a
+  /// pinhole camera, so the sub-pixel rays are bilinear interpolations of the grid - exact without distortion, within
+  /// ~1e-4 px with it (second order in the distortion's curvature over half a pixel) - and exactly the grid's value
+  /// at integer (pixel centre) coordinates.
+  Eigen::Vector3f direction(double sx, double sy) const {
+    const int GW = W + 2;
+    const int x0 = std::clamp(static_cast<int>(std::floor(sx)), -1, W - 1);
+    const int y0 = std::clamp(static_cast<int>(std::floor(sy)), -1, H - 1);
+    const double fx = sx - x0;
+    const double fy = sy - y0;
+    const Eigen::Vector3d* g = &(*grid)[static_cast<std::size_t>(y0 + 1) * GW + (x0 + 1)];
+    Eigen::Vector3d q = g[0];
+    if (fx != 0.0) q = (1.0 - fx) * q + fx * g[1];
+    if (fy != 0.0) {
+      Eigen::Vector3d q1 = g[GW];
+      if (fx != 0.0) q1 = (1.0 - fx) * q1 + fx * g[GW + 1];
+      q = (1.0 - fy) * q + fy * q1;
+    }
+    return q.normalized().cast<float>();
+  }
+};
+
+/// One thread's buffers for a row. Sample k of the row lies in sub-row j = k / (W n), pixel x = (k / n) % W,
+/// sub-column i = k % n, so that neighbouring rays are neighbours in the image (coherent packets); the pixel centres
+/// follow (even n).
+struct RowBuffers {
+  std::vector<RTCRayHit> rays;
+  std::vector<Eigen::Vector3f> dirs, radiance, direct;
+  std::vector<int> shadow_owner;
+  std::vector<RTCRay> shadow_rays;
+
+  explicit RowBuffers(const ViewRays& v)
+      : rays(static_cast<std::size_t>(v.rays_per_row)),
+        dirs(static_cast<std::size_t>(v.rays_per_row)),
+        radiance(static_cast<std::size_t>(v.samples_per_row)) {
+    direct.reserve(static_cast<std::size_t>(v.samples_per_row));
+    shadow_owner.reserve(static_cast<std::size_t>(v.samples_per_row));
+    shadow_rays.reserve(static_cast<std::size_t>(v.samples_per_row));
+  }
+};
+
+/// Row y's primary rays: the sub-pixel grid, then (even n) the pixel centres.
+void primaryRays(const ViewRays& v, int y, RowBuffers& b) {
+  const int n = v.n;
+  for (int j = 0; j < n; ++j) {
+    const double sy = y - 0.5 + (j + 0.5) / n;
+    for (int x = 0; x < v.W; ++x) {
+      for (int i = 0; i < n; ++i) {
+        const double sx = x - 0.5 + (i + 0.5) / n;
+        const std::size_t k = (static_cast<std::size_t>(j) * v.W + x) * n + i;
+        b.dirs[k] = v.direction(sx, sy);
+        setRay(b.rays[k], v.centre, b.dirs[k], 0.0f);
+      }
+    }
+  }
+  if (!v.centre_is_sample) {
+    for (int x = 0; x < v.W; ++x) {
+      const std::size_t k = static_cast<std::size_t>(v.samples_per_row + x);
+      b.dirs[k] = v.direction(x, y);
+      setRay(b.rays[k], v.centre, b.dirs[k], 0.0f);
+    }
+  }
+}
+
+/// Additive Gaussian noise on every channel (rounded, saturated), from `seed`.
+void addNoise(float sigma, std::uint64_t seed, cv::Mat* image) {
+  cv::RNG rng(seed);
+  cv::Mat noise(image->size(), CV_32FC3);
+  rng.fill(noise, cv::RNG::NORMAL, cv::Scalar::all(0.0), cv::Scalar::all(sigma));
+  cv::Mat noisy;
+  image->convertTo(noisy, CV_32FC3);
+  noisy += noise;
+  noisy.convertTo(*image, CV_8UC3);
+}
+
+}  // namespace
+
 struct Renderer::Impl {
   ErrorLog log;
   RTCDevice device = nullptr;
@@ -387,6 +477,13 @@ struct Renderer::Impl {
     }
     return out;
   }
+
+  /// Shades row y's samples in b.radiance (its primary rays already traced): shadow rays collected and traced
+  /// together.
+  void shadeRow(const Eigen::Vector3f& centre, const Eigen::Vector3f& light, const Lighting& lighting, bool shadows,
+                int samples, RTCIntersectContext* ctx, RowBuffers& b) const;
+  /// Image (mean of the samples in linear space, exposure, sRGB) and ground truth of the pixel-centre rays of row y.
+  void writeRow(const ViewRays& v, int y, float exposure, const RowBuffers& b, ViewRender& out) const;
 };
 
 Renderer::Renderer(const Scene& scene) : impl_(std::make_unique<Impl>()) {
@@ -445,185 +542,120 @@ Renderer::Renderer(const Scene& scene) : impl_(std::make_unique<Impl>()) {
 
 Renderer::~Renderer() = default;
 
+void Renderer::Impl::shadeRow(const Eigen::Vector3f& centre, const Eigen::Vector3f& light, const Lighting& lighting,
+                              bool shadows, int samples, RTCIntersectContext* ctx, RowBuffers& b) const {
+  b.direct.clear();
+  b.shadow_owner.clear();
+  b.shadow_rays.clear();
+  for (int k = 0; k < samples; ++k) {
+    const Shade sh = shade(b.rays[k], centre, b.dirs[k], light, lighting, shadows);
+    b.radiance[k] = sh.base;
+    if (!sh.needs_shadow_ray) {
+      b.radiance[k] += sh.direct;
+      continue;
+    }
+    RTCRay r;
+    r.org_x = sh.shadow_origin.x();
+    r.org_y = sh.shadow_origin.y();
+    r.org_z = sh.shadow_origin.z();
+    r.dir_x = light.x();
+    r.dir_y = light.y();
+    r.dir_z = light.z();
+    r.tnear = 0.0f;
+    r.tfar = kInf;
+    r.time = 0.0f;
+    r.mask = 0xFFFFFFFFu;
+    r.id = 0;
+    r.flags = 0;
+    b.shadow_rays.push_back(r);
+    b.shadow_owner.push_back(k);
+    b.direct.push_back(sh.direct);
+  }
+  if (b.shadow_rays.empty()) return;
+  rtcOccluded1M(scene, ctx, b.shadow_rays.data(), static_cast<unsigned>(b.shadow_rays.size()), sizeof(RTCRay));
+  for (std::size_t s = 0; s < b.shadow_rays.size(); ++s) {
+    // Embree sets tfar to -inf when the ray is occluded.
+    if (b.shadow_rays[s].tfar >= 0.0f) b.radiance[b.shadow_owner[s]] += b.direct[s];
+  }
+}
+
+void Renderer::Impl::writeRow(const ViewRays& v, int y, float exposure, const RowBuffers& b, ViewRender& out) const {
+  const int n = v.n;
+  const float inv_samples = 1.0f / static_cast<float>(n * n);
+  auto* img = out.image.ptr<cv::Vec3b>(y);
+  auto* dep = out.depth.ptr<float>(y);
+  auto* pts = out.points.ptr<cv::Vec3f>(y);
+  auto* lab = out.labels.ptr<std::uint8_t>(y);
+  for (int x = 0; x < v.W; ++x) {
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    for (int j = 0; j < n; ++j) {
+      const std::size_t k0 = (static_cast<std::size_t>(j) * v.W + x) * n;
+      for (int i = 0; i < n; ++i) sum += b.radiance[k0 + i];
+    }
+    const Eigen::Vector3f c = sum * (inv_samples * exposure);
+    img[x] = cv::Vec3b(cv::saturate_cast<std::uint8_t>(255.0f * srgbEncode(c.z())),
+                       cv::saturate_cast<std::uint8_t>(255.0f * srgbEncode(c.y())),
+                       cv::saturate_cast<std::uint8_t>(255.0f * srgbEncode(c.x())));
+    // Ground truth of the exact pixel-centre ray (for odd n the middle sub-sample is exactly (x, y)).
+    const std::size_t kc = v.centre_is_sample ? (static_cast<std::size_t>(v.middle) * v.W + x) * n + v.middle
+                                              : static_cast<std::size_t>(v.samples_per_row + x);
+    const RTCRayHit& rh = b.rays[kc];
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+      dep[x] = kNaN;
+      pts[x] = cv::Vec3f(kNaN, kNaN, kNaN);
+      lab[x] = kLabelBackground;
+      continue;
+    }
+    const double t = rh.ray.tfar;
+    const Eigen::Vector3d dir = b.dirs[kc].cast<double>();
+    const Eigen::Vector3d p = v.centre_d + t * dir;
+    dep[x] = static_cast<float>(t * dir.dot(v.optical_z));
+    pts[x] = cv::Vec3f(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+    const Mesh& mesh = meshes[rh.hit.geomID];
+    lab[x] = mesh.triangle_labels.empty() ? mesh.label : mesh.triangle_labels[rh.hit.primID];
+  }
+}
+
 ViewRender Renderer::render(const CameraModel& camera, const Lighting& lighting, const RenderOptions& options) const {
   validateOptions(options);
   validateCamera(camera);
   const Eigen::Vector3f light = validLightDirection(lighting);
   const Impl& im = *impl_;
 
-  const int W = camera.width;
-  const int H = camera.height;
-  const int n = options.supersample;
-  const bool centre_is_sample = (n % 2) == 1;  // the middle sub-sample is the pixel centre
-  const int middle = (n - 1) / 2;
-  const float inv_samples = 1.0f / static_cast<float>(n * n);
-  const float exposure = options.exposure;
-  const Eigen::Vector3d centre_d = camera.centre();
-  const Eigen::Vector3f centre = centre_d.cast<float>();
-  const Eigen::Vector3d optical_z = camera.world_from_camera.linear().col(2).normalized();
+  ViewRays v;
+  v.W = camera.width;
+  v.H = camera.height;
+  v.n = options.supersample;
+  v.centre_is_sample = (v.n % 2) == 1;
+  v.middle = (v.n - 1) / 2;
+  v.centre_d = camera.centre();
+  v.centre = v.centre_d.cast<float>();
+  v.optical_z = camera.world_from_camera.linear().col(2).normalized();
+  v.samples_per_row = v.W * v.n * v.n;
+  v.rays_per_row = v.samples_per_row + (v.centre_is_sample ? 0 : v.W);
+  // rayDirection once per pixel instead of n^2 + 1 times (with distortion it iterates, about 1 us per call); the
+  // grid is cached for the last few cameras (same size, K, D and orientation).
+  v.grid = im.rayGrid(camera, v.optical_z);
 
   ViewRender out;
-  out.image.create(H, W, CV_8UC3);
-  out.depth.create(H, W, CV_32F);
-  out.points.create(H, W, CV_32FC3);
-  out.labels.create(H, W, CV_8U);
-
-  const int samples_per_row = W * n * n;
-  const int rays_per_row = samples_per_row + (centre_is_sample ? 0 : W);
-
-  // Exact camera rays at the pixel centres, on a grid padded by one pixel
-  // (x = -1..W, y = -1..H), each scaled to unit optical depth: q = d / (d . z).
-  // q is affine in the pixel for a pinhole camera, so the sub-pixel rays are
-  // bilinear interpolations of it: exact without distortion, and within
-  // ~1e-4 px with it (second order in the distortion's curvature over half a
-  // pixel). This calls rayDirection once per pixel instead of n^2 + 1 times
-  // (with distortion it iterates, about 1 us per call), and the grid is cached
-  // for the last few cameras (same size, K, D and orientation).
-  const int GW = W + 2;
-  const std::shared_ptr<const std::vector<Eigen::Vector3d>> grid_ptr = im.rayGrid(camera, optical_z);
-  const std::vector<Eigen::Vector3d>& grid = *grid_ptr;
-  // Unit direction through (sx, sy), -0.5 < sx < W - 0.5, -0.5 < sy < H - 0.5;
-  // exactly the grid's value at integer (pixel centre) coordinates.
-  auto directionAt = [&](double sx, double sy) -> Eigen::Vector3f {
-    const int x0 = std::clamp(static_cast<int>(std::floor(sx)), -1, W - 1);
-    const int y0 = std::clamp(static_cast<int>(std::floor(sy)), -1, H - 1);
-    const double fx = sx - x0;
-    const double fy = sy - y0;
-    const Eigen::Vector3d* g = &grid[static_cast<std::size_t>(y0 + 1) * GW + (x0 + 1)];
-    Eigen::Vector3d q = g[0];
-    if (fx != 0.0) q = (1.0 - fx) * q + fx * g[1];
-    if (fy != 0.0) {
-      Eigen::Vector3d q1 = g[GW];
-      if (fx != 0.0) q1 = (1.0 - fx) * q1 + fx * g[GW + 1];
-      q = (1.0 - fy) * q + fy * q1;
-    }
-    return q.normalized().cast<float>();
-  };
-
-  cv::parallel_for_(cv::Range(0, H), [&](const cv::Range& rows) {
+  out.image.create(v.H, v.W, CV_8UC3);
+  out.depth.create(v.H, v.W, CV_32F);
+  out.points.create(v.H, v.W, CV_32FC3);
+  out.labels.create(v.H, v.W, CV_8U);
+  cv::parallel_for_(cv::Range(0, v.H), [&](const cv::Range& rows) {
     ScopedFlushDenormals ftz;
     RTCIntersectContext coherent;
     rtcInitIntersectContext(&coherent);
     coherent.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    // Per-chunk buffers, reused for each row. Sample k of the row lies in
-    // sub-row j = k / (W n), pixel x = (k / n) % W, sub-column i = k % n, so
-    // that neighbouring rays are neighbours in the image (coherent packets).
-    std::vector<RTCRayHit> rays(static_cast<std::size_t>(rays_per_row));
-    std::vector<Eigen::Vector3f> dirs(static_cast<std::size_t>(rays_per_row));
-    std::vector<Eigen::Vector3f> radiance(static_cast<std::size_t>(samples_per_row));
-    std::vector<Eigen::Vector3f> direct;
-    std::vector<int> shadow_owner;
-    std::vector<RTCRay> shadow_rays;
-    direct.reserve(static_cast<std::size_t>(samples_per_row));
-    shadow_owner.reserve(static_cast<std::size_t>(samples_per_row));
-    shadow_rays.reserve(static_cast<std::size_t>(samples_per_row));
-
+    RowBuffers b(v);
     for (int y = rows.start; y < rows.end; ++y) {
-      // Primary rays: the sub-pixel grid, then (even n) the pixel centres.
-      for (int j = 0; j < n; ++j) {
-        const double sy = y - 0.5 + (j + 0.5) / n;
-        for (int x = 0; x < W; ++x) {
-          for (int i = 0; i < n; ++i) {
-            const double sx = x - 0.5 + (i + 0.5) / n;
-            const std::size_t k = (static_cast<std::size_t>(j) * W + x) * n + i;
-            dirs[k] = directionAt(sx, sy);
-            setRay(rays[k], centre, dirs[k], 0.0f);
-          }
-        }
-      }
-      if (!centre_is_sample) {
-        for (int x = 0; x < W; ++x) {
-          const std::size_t k = static_cast<std::size_t>(samples_per_row + x);
-          dirs[k] = directionAt(x, y);
-          setRay(rays[k], centre, dirs[k], 0.0f);
-        }
-      }
-      rtcIntersect1M(im.scene, &coherent, rays.data(), static_cast<unsigned>(rays_per_row), sizeof(RTCRayHit));
-
-      // Shading; shadow rays collected and traced together.
-      direct.clear();
-      shadow_owner.clear();
-      shadow_rays.clear();
-      for (int k = 0; k < samples_per_row; ++k) {
-        const Impl::Shade sh = im.shade(rays[k], centre, dirs[k], light, lighting, options.shadows);
-        radiance[k] = sh.base;
-        if (sh.needs_shadow_ray) {
-          RTCRay r;
-          r.org_x = sh.shadow_origin.x();
-          r.org_y = sh.shadow_origin.y();
-          r.org_z = sh.shadow_origin.z();
-          r.dir_x = light.x();
-          r.dir_y = light.y();
-          r.dir_z = light.z();
-          r.tnear = 0.0f;
-          r.tfar = kInf;
-          r.time = 0.0f;
-          r.mask = 0xFFFFFFFFu;
-          r.id = 0;
-          r.flags = 0;
-          shadow_rays.push_back(r);
-          shadow_owner.push_back(k);
-          direct.push_back(sh.direct);
-        } else {
-          radiance[k] += sh.direct;
-        }
-      }
-      if (!shadow_rays.empty()) {
-        rtcOccluded1M(im.scene, &coherent, shadow_rays.data(), static_cast<unsigned>(shadow_rays.size()),
-                      sizeof(RTCRay));
-        for (std::size_t s = 0; s < shadow_rays.size(); ++s) {
-          // Embree sets tfar to -inf when the ray is occluded.
-          if (shadow_rays[s].tfar >= 0.0f) radiance[shadow_owner[s]] += direct[s];
-        }
-      }
-
-      auto* img = out.image.ptr<cv::Vec3b>(y);
-      auto* dep = out.depth.ptr<float>(y);
-      auto* pts = out.points.ptr<cv::Vec3f>(y);
-      auto* lab = out.labels.ptr<std::uint8_t>(y);
-      for (int x = 0; x < W; ++x) {
-        // Image: the mean of the pixel's samples in linear space, exposure, sRGB.
-        Eigen::Vector3f sum = Eigen::Vector3f::Zero();
-        for (int j = 0; j < n; ++j) {
-          const std::size_t k0 = (static_cast<std::size_t>(j) * W + x) * n;
-          for (int i = 0; i < n; ++i) sum += radiance[k0 + i];
-        }
-        const Eigen::Vector3f c = sum * (inv_samples * exposure);
-        img[x] = cv::Vec3b(cv::saturate_cast<std::uint8_t>(255.0f * srgbEncode(c.z())),
-                           cv::saturate_cast<std::uint8_t>(255.0f * srgbEncode(c.y())),
-                           cv::saturate_cast<std::uint8_t>(255.0f * srgbEncode(c.x())));
-
-        // Ground truth of the exact pixel-centre ray (for odd n the middle
-        // sub-sample is exactly (x, y)).
-        const std::size_t kc = centre_is_sample ? (static_cast<std::size_t>(middle) * W + x) * n + middle
-                                                : static_cast<std::size_t>(samples_per_row + x);
-        const RTCRayHit& rh = rays[kc];
-        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
-          dep[x] = kNaN;
-          pts[x] = cv::Vec3f(kNaN, kNaN, kNaN);
-          lab[x] = kLabelBackground;
-        } else {
-          const double t = rh.ray.tfar;
-          const Eigen::Vector3d dir = dirs[kc].cast<double>();
-          const Eigen::Vector3d p = centre_d + t * dir;
-          dep[x] = static_cast<float>(t * dir.dot(optical_z));
-          pts[x] = cv::Vec3f(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
-          const Mesh& mesh = im.meshes[rh.hit.geomID];
-          lab[x] = mesh.triangle_labels.empty() ? mesh.label : mesh.triangle_labels[rh.hit.primID];
-        }
-      }
+      primaryRays(v, y, b);
+      rtcIntersect1M(im.scene, &coherent, b.rays.data(), static_cast<unsigned>(v.rays_per_row), sizeof(RTCRayHit));
+      im.shadeRow(v.centre, light, lighting, options.shadows, v.samples_per_row, &coherent, b);
+      im.writeRow(v, y, options.exposure, b, out);
     }
   });
-
-  if (options.noise_sigma > 0.0f) {
-    cv::RNG rng(static_cast<std::uint64_t>(options.noise_seed));
-    cv::Mat noise(H, W, CV_32FC3);
-    rng.fill(noise, cv::RNG::NORMAL, cv::Scalar::all(0.0), cv::Scalar::all(options.noise_sigma));
-    cv::Mat noisy;
-    out.image.convertTo(noisy, CV_32FC3);
-    noisy += noise;
-    noisy.convertTo(out.image, CV_8UC3);  // rounds and saturates
-  }
+  if (options.noise_sigma > 0.0f) addNoise(options.noise_sigma, options.noise_seed, &out.image);
   return out;
 }
 
