@@ -392,14 +392,9 @@ int neckBase(const std::vector<double>& w, int ish, int n) {
   return narrow >= kNeckRows * n ? base : -1;
 }
 
-BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& model, const ImageEdge& edge) {
-  Rows rows = usableContour(seg.contour) ? rowsFromContour(seg.contour) : rowsFromMask(seg.mask);
-  tidyRows(rows);
+/// The back's widths per row, smoothed over kSmoothFraction of its rows.
+std::vector<double> smoothedWidths(const Rows& rows) {
   const int n = rows.size();
-  if (n < kMinRows) {
-    return invalid("back too small: " + std::to_string(n) + " rows (need at least " + std::to_string(kMinRows) + ")");
-  }
-  // Smoothed widths.
   const int half = std::max(1, static_cast<int>(std::lround(kSmoothFraction * n)));
   std::vector<double> w(static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i) {
@@ -408,21 +403,42 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
     for (int j = std::max(0, i - half); j <= std::min(n - 1, i + half); ++j, ++cnt) acc += rows.width(j);
     w[static_cast<std::size_t>(i)] = acc / cnt;
   }
-  auto W = [&](int i) { return w[static_cast<std::size_t>(i)]; };
+  return w;
+}
 
+/// What the width profile shows (row indices from the back's top): the shoulder line, the neck's base, the hips,
+/// the waist - or why the silhouette is not a back.
+struct WidthProfile {
+  std::string problem;   ///< non-empty: not a back, and why
+  int ish = 0;           ///< shoulder line: widest row of the upper part
+  int ineck = -1;        ///< the neck's base (-1: none in view)
+  bool no_neck = false;  ///< no widening from a neck to the shoulders
+  std::string no_waist;  ///< why no waist is measured (empty: it is)
+  double waist_row = kNaN;
+  int iend = 0;  ///< end of the midline fit
+};
+
+WidthProfile widthProfile(const Rows& rows, const std::vector<double>& w, const Segmentation& seg,
+                          const ImageEdge& edge) {
+  const int n = rows.size();
+  auto W = [&](int i) { return w[static_cast<std::size_t>(i)]; };
+  WidthProfile p;
   // Shoulder line: widest row of the upper part; the neck above it must be narrower.
   const int shoulder_end = std::max(1, static_cast<int>(kShoulderSearch * n));
-  int ish = 0;
   for (int i = 0; i <= shoulder_end; ++i) {
-    if (W(i) > W(ish)) ish = i;
+    if (W(i) > W(p.ish)) p.ish = i;
   }
+  const int ish = p.ish;
   double above = W(ish);
   for (int i = 0; i < ish; ++i) above = std::min(above, W(i));
   // C7: at the neck's base when a neck is in view, else from the back's top;
   // a back cut by the image's top edge with no neck has C7 above the image.
-  const bool no_neck = ish == 0 || above > kNeckNarrower * W(ish);
-  if (no_neck && !edge.cut_at_top) return invalid("not a back: no widening from the neck to the shoulders");
-  const int ineck = no_neck ? -1 : neckBase(w, ish, n);
+  p.no_neck = ish == 0 || above > kNeckNarrower * W(ish);
+  if (p.no_neck && !edge.cut_at_top) {
+    p.problem = "not a back: no widening from the neck to the shoulders";
+    return p;
+  }
+  p.ineck = p.no_neck ? -1 : neckBase(w, ish, n);
   // Hips: walking up from the bottom, the widest row before the width has
   // dropped kHipDrop below the widest so far (past the tapering end, the first
   // clear maximum); waist: narrowest row between the shoulders and the hips.
@@ -443,77 +459,86 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   // its levels from C7 and the shoulder width instead; so has a trunk whose
   // flanks are the creases of arms lying along it (the silhouette's waist is
   // then where the arms touch, not the trunk's).
-  std::string no_waist;
   const bool creased = seg.trunk.arm_left || seg.trunk.arm_right;
   if (up == ish)
-    no_waist = "no waist (no narrowing between the shoulders and the bottom)";
+    p.no_waist = "no waist (no narrowing between the shoulders and the bottom)";
   else if (W(iw) > kWaistNarrower * W(ish))
-    no_waist = "no narrowing at the waist";
+    p.no_waist = "no narrowing at the waist";
   else if (W(ih) < (1.0 + kHipWider) * W(iw) + 0.5)
-    no_waist = "no widening below the waist (hips out of view?)";
-  if (!no_waist.empty() && (!edge.cut_at_bottom || no_neck) && !creased) return invalid("not a back: " + no_waist);
-  if (creased && !no_neck && no_waist.empty()) no_waist = "the flanks are the arms' creases";
-  if (!no_waist.empty() && no_neck)
-    return invalid("not a back: neither the neck nor the waist in view (" + no_waist + ")");
-  const int iend = n - 1 - std::max(1, static_cast<int>(kBottomMargin * n));  // end of the midline fit
-  if (iend < ish + 3) return invalid("not a back: too short below the shoulders");
-  double waist_row = kNaN;
-  if (no_waist.empty()) {
+    p.no_waist = "no widening below the waist (hips out of view?)";
+  if (!p.no_waist.empty() && (!edge.cut_at_bottom || p.no_neck) && !creased) {
+    p.problem = "not a back: " + p.no_waist;
+    return p;
+  }
+  if (creased && !p.no_neck && p.no_waist.empty()) p.no_waist = "the flanks are the arms' creases";
+  if (!p.no_waist.empty() && p.no_neck) {
+    p.problem = "not a back: neither the neck nor the waist in view (" + p.no_waist + ")";
+    return p;
+  }
+  p.iend = n - 1 - std::max(1, static_cast<int>(kBottomMargin * n));
+  if (p.iend < ish + 3) {
+    p.problem = "not a back: too short below the shoulders";
+    return p;
+  }
+  if (p.no_waist.empty()) {
     const double threshold = W(iw) + kWaistPlateau * (W(ih) - W(iw));
     int wa = iw, wb = iw;
     while (wa > ish && W(wa - 1) <= threshold) --wa;
     while (wb < ih && W(wb + 1) <= threshold) ++wb;
-    waist_row = rows.y0 + 0.5 * (wa + wb);
+    p.waist_row = rows.y0 + 0.5 * (wa + wb);
   }
+  return p;
+}
 
-  // Midline over the torso rows, then the top and bottom where it meets the outline.
-  Midline mid;
-  if (!fitMidline(rows, ish, iend, mid)) return invalid("midline fit failed");
-  double top = 0.0, bottom = 0.0;
-  if (!midlineCrossings(seg, mid, &top, &bottom)) return invalid("the midline does not cross the back's outline");
-  top -= 0.5;  // pixel centre of the boundary -> its outer edge
-  bottom += 0.5;
-  const double shoulder_row = rows.y0 + ish;
-  const double anchor = ineck >= 0 ? rows.y0 + ineck : top;  // C7 lies c * length below it
+/// C7 and L4 (image rows) from what is in view: the anchor (the neck's base or the back's top) and the waist; else
+/// one of them and the model's proportions.
+struct Levels {
+  std::string problem;  ///< non-empty: why there are none
+  double c7_row = kNaN, l4_row = kNaN, waist_row = kNaN;
+  double length = kNaN;  ///< C7 to L4, rows
+  bool c7_from_shoulders = false;
+};
 
-  // C7 and L4 from what is in view: the anchor and the waist; else one of
-  // them and the model's proportions.
+Levels levelsOf(const WidthProfile& p, double shoulder_row, double shoulder_width, double anchor,
+                const AcupointModel& model) {
+  Levels out;
   const double c = model.c7_below_top, q = model.waist_fraction;
   double length = kNaN;
-  if (!no_neck && no_waist.empty())
-    length = (waist_row - anchor) / (c + q);
-  else if (!no_neck)
-    length = model.length_per_shoulder_width * W(ish);
+  if (!p.no_neck && p.no_waist.empty())
+    length = (p.waist_row - anchor) / (c + q);
+  else if (!p.no_neck)
+    length = model.length_per_shoulder_width * shoulder_width;
   else
-    length = (waist_row - shoulder_row) / (q - model.shoulder_below_c7);
-  if (!(length > 0.0)) return invalid("the waist is not below the top of the back");
+    length = (p.waist_row - shoulder_row) / (q - model.shoulder_below_c7);
+  if (!(length > 0.0)) {
+    out.problem = "the waist is not below the top of the back";
+    return out;
+  }
   // Without a neck in view the back's top may not be the neck's base (hair
   // over the nape, hands or a cradle above it): when the shoulder line puts
   // C7 elsewhere, it is taken from the shoulder line.
-  bool c7_from_shoulders = no_neck;
-  if (!no_neck && ineck < 0) {
-    const double prop = model.length_per_shoulder_width * W(ish);
+  out.c7_from_shoulders = p.no_neck;
+  if (!p.no_neck && p.ineck < 0) {
+    const double prop = model.length_per_shoulder_width * shoulder_width;
     if (std::abs(anchor + c * length - (shoulder_row - model.shoulder_below_c7 * prop)) > kTopMismatch * prop) {
-      c7_from_shoulders = true;
-      length = no_waist.empty() ? (waist_row - shoulder_row) / (q - model.shoulder_below_c7) : prop;
-      if (!(length > 0.0)) return invalid("the waist is not below the shoulder line");
+      out.c7_from_shoulders = true;
+      length = p.no_waist.empty() ? (p.waist_row - shoulder_row) / (q - model.shoulder_below_c7) : prop;
+      if (!(length > 0.0)) {
+        out.problem = "the waist is not below the shoulder line";
+        return out;
+      }
     }
   }
-  const double c7_row = c7_from_shoulders ? shoulder_row - model.shoulder_below_c7 * length : anchor + c * length;
-  const double l4_row = c7_row + length;
-  if (!no_waist.empty()) waist_row = c7_row + q * length;  // where the model puts it
-  // A back that leaves the image at its bottom (the camera shifted toward the
-  // head) may have its iliac-crest line out of view: the levels still follow
-  // from C7 and the waist, and the points beyond the image are reported
-  // invalid by the placement and the localisation, each with its reason.
-  // Its own silhouette ending above L4 is not a back, or not this model's.
-  const cv::Point2f bottom_point(static_cast<float>(mid.x(bottom)), static_cast<float>(bottom));
-  const bool cut_by_image = apply(edge.to_head_up, bottom_point).y >= static_cast<double>(edge.rows) - 1.0;
-  if (!(l4_row < bottom) && !(cut_by_image && l4_row < bottom + kMaxOutOfView * length)) {
-    return invalid("the iliac-crest line (row " + num(l4_row) + ") is below the back's bottom (row " + num(bottom) +
-                   ")");
-  }
+  out.c7_row = out.c7_from_shoulders ? shoulder_row - model.shoulder_below_c7 * length : anchor + c * length;
+  out.l4_row = out.c7_row + length;
+  out.length = length;
+  out.waist_row = p.no_waist.empty() ? p.waist_row : out.c7_row + q * length;  // else where the model puts it
+  return out;
+}
 
+/// The landmarks: the midline from `top` to `bottom` with its lateral direction, C7, L4 and what was measured.
+BackLandmarks landmarksOf(const Midline& mid, double top, double bottom, const WidthProfile& p, const Levels& lv,
+                          double shoulder_row, double shoulder_width, double anchor) {
   BackLandmarks l;
   l.valid = true;
   for (int y = static_cast<int>(std::ceil(top)); y <= static_cast<int>(std::floor(bottom)); ++y) {
@@ -522,25 +547,64 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
     // Caudal tangent (s, 1); the subject's left is the tangent turned by +90 deg in image coordinates.
     l.lateral.emplace_back(static_cast<float>(-1.0 / norm), static_cast<float>(s / norm));
   }
-  l.c7 = cv::Point2f(static_cast<float>(mid.x(c7_row)), static_cast<float>(c7_row));
-  l.l4 = cv::Point2f(static_cast<float>(mid.x(l4_row)), static_cast<float>(l4_row));
-  l.shoulder_row = rows.y0 + ish;
-  l.shoulder_width = W(ish);
-  l.waist_row = waist_row;
-  l.iliac_row = l4_row;
+  l.c7 = cv::Point2f(static_cast<float>(mid.x(lv.c7_row)), static_cast<float>(lv.c7_row));
+  l.l4 = cv::Point2f(static_cast<float>(mid.x(lv.l4_row)), static_cast<float>(lv.l4_row));
+  l.shoulder_row = shoulder_row;
+  l.shoulder_width = shoulder_width;
+  l.waist_row = lv.waist_row;
+  l.iliac_row = lv.l4_row;
   l.top_row = anchor;
-  l.c7_measured = !c7_from_shoulders;
-  l.waist_measured = no_waist.empty();
-  l.measured.push_back(ineck >= 0          ? "C7 at the neck's base"
-                       : c7_from_shoulders ? "the shoulder line"
-                                           : "C7 at the back's top");
+  l.c7_measured = !lv.c7_from_shoulders;
+  l.waist_measured = p.no_waist.empty();
+  l.measured.push_back(p.ineck >= 0           ? "C7 at the neck's base"
+                       : lv.c7_from_shoulders ? "the shoulder line"
+                                              : "C7 at the back's top");
   if (l.waist_measured) l.measured.push_back("the waist");
   if (!l.c7_measured)
     l.inferred.push_back(
-        no_neck ? "C7 from the shoulder line (the neck is out of view)"
-                : "C7 from the shoulder line (the back's top is not the neck's base: hair or something over it)");
-  if (!l.waist_measured) l.inferred.push_back("L4 from C7 and the shoulder width (" + no_waist + ")");
+        p.no_neck ? "C7 from the shoulder line (the neck is out of view)"
+                  : "C7 from the shoulder line (the back's top is not the neck's base: hair or something over it)");
+  if (!l.waist_measured) l.inferred.push_back("L4 from C7 and the shoulder width (" + p.no_waist + ")");
   return l;
+}
+
+BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& model, const ImageEdge& edge) {
+  Rows rows = usableContour(seg.contour) ? rowsFromContour(seg.contour) : rowsFromMask(seg.mask);
+  tidyRows(rows);
+  const int n = rows.size();
+  if (n < kMinRows) {
+    return invalid("back too small: " + std::to_string(n) + " rows (need at least " + std::to_string(kMinRows) + ")");
+  }
+  const std::vector<double> w = smoothedWidths(rows);
+  const WidthProfile p = widthProfile(rows, w, seg, edge);
+  if (!p.problem.empty()) return invalid(p.problem);
+
+  // Midline over the torso rows, then the top and bottom where it meets the outline.
+  Midline mid;
+  if (!fitMidline(rows, p.ish, p.iend, mid)) return invalid("midline fit failed");
+  double top = 0.0, bottom = 0.0;
+  if (!midlineCrossings(seg, mid, &top, &bottom)) return invalid("the midline does not cross the back's outline");
+  top -= 0.5;  // pixel centre of the boundary -> its outer edge
+  bottom += 0.5;
+  const double shoulder_row = rows.y0 + p.ish;
+  const double shoulder_width = w[static_cast<std::size_t>(p.ish)];
+  const double anchor = p.ineck >= 0 ? rows.y0 + p.ineck : top;  // C7 lies c * length below it
+  const Levels lv = levelsOf(p, shoulder_row, shoulder_width, anchor, model);
+  if (!lv.problem.empty()) return invalid(lv.problem);
+
+  // A back that leaves the image at its bottom (the camera shifted toward the
+  // head) may have its iliac-crest line out of view: the levels still follow
+  // from C7 and the waist, and the points beyond the image are reported
+  // invalid by the placement and the localisation, each with its reason.
+  // Its own silhouette ending above L4 is not a back, or not this model's.
+  const double length = lv.length;
+  const cv::Point2f bottom_point(static_cast<float>(mid.x(bottom)), static_cast<float>(bottom));
+  const bool cut_by_image = apply(edge.to_head_up, bottom_point).y >= static_cast<double>(edge.rows) - 1.0;
+  if (!(lv.l4_row < bottom) && !(cut_by_image && lv.l4_row < bottom + kMaxOutOfView * length)) {
+    return invalid("the iliac-crest line (row " + num(lv.l4_row) + ") is below the back's bottom (row " + num(bottom) +
+                   ")");
+  }
+  return landmarksOf(mid, top, bottom, p, lv, shoulder_row, shoulder_width, anchor);
 }
 
 /// The 180-degree turn of an image of `cols` x `rows` (its own inverse).
