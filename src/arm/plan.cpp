@@ -128,135 +128,190 @@ std::vector<Step> retractSteps(const ArmConfig& c, const Step& from) {
   return out;
 }
 
-std::string planMassage(const ArmConfig& c, const Eigen::Vector3d& from, const PressRequest& req,
-                        std::vector<Step>* steps) {
-  steps->clear();
+namespace {
+
+/// The request's own limits (targets, hold, repeats, speed, depth) and the tool's current position; the hold and
+/// speed to use (a request's negative hold / zero speed: the configuration's).
+std::string checkRequest(const ArmConfig& c, const Eigen::Vector3d& from, const PressRequest& req, double* hold,
+                         double* speed) {
   const PressConfig& pc = c.press;
   if (req.targets.empty()) return "no target given";
   if (req.targets.size() > static_cast<std::size_t>(pc.max_targets)) {
     return std::to_string(req.targets.size()) + " targets: at most " + std::to_string(pc.max_targets) +
            " in one request (press.max_targets)";
   }
-  const double hold = req.hold < 0.0 ? pc.hold : req.hold;
-  if (!std::isfinite(hold) || hold > pc.max_hold) {
-    return "hold " + m3(hold) + " s is beyond the limit " + m3(pc.max_hold) + " s";
+  *hold = req.hold < 0.0 ? pc.hold : req.hold;
+  if (!std::isfinite(*hold) || *hold > pc.max_hold) {
+    return "hold " + m3(*hold) + " s is beyond the limit " + m3(pc.max_hold) + " s";
   }
   if (req.repeats < 1 || req.repeats > pc.max_repeats) {
     return "repeats must be 1.." + std::to_string(pc.max_repeats) + ", got " + std::to_string(req.repeats);
   }
-  const double speed = req.speed == 0.0 ? pc.speed : req.speed;
-  if (!(speed > 0.0) || speed > pc.max_speed) {
-    return "speed " + m3(speed) + " m/s must be in (0, " + m3(pc.max_speed) + "] m/s";
+  *speed = req.speed == 0.0 ? pc.speed : req.speed;
+  if (!(*speed > 0.0) || *speed > pc.max_speed) {
+    return "speed " + m3(*speed) + " m/s must be in (0, " + m3(pc.max_speed) + "] m/s";
   }
   if (!std::isfinite(req.depth) || req.depth < 0.0) return "depth must be >= 0 m (0: the region's default)";
   if (std::string bad = checkTool(c, from); !bad.empty()) return "the tool's current position " + bad;
+  return "";
+}
 
-  std::vector<Step> out;
-  Eigen::Vector3d at = from;
-  auto move = [&](const Eigen::Vector3d& goal, double v, const std::string& label, bool contact, bool retract,
-                  int target, const Eigen::Vector3d& retreat) {
+/// Where one target is pressed: approach point on its normal, the press end point at the region's depth, the travel
+/// height above them, and (kneading) the circle around the pressed point; every point within the arm's reach.
+struct PressGeometry {
+  std::string who;  ///< the target's name, or "target N"
+  Eigen::Vector3d approach, bottom;
+  double travel_z = 0.0;
+  std::vector<Eigen::Vector3d> circle;  ///< kneading: the circle's points, closed
+  int circles = 0;                      ///< ... and how many times it is run
+};
+
+std::string pressGeometry(const ArmConfig& c, const PressRequest& req, int i, double hold, PressGeometry* g) {
+  const PressConfig& pc = c.press;
+  const PressTarget& t = req.targets[i];
+  g->who = t.name.empty() ? "target " + std::to_string(i + 1) : t.name;
+  const std::string& who = g->who;
+  if (!t.point.allFinite()) return who + ": the point is not finite";
+  if (!t.normal.allFinite() || !(t.normal.norm() > 1e-9)) return who + ": the surface normal is zero or not finite";
+  const Eigen::Vector3d n = t.normal.normalized();
+  const double tilt = std::acos(std::clamp(n.z(), -1.0, 1.0));
+  if (tilt > pc.max_normal_tilt + 1e-9) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "%s: the surface normal is %.1f deg from vertical (limit %.1f deg)", who.c_str(),
+                  tilt * 180.0 / M_PI, pc.max_normal_tilt * 180.0 / M_PI);
+    return buf;
+  }
+  const std::string region = t.region.empty() ? c.default_region : t.region;
+  if (!c.regions.count(region)) {
+    std::string known;
+    for (const auto& kv : c.regions) known += (known.empty() ? "" : ", ") + kv.first;
+    return who + ": unknown region '" + region + "' (known: " + known + ")";
+  }
+  const RegionLimits& lim = c.regions.at(region);
+  const double depth = req.depth > 0.0 ? req.depth : lim.default_depth;
+  if (depth > lim.max_depth + 1e-12) {
+    return who + ": depth " + mm(depth) + " is deeper than the " + region + " limit " + mm(lim.max_depth);
+  }
+  g->approach = t.point + pc.approach_height * n;
+  g->bottom = t.point - depth * n;
+  g->travel_z = std::max(pc.travel_height, g->approach.z());
+  struct Named {
+    const char* what;
+    Eigen::Vector3d p;
+  };
+  std::vector<Named> visit = {{"travel point", Eigen::Vector3d(g->approach.x(), g->approach.y(), g->travel_z)},
+                              {"approach point", g->approach},
+                              {"press end point", g->bottom}};
+  // Kneading: circles of knead_radius around the pressed point, in the tangent plane.
+  if (req.technique == Technique::kKnead && pc.knead_radius > 0.0) {
+    Eigen::Vector3d u, v;
+    tangentBasis(n, &u, &v);
+    for (int k = 0; k <= pc.knead_segments; ++k) {
+      const double a = 2.0 * M_PI * k / pc.knead_segments;
+      g->circle.push_back(g->bottom + pc.knead_radius * (std::cos(a) * u + std::sin(a) * v));
+    }
+    g->circles = std::max(1, static_cast<int>(std::lround(hold / pc.knead_period)));
+    for (const auto& p : g->circle) visit.push_back({"knead point", p});
+  }
+  for (const Named& v : visit) {
+    if (std::string bad = checkTool(c, v.p); !bad.empty()) return who + ": the " + v.what + " " + bad;
+  }
+  return "";
+}
+
+/// Appends the steps of a routine, following the tool from `at`.
+class StepWriter {
+ public:
+  StepWriter(const PressConfig& pc, const Eigen::Vector3d& from) : pc_(pc), at_(from) {}
+
+  void move(const Eigen::Vector3d& goal, double v, const std::string& label, bool contact, bool retract, int target,
+            const Eigen::Vector3d& retreat) {
     Step s;
     s.kind = Step::Kind::kMove;
     s.tool = goal;
     s.speed = v;
-    s.accel = v > 0.0 ? pc.acceleration : 0.0;
+    s.accel = v > 0.0 ? pc_.acceleration : 0.0;
     s.label = label;
     s.contact = contact;
     s.retract = retract;
     s.target = target;
     s.retreat = retreat;
-    out.push_back(s);
-    at = goal;
-  };
-  const int n_targets = static_cast<int>(req.targets.size());
-  for (int i = 0; i < n_targets; ++i) {
-    const PressTarget& t = req.targets[i];
-    const std::string who = t.name.empty() ? "target " + std::to_string(i + 1) : t.name;
-    const std::string prefix = "press " + std::to_string(i + 1) + "/" + std::to_string(n_targets) + " " + who + ": ";
-    if (!t.point.allFinite()) return who + ": the point is not finite";
-    if (!t.normal.allFinite() || !(t.normal.norm() > 1e-9)) return who + ": the surface normal is zero or not finite";
-    const Eigen::Vector3d n = t.normal.normalized();
-    const double tilt = std::acos(std::clamp(n.z(), -1.0, 1.0));
-    if (tilt > pc.max_normal_tilt + 1e-9) {
-      char buf[160];
-      std::snprintf(buf, sizeof buf, "%s: the surface normal is %.1f deg from vertical (limit %.1f deg)", who.c_str(),
-                    tilt * 180.0 / M_PI, pc.max_normal_tilt * 180.0 / M_PI);
-      return buf;
-    }
-    const std::string region = t.region.empty() ? c.default_region : t.region;
-    if (!c.regions.count(region)) {
-      std::string known;
-      for (const auto& kv : c.regions) known += (known.empty() ? "" : ", ") + kv.first;
-      return who + ": unknown region '" + region + "' (known: " + known + ")";
-    }
-    const RegionLimits& lim = c.regions.at(region);
-    const double depth = req.depth > 0.0 ? req.depth : lim.default_depth;
-    if (depth > lim.max_depth + 1e-12) {
-      return who + ": depth " + mm(depth) + " is deeper than the " + region + " limit " + mm(lim.max_depth);
-    }
-    const Eigen::Vector3d approach = t.point + pc.approach_height * n;
-    const Eigen::Vector3d bottom = t.point - depth * n;
-    const double travel_z = std::max(pc.travel_height, approach.z());
-    struct Named {
-      const char* what;
-      Eigen::Vector3d p;
-    };
-    std::vector<Named> visit = {{"travel point", Eigen::Vector3d(approach.x(), approach.y(), travel_z)},
-                                {"approach point", approach},
-                                {"press end point", bottom}};
-    // Kneading: circles of knead_radius around the pressed point, in the tangent plane.
-    std::vector<Eigen::Vector3d> circle;
-    int circles = 0;
-    if (req.technique == Technique::kKnead && pc.knead_radius > 0.0) {
-      Eigen::Vector3d u, v;
-      tangentBasis(n, &u, &v);
-      for (int k = 0; k <= pc.knead_segments; ++k) {
-        const double a = 2.0 * M_PI * k / pc.knead_segments;
-        circle.push_back(bottom + pc.knead_radius * (std::cos(a) * u + std::sin(a) * v));
-      }
-      circles = std::max(1, static_cast<int>(std::lround(hold / pc.knead_period)));
-      for (const auto& p : circle) visit.push_back({"knead point", p});
-    }
-    for (const Named& v : visit) {
-      if (std::string bad = checkTool(c, v.p); !bad.empty()) return who + ": the " + v.what + " " + bad;
-    }
-    // Up from where we are, over, down to the approach point.
-    if (at.z() < travel_z - 1e-9)
-      move(Eigen::Vector3d(at.x(), at.y(), travel_z), 0.0, prefix + "up to the travel height", false, false, i,
-           approach);
-    move(Eigen::Vector3d(approach.x(), approach.y(), travel_z), 0.0, prefix + "travel", false, false, i, approach);
-    move(approach, 0.0, prefix + "approach", false, false, i, approach);
+    steps_.push_back(s);
+    at_ = goal;
+  }
+
+  void hold(const Eigen::Vector3d& at, double duration, const std::string& label, int target,
+            const Eigen::Vector3d& retreat) {
+    Step h;
+    h.kind = Step::Kind::kHold;
+    h.tool = at;
+    h.duration = duration;
+    h.label = label;
+    h.contact = true;
+    h.target = target;
+    h.retreat = retreat;
+    steps_.push_back(h);
+  }
+
+  /// Target i: up from where the tool is, over, down to the approach point; each repeat descends, holds (or kneads)
+  /// and retracts; then up to the travel height.
+  void press(const PressGeometry& g, const PressRequest& req, int i, double hold_s, double speed) {
+    const int n_targets = static_cast<int>(req.targets.size());
+    const std::string prefix = "press " + std::to_string(i + 1) + "/" + std::to_string(n_targets) + " " + g.who + ": ";
+    const Eigen::Vector3d over(g.approach.x(), g.approach.y(), g.travel_z);
+    if (at_.z() < g.travel_z - 1e-9)
+      move(Eigen::Vector3d(at_.x(), at_.y(), g.travel_z), 0.0, prefix + "up to the travel height", false, false, i,
+           g.approach);
+    move(over, 0.0, prefix + "travel", false, false, i, g.approach);
+    move(g.approach, 0.0, prefix + "approach", false, false, i, g.approach);
     for (int r = 0; r < req.repeats; ++r) {
       const std::string rep =
           req.repeats > 1 ? " (" + std::to_string(r + 1) + "/" + std::to_string(req.repeats) + ")" : "";
-      move(bottom, speed, prefix + "descend" + rep, true, false, i, approach);
-      if (req.technique == Technique::kKnead && !circle.empty()) {
-        const double seg_len = (circle[1] - circle[0]).norm();
-        const double knead_speed = std::min(pc.max_speed, seg_len * pc.knead_segments / pc.knead_period);
-        move(circle[0], speed, prefix + "knead" + rep, true, false, i, approach);
-        for (int k = 0; k < circles; ++k) {
-          for (std::size_t s = 1; s < circle.size(); ++s)
-            move(circle[s], knead_speed, prefix + "knead" + rep, true, false, i, approach);
-        }
-        move(bottom, speed, prefix + "knead" + rep, true, false, i, approach);
+      move(g.bottom, speed, prefix + "descend" + rep, true, false, i, g.approach);
+      if (req.technique == Technique::kKnead && !g.circle.empty()) {
+        knead(g, prefix + "knead" + rep, i, speed);
       } else {
-        Step h;
-        h.kind = Step::Kind::kHold;
-        h.tool = bottom;
-        h.duration = hold;
-        h.label = prefix + "hold" + rep;
-        h.contact = true;
-        h.target = i;
-        h.retreat = approach;
-        out.push_back(h);
+        hold(g.bottom, hold_s, prefix + "hold" + rep, i, g.approach);
       }
-      move(approach, pc.retract_speed, prefix + "retract" + rep, true, true, i, approach);
-      out.back().press_done = true;
+      move(g.approach, pc_.retract_speed, prefix + "retract" + rep, true, true, i, g.approach);
+      steps_.back().press_done = true;
     }
-    move(Eigen::Vector3d(approach.x(), approach.y(), travel_z), 0.0, prefix + "up to the travel height", false, true, i,
-         approach);
+    move(over, 0.0, prefix + "up to the travel height", false, true, i, g.approach);
   }
-  *steps = std::move(out);
+
+  std::vector<Step>& steps() { return steps_; }
+
+ private:
+  void knead(const PressGeometry& g, const std::string& label, int i, double speed) {
+    const double seg_len = (g.circle[1] - g.circle[0]).norm();
+    const double knead_speed = std::min(pc_.max_speed, seg_len * pc_.knead_segments / pc_.knead_period);
+    move(g.circle[0], speed, label, true, false, i, g.approach);
+    for (int k = 0; k < g.circles; ++k) {
+      for (std::size_t s = 1; s < g.circle.size(); ++s)
+        move(g.circle[s], knead_speed, label, true, false, i, g.approach);
+    }
+    move(g.bottom, speed, label, true, false, i, g.approach);
+  }
+
+  const PressConfig& pc_;
+  Eigen::Vector3d at_;
+  std::vector<Step> steps_;
+};
+
+}  // namespace
+
+std::string planMassage(const ArmConfig& c, const Eigen::Vector3d& from, const PressRequest& req,
+                        std::vector<Step>* steps) {
+  steps->clear();
+  double hold = 0.0, speed = 0.0;
+  if (std::string bad = checkRequest(c, from, req, &hold, &speed); !bad.empty()) return bad;
+  StepWriter writer(c.press, from);
+  for (int i = 0; i < static_cast<int>(req.targets.size()); ++i) {
+    PressGeometry g;
+    if (std::string bad = pressGeometry(c, req, i, hold, &g); !bad.empty()) return bad;
+    writer.press(g, req, i, hold, speed);
+  }
+  *steps = std::move(writer.steps());
   return "";
 }
 
