@@ -94,126 +94,153 @@ Eigen::Vector3d randomPoint(const arm::ArmConfig& c, std::mt19937& rng, const Ei
   return p;
 }
 
+/// The arm node's controller on simulated drives (the node's code path: can_interface sim, realtime_priority,
+/// lock_memory), homed in place, with the node's keep-alive timer, a sniffer on the bus and its cycles recorded.
+class ArmBench {
+ public:
+  explicit ArmBench(const arm::ArmConfig& config) : config_(config), cell_(config_), c_(cell_.controller()) {
+    period_ms_ = config_.can.sync_period_us / 1000.0;
+    sniffer_ = cell_.bus().open("arm_bench sniffer");
+    sniffer_->setFilters({{0x200, 0x780}});  // RPDO1 of every node
+    c_.setCycleObserver([this](can::TimePoint now) {
+      if (!recording_) return;
+      std::lock_guard<std::mutex> lock(cycle_mutex_);
+      cycles_.push_back(now);
+    });
+    keep_alive_ = std::thread([this] {  // the node's keep-alive timer (20 Hz)
+      while (!done_) {
+        c_.keepAlive();
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      }
+    });
+  }
+  ~ArmBench() {
+    done_ = true;
+    if (keep_alive_.joinable()) keep_alive_.join();
+  }
+
+  /// Starts the controller's threads (with the options' real-time settings), brings the drives up and homes.
+  void start(const Options& o) {
+    realtime_ = cell_.start({o.rt_priority, o.lock_memory});
+    if (!realtime_.error.empty()) std::fprintf(stderr, "arm_bench: warning: %s\n", realtime_.error.c_str());
+    waitFor([&] { return c_.mode() != arm::Mode::kStarting; }, 10.0, "the bring-up");
+    if (c_.mode() == arm::Mode::kFault) throw std::runtime_error("bring-up failed: " + c_.status().faults.front());
+    run(c_, c_.home(), "homing");
+  }
+
+  double periodMs() const { return period_ms_; }
+  const can::RealtimeStatus& realtime() const { return realtime_; }
+  void stop() { cell_.stop(); }
+
+  /// |cycle interval - SYNC period| of the controller's cycles while it moves to random points for `seconds`, ms.
+  std::vector<double> cycleJitter(double seconds, std::mt19937& rng) {
+    {
+      std::lock_guard<std::mutex> lock(cycle_mutex_);
+      cycles_.reserve(static_cast<std::size_t>(seconds * 1000.0 / period_ms_) + 1000);
+    }
+    recording_ = true;
+    const auto end = Clock::now() + std::chrono::duration<double>(seconds);
+    while (Clock::now() < end) {
+      const arm::Accepted a = c_.moveTo(randomPoint(config_, rng, c_.status().tool, 1.0));
+      if (!a) throw std::runtime_error("move refused: " + a.error);
+      while (!c_.result(a.id).done && Clock::now() < end) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      if (!c_.result(a.id).done) {
+        // The stop ends this move (which then fails with the stop's reason).
+        const arm::Accepted s = c_.stop("bench time is up");
+        waitFor([&] { return c_.result(s.id).done && c_.mode() == arm::Mode::kIdle; }, 10.0, "the stop");
+      } else if (!c_.result(a.id).success) {
+        throw std::runtime_error("move failed: " + c_.result(a.id).message);
+      }
+    }
+    recording_ = false;
+    std::vector<double> jitter;
+    std::lock_guard<std::mutex> lock(cycle_mutex_);
+    for (std::size_t i = 1; i < cycles_.size(); ++i)
+      jitter.push_back(std::abs(Ms(cycles_[i] - cycles_[i - 1]).count() - period_ms_));
+    if (jitter.size() < 10)
+      throw std::runtime_error("too few controller cycles recorded (" + std::to_string(jitter.size()) + ")");
+    return jitter;
+  }
+
+  /// E-stops pressed during moves: to the quick-stop RPDO1 on the bus and to every drive stopping, ms.
+  void estops(int count, std::mt19937& rng, std::vector<double>* frame_ms, std::vector<double>* drive_ms) {
+    std::uniform_int_distribution<int> delay(150, 600);
+    for (int k = 0; k < count; ++k) {
+      const arm::Accepted a = c_.moveTo(randomPoint(config_, rng, c_.status().tool, 0.1));
+      if (!a) throw std::runtime_error("move refused: " + a.error);
+      std::this_thread::sleep_for(std::chrono::milliseconds(delay(rng)));
+      while (sniffer_->receive(can::Duration::zero())) {
+      }
+      const auto pressed = Clock::now();
+      c_.setEstop(true);
+      double frame = NAN;
+      while (std::isnan(frame)) {
+        const auto f = sniffer_->receive(std::chrono::milliseconds(50));
+        if (!f) throw std::runtime_error("no quick-stop RPDO1 within 50 ms of the e-stop");
+        const std::uint16_t cw = static_cast<std::uint16_t>(f->frame.data[0] | f->frame.data[1] << 8);
+        if (cw == can::cw::kQuickStop) frame = Ms(f->stamp - pressed).count();
+      }
+      frame_ms->push_back(frame);
+      waitFor(
+          [&] {
+            for (int i = 0; i < 3; ++i)
+              if (cell_.drive(i).state() == can::Cia402State::kOperationEnabled) return false;
+            return true;
+          },
+          1.0, "the drives to leave operation enabled");
+      drive_ms->push_back(Ms(Clock::now() - pressed).count());
+      waitFor([&] { return c_.result(a.id).done; }, 1.0, "the move to end");
+      c_.setEstop(false);
+      run(c_, c_.resetFault(), "reset after the e-stop", 10.0);
+    }
+  }
+
+  /// Final position error of moves to random points, on the simulated drives, mm.
+  std::vector<double> moveErrors(int count, std::mt19937& rng) {
+    std::vector<double> error_mm;
+    for (int k = 0; k < count; ++k) {
+      const Eigen::Vector3d goal = randomPoint(config_, rng, c_.status().tool, 0.15);
+      run(c_, c_.moveTo(goal), "move " + std::to_string(k + 1));
+      Eigen::Vector3d q;
+      for (int i = 0; i < 3; ++i) q[i] = config_.axis(i).toMetres(cell_.drive(i).position());
+      error_mm.push_back((config_.toolOf(q) - goal).norm() * 1000.0);
+    }
+    return error_mm;
+  }
+
+ private:
+  const arm::ArmConfig config_;
+  arm::SimCell cell_;
+  arm::Controller& c_;
+  double period_ms_ = 0.0;
+  std::shared_ptr<can::Bus> sniffer_;
+  std::mutex cycle_mutex_;
+  std::vector<Clock::time_point> cycles_;
+  std::atomic<bool> recording_{false}, done_{false};
+  std::thread keep_alive_;
+  can::RealtimeStatus realtime_;
+};
+
+struct Row {
+  const char* name;
+  double value;
+  const char* unit;
+  const char* label;
+};
+
 void bench(const Options& o) {
   arm::ArmConfig config = arm::loadArmConfig(o.config.empty() ? packageFile("config/arm.yaml") : o.config);
   // Home in place (method 37): the bench measures the controller, not homing runs.
   for (can::AxisConfig& a : config.can.axes) a.homing_method = 37;
-  const double period_ms = config.can.sync_period_us / 1000.0;
-  arm::SimCell cell(config);
-  arm::Controller& c = cell.controller();
-  auto sniffer = cell.bus().open("arm_bench sniffer");
-  sniffer->setFilters({{0x200, 0x780}});  // RPDO1 of every node
-  std::mutex cycle_mutex;
-  std::vector<Clock::time_point> cycles;
-  std::atomic<bool> recording{false};
-  c.setCycleObserver([&](can::TimePoint now) {
-    if (!recording) return;
-    std::lock_guard<std::mutex> lock(cycle_mutex);
-    cycles.push_back(now);
-  });
-  // The node's keep-alive timer (20 Hz).
-  std::atomic<bool> done{false};
-  std::thread keep_alive([&] {
-    while (!done) {
-      c.keepAlive();
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-  });
-  struct Join {
-    std::atomic<bool>& done;
-    std::thread& t;
-    ~Join() {
-      done = true;
-      t.join();
-    }
-  } join{done, keep_alive};
-
-  // The arm node's code path (can_interface sim, realtime_priority, lock_memory).
-  const can::RealtimeStatus realtime = cell.start({o.rt_priority, o.lock_memory});
-  if (!realtime.error.empty()) std::fprintf(stderr, "arm_bench: warning: %s\n", realtime.error.c_str());
-  waitFor([&] { return c.mode() != arm::Mode::kStarting; }, 10.0, "the bring-up");
-  if (c.mode() == arm::Mode::kFault) throw std::runtime_error("bring-up failed: " + c.status().faults.front());
-  run(c, c.home(), "homing");
+  ArmBench b(config);
+  b.start(o);
   std::mt19937 rng(o.seed);
-
-  // 1. Cycle jitter while moving.
-  {
-    std::lock_guard<std::mutex> lock(cycle_mutex);
-    cycles.reserve(static_cast<std::size_t>(o.duration * 1000.0 / period_ms) + 1000);
-  }
-  recording = true;
-  const auto end = Clock::now() + std::chrono::duration<double>(o.duration);
-  while (Clock::now() < end) {
-    const arm::Accepted a = c.moveTo(randomPoint(config, rng, c.status().tool, 1.0));
-    if (!a) throw std::runtime_error("move refused: " + a.error);
-    while (!c.result(a.id).done && Clock::now() < end) std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    if (!c.result(a.id).done) {
-      // The stop ends this move (which then fails with the stop's reason).
-      const arm::Accepted s = c.stop("bench time is up");
-      waitFor([&] { return c.result(s.id).done && c.mode() == arm::Mode::kIdle; }, 10.0, "the stop");
-    } else if (!c.result(a.id).success) {
-      throw std::runtime_error("move failed: " + c.result(a.id).message);
-    }
-  }
-  recording = false;
-  std::vector<double> jitter;
-  {
-    std::lock_guard<std::mutex> lock(cycle_mutex);
-    for (std::size_t i = 1; i < cycles.size(); ++i)
-      jitter.push_back(std::abs(Ms(cycles[i] - cycles[i - 1]).count() - period_ms));
-  }
-  if (jitter.size() < 10)
-    throw std::runtime_error("too few controller cycles recorded (" + std::to_string(jitter.size()) + ")");
-
-  // 2. E-stop -> quick-stop RPDO1 on the bus, and -> every drive stopping.
+  const std::vector<double> jitter = b.cycleJitter(o.duration, rng);
   std::vector<double> frame_ms, drive_ms;
-  std::uniform_int_distribution<int> delay(150, 600);
-  for (int k = 0; k < o.estops; ++k) {
-    const arm::Accepted a = c.moveTo(randomPoint(config, rng, c.status().tool, 0.1));
-    if (!a) throw std::runtime_error("move refused: " + a.error);
-    std::this_thread::sleep_for(std::chrono::milliseconds(delay(rng)));
-    while (sniffer->receive(can::Duration::zero())) {
-    }
-    const auto pressed = Clock::now();
-    c.setEstop(true);
-    double frame = NAN;
-    while (std::isnan(frame)) {
-      const auto f = sniffer->receive(std::chrono::milliseconds(50));
-      if (!f) throw std::runtime_error("no quick-stop RPDO1 within 50 ms of the e-stop");
-      const std::uint16_t cw = static_cast<std::uint16_t>(f->frame.data[0] | f->frame.data[1] << 8);
-      if (cw == can::cw::kQuickStop) frame = Ms(f->stamp - pressed).count();
-    }
-    frame_ms.push_back(frame);
-    waitFor(
-        [&] {
-          for (int i = 0; i < 3; ++i)
-            if (cell.drive(i).state() == can::Cia402State::kOperationEnabled) return false;
-          return true;
-        },
-        1.0, "the drives to leave operation enabled");
-    drive_ms.push_back(Ms(Clock::now() - pressed).count());
-    waitFor([&] { return c.result(a.id).done; }, 1.0, "the move to end");
-    c.setEstop(false);
-    run(c, c.resetFault(), "reset after the e-stop", 10.0);
-  }
-
-  // 3. Final position error of moves, on the simulated drives.
-  std::vector<double> error_mm;
-  for (int k = 0; k < o.moves; ++k) {
-    const Eigen::Vector3d goal = randomPoint(config, rng, c.status().tool, 0.15);
-    run(c, c.moveTo(goal), "move " + std::to_string(k + 1));
-    Eigen::Vector3d q;
-    for (int i = 0; i < 3; ++i) q[i] = config.axis(i).toMetres(cell.drive(i).position());
-    error_mm.push_back((config.toolOf(q) - goal).norm() * 1000.0);
-  }
-  cell.stop();
-
-  struct Row {
-    const char* name;
-    double value;
-    const char* unit;
-    const char* label;
-  };
+  b.estops(o.estops, rng, &frame_ms, &drive_ms);
+  const std::vector<double> error_mm = b.moveErrors(o.moves, rng);
+  b.stop();
+  const can::RealtimeStatus& realtime = b.realtime();
   const std::vector<Row> rows = {
       {"cycle_jitter_p50_ms", percentile(jitter, 0.5), "ms", "cycle jitter p50"},
       {"cycle_jitter_p99_ms", percentile(jitter, 0.99), "ms", "cycle jitter p99 (target <= 2)"},
@@ -234,7 +261,7 @@ void bench(const Options& o) {
   }
   std::printf(
       "arm_bench: %.0f s at %.0f Hz SYNC, %d e-stops, %d moves (simulated drives, virtual bus, real clock; %s)\n",
-      o.duration, 1000.0 / period_ms, o.estops, o.moves,
+      o.duration, 1000.0 / b.periodMs(), o.estops, o.moves,
       realtime.error.empty() ? realtime.describe().c_str() : "real-time refused: see the warning");
   for (const Row& r : rows) std::printf("  %-52s %10.4f %s\n", r.label, r.value, r.unit);
 }
