@@ -298,15 +298,21 @@ void writePicture(const Options& o, const Condition& c, int subject, const cect:
   if (!cv::imwrite(name.str(), img)) throw std::runtime_error("cannot write '" + name.str() + "'");
 }
 
-PairResult evaluatePair(const Options& o, const Condition& c, int subject, const cect::AcupointModel& model,
-                        const cect::CectParams& params) {
-  PairResult res;
+/// One scenario rendered: the subject's back (turned on the table by its yaw), the rig and the stereo frame.
+struct RenderedPair {
+  std::unique_ptr<sim::BackModel> back;
+  Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();  ///< the back's turn about the vertical through its centre
+  sim::StereoPairModel pair;
+  sim::StereoFrame frame;
+};
+
+RenderedPair renderPair(const Options& o, const Condition& c, int subject) {
+  RenderedPair r;
   const tools::Scenario sc = scenarioFor(o, c, subject);
-  const sim::BackModel back(sc.body);
-  sim::Scene scene = sim::makeCellScene(back, 1, sc.dressing);
+  r.back = std::make_unique<sim::BackModel>(sc.body);
+  sim::Scene scene = sim::makeCellScene(*r.back, 1, sc.dressing);
   // The subject turned on the table: the back's mesh and its anatomical
   // acupoints about the vertical through the mesh's centre.
-  Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();
   if (sc.yaw_deg != 0.0) {
     for (sim::Mesh& m : scene.meshes) {
       if (m.label != sim::kLabelBack) continue;
@@ -315,123 +321,89 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
         lo = lo.cwiseMin(v);
         hi = hi.cwiseMax(v);
       }
-      const Eigen::Vector3d c(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0.0);
-      turn = Eigen::Translation3d(c) * Eigen::AngleAxisd(-sc.yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()) *
-             Eigen::Translation3d(-c);
-      sim::transform(m, turn.linear().cast<float>(), turn.translation().cast<float>());
+      const Eigen::Vector3d centre(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0.0);
+      r.turn = Eigen::Translation3d(centre) * Eigen::AngleAxisd(-sc.yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()) *
+               Eigen::Translation3d(-centre);
+      sim::transform(m, r.turn.linear().cast<float>(), r.turn.translation().cast<float>());
     }
   }
   const sim::Renderer renderer(scene);
-  const sim::StereoPairModel pair = sim::makeStereoPair(sc.rig);
+  r.pair = sim::makeStereoPair(sc.rig);
   sim::RenderOptions ro;
   ro.noise_seed = static_cast<std::uint32_t>(subject);
-  const sim::StereoFrame frame = sim::renderStereoFrame(renderer, pair, sim::Lighting::preset(sc.light), ro);
-  const camera::StereoModel geometry(pair.left_info, pair.right_info);
-  const Eigen::Isometry3d left_from_world = pair.left.world_from_camera.inverse();
+  r.frame = sim::renderStereoFrame(renderer, r.pair, sim::Lighting::preset(sc.light), ro);
+  return r;
+}
 
-  // Ground truth at a rectified left pixel: the surface point seen there.
-  auto truth = [&](const cv::Point2f& rect, Eigen::Vector3d* p) {
-    const cv::Point2f raw = geometry.toRaw(rect);
-    Eigen::Vector3d w;
-    if (!sampleMap(frame.left.points, raw.x, raw.y, &w)) return false;
-    *p = left_from_world * w;
-    return true;
-  };
-
-  // CECT: segmentation to 3D acupoints, timed.
-  const auto t0 = Clock::now();
-  const cect::CectFrame f = cect::CectFrame::analyse(frame.left.image, frame.right.image, geometry, params);
-  cect::LocateOptions lo;
-  lo.correct_parallax = o.parallax;
-  lo.levels_in_3d = o.levels_3d;
-  const cect::LocatedAcupoints result = cect::locateAcupoints(f, model, lo);
-  if (!result.valid) res.failure = result.reason;
-  res.cect_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-
-  // SGBM on the same rectified pair.
-  const auto t1 = Clock::now();
+/// StereoSGBM (3-way) on the rectified pair: disparities, NaN where it gives none.
+cv::Mat sgbmDisparity(const camera::StereoModel& geometry, const sim::StereoFrame& frame, int width) {
   cv::Mat left_rect, right_rect, disp16, disp;
   geometry.rectify(frame.left.image, frame.right.image, &left_rect, &right_rect);
-  const int block = 5, num = 16 * static_cast<int>(std::ceil(o.width / 5.0 / 16.0));
+  const int block = 5, num = 16 * static_cast<int>(std::ceil(width / 5.0 / 16.0));
   auto sgbm = cv::StereoSGBM::create(0, num, block, 8 * 3 * block * block, 32 * 3 * block * block, 1, 63, 10, 100, 1,
                                      cv::StereoSGBM::MODE_SGBM_3WAY);
   sgbm->compute(left_rect, right_rect, disp16);
   disp16.convertTo(disp, CV_32F, 1.0 / 16.0);
   disp.setTo(std::numeric_limits<float>::quiet_NaN(), disp16 < 0);
-  res.sgbm_ms = std::chrono::duration<double, std::milli>(Clock::now() - t1).count();
-  auto sgbmPoint = [&](const cv::Point2f& q, Eigen::Vector3d* p) {
-    Eigen::Vector3d d;
-    if (!sampleMap(disp, q.x, q.y, &d) || !(d.x() > 0)) return false;
-    *p = geometry.triangulate(q.x, q.y, d.x());
-    return true;
-  };
+  return disp;
+}
 
-  // Point sets: the model's acupoints, and random back pixels.
-  struct Query {
-    cv::Point2f rect;
-    const cect::LocalizedPoint* cect = nullptr;  ///< precomputed (acupoints)
-    std::string name;                            ///< acupoints
-  };
-  std::vector<Query> acu, rnd;
-  for (const cect::LocatedAcupoint& a : result.points)
-    if (a.placed) {
-      acu.push_back(Query{a.rectified, &a.point, a.name});
-    } else if (result.valid) {
-      Stats& pp = res.per_point[a.name];
-      pp.queried = 1;
-      pp.misses["placement: " + a.reason] = 1;
-    }
-  const std::size_t expected = model.points.size();
-  {
-    cv::Mat back_mask = (frame.left.labels == sim::kLabelBack) & (frame.left_visible > 0);
-    cv::erode(back_mask, back_mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(17, 17)));
-    std::vector<cv::Point> pts;
-    cv::findNonZero(back_mask, pts);
-    std::mt19937 rng(static_cast<std::uint32_t>(1000 + subject));
-    std::shuffle(pts.begin(), pts.end(), rng);
-    for (int i = 0; i < o.random_points && i < static_cast<int>(pts.size()); ++i) {
-      const cv::Point2f raw(static_cast<float>(pts[static_cast<std::size_t>(i)].x),
-                            static_cast<float>(pts[static_cast<std::size_t>(i)].y));
-      rnd.push_back(Query{geometry.toRectified(raw), nullptr, {}});
-    }
+/// A rectified left pixel to score, and CECT's point there when it is already known (the placed acupoints).
+struct Query {
+  cv::Point2f rect;
+  const cect::LocalizedPoint* cect = nullptr;
+  std::string name;  ///< acupoints
+};
+
+/// Up to `count` of the mask's pixels in a shuffled order (seeded), as rectified queries.
+std::vector<Query> randomQueries(const cv::Mat& mask, std::uint32_t seed, int count,
+                                 const camera::StereoModel& geometry) {
+  std::vector<cv::Point> pts;
+  cv::findNonZero(mask, pts);
+  std::mt19937 rng(seed);
+  std::shuffle(pts.begin(), pts.end(), rng);
+  std::vector<Query> out;
+  for (int i = 0; i < count && i < static_cast<int>(pts.size()); ++i)
+    out.push_back(Query{geometry.toRectified(cv::Point2f(pts[static_cast<std::size_t>(i)])), nullptr, {}});
+  return out;
+}
+
+/// CECT's and StereoSGBM's 3D errors at query pixels against the rendered surface.
+class Scorer {
+ public:
+  Scorer(const cect::CectFrame& f, const camera::StereoModel& geometry, const sim::StereoFrame& frame,
+         const Eigen::Isometry3d& left_from_world, const cv::Mat& sgbm, PairResult* res)
+      : f_(f), geometry_(geometry), frame_(frame), left_from_world_(left_from_world), sgbm_(sgbm), res_(res) {}
+
+  /// The surface point seen at a rectified left pixel.
+  bool truth(const cv::Point2f& rect, Eigen::Vector3d* p) const {
+    const cv::Point2f raw = geometry_.toRaw(rect);
+    Eigen::Vector3d w;
+    if (!sampleMap(frame_.left.points, raw.x, raw.y, &w)) return false;
+    *p = left_from_world_ * w;
+    return true;
   }
-  // Back pixels next to the arms (within 20 px at 640 columns).
-  std::vector<Query> nearArms;
-  {
-    const cv::Mat arms = frame.left.labels == sim::kLabelArm;
-    if (cv::countNonZero(arms) > 0) {
-      const int r = std::max(2, cvRound(20.0 * o.width / 640.0));
-      cv::Mat near;
-      cv::dilate(arms, near, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * r + 1, 2 * r + 1)));
-      near &= (frame.left.labels == sim::kLabelBack) & (frame.left_visible > 0);
-      std::vector<cv::Point> pts;
-      cv::findNonZero(near, pts);
-      std::mt19937 rng(static_cast<std::uint32_t>(2000 + subject));
-      std::shuffle(pts.begin(), pts.end(), rng);
-      for (int i = 0; i < o.random_points && i < static_cast<int>(pts.size()); ++i)
-        nearArms.push_back(Query{geometry.toRectified(cv::Point2f(pts[static_cast<std::size_t>(i)])), nullptr, {}});
-    }
-  }
-  // CECT's and SGBM's figures on a point set.
-  auto score = [&](const std::vector<Query>& qs, int queried) {
+
+  /// CECT's and SGBM's figures on a point set (`queried`: the set's nominal size; queries without ground truth
+  /// are not counted). Named queries also fill the per-point figures.
+  std::pair<Stats, Stats> score(const std::vector<Query>& qs, int queried) const {
     Stats sc, ss;
     sc.queried = ss.queried = queried;
     for (const Query& q : qs) {
       Eigen::Vector3d gt;
-      if (!truth(q.rect, &gt)) {
-        // No ground truth (off the surface): not a fair query for either method.
+      if (!truth(q.rect, &gt)) {  // off the surface: not a fair query for either method
         --sc.queried;
         --ss.queried;
         continue;
       }
-      const cect::LocalizedPoint lp = q.cect ? *q.cect : f.localizeRectified(q.rect);
+      const cect::LocalizedPoint lp = q.cect ? *q.cect : f_.localizeRectified(q.rect);
       if (lp.valid) {
         sc.errors_mm.push_back(1000.0 * (lp.position - gt).norm());
         sc.sigma_px.push_back(lp.disparity_sigma);
-        sc.z.push_back(std::abs(lp.disparity - geometry.project(gt).z()) / std::max(lp.disparity_sigma, 1e-9));
+        sc.z.push_back(std::abs(lp.disparity - geometry_.project(gt).z()) / std::max(lp.disparity_sigma, 1e-9));
       }
       if (!q.name.empty()) {
-        Stats& pp = res.per_point[q.name];
+        Stats& pp = res_->per_point[q.name];
         pp.queried = 1;
         if (lp.valid)
           pp.errors_mm.push_back(sc.errors_mm.back());
@@ -442,58 +414,135 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
       if (sgbmPoint(q.rect, &ps)) ss.errors_mm.push_back(1000.0 * (ps - gt).norm());
     }
     return std::make_pair(sc, ss);
-  };
-  std::tie(res.stats["cect/acupoints"], res.stats["sgbm/acupoints"]) = score(acu, static_cast<int>(expected));
-  std::tie(res.stats["cect/random"], res.stats["sgbm/random"]) = score(rnd, static_cast<int>(rnd.size()));
-  if (o.by_border) {
-    // Every 4th back pixel, by its distance to the back's border.
-    cv::Mat back_mask = (frame.left.labels == sim::kLabelBack) & (frame.left_visible > 0);
-    cv::Mat dist;
-    cv::distanceTransform(back_mask, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
-    const double k = o.width / 640.0;
-    std::map<std::string, std::vector<Query>> bands;
-    for (int y = 2; y < back_mask.rows; y += 4)
-      for (int x = 2; x < back_mask.cols; x += 4) {
-        if (!back_mask.at<std::uint8_t>(y, x)) continue;
-        const double dpx = dist.at<float>(y, x) / k;
-        std::size_t b = 0;
-        while (b + 1 < borderBands().size() && dpx >= borderBands()[b + 1].first) ++b;
-        const cv::Point2f raw(static_cast<float>(x), static_cast<float>(y));
-        bands[borderBands()[b].second].push_back(Query{geometry.toRectified(raw), nullptr, {}});
-      }
-    for (const auto& [band, qs] : bands)
-      std::tie(res.border["cect/" + band], res.border["sgbm/" + band]) = score(qs, static_cast<int>(qs.size()));
   }
 
-  // Model placement against the anatomical acupoints.
-  auto turned = back.acupoints();
-  for (auto& [name, point] : turned) point = turn * point;
-  const auto anatomical = sim::toCameraFrame(turned, pair.left);
-  // The acupoints in view (the simulator's truth): how many the chain gave,
-  // the layout's error there, and CECT / SGBM at their true pixels.
-  const auto seen = sim::acupointTruth(turned, pair, frame);
+ private:
+  bool sgbmPoint(const cv::Point2f& q, Eigen::Vector3d* p) const {
+    Eigen::Vector3d d;
+    if (!sampleMap(sgbm_, q.x, q.y, &d) || !(d.x() > 0)) return false;
+    *p = geometry_.triangulate(q.x, q.y, d.x());
+    return true;
+  }
+
+  const cect::CectFrame& f_;
+  const camera::StereoModel& geometry_;
+  const sim::StereoFrame& frame_;
+  const Eigen::Isometry3d left_from_world_;
+  const cv::Mat& sgbm_;
+  PairResult* res_;
+};
+
+/// --by-border: every 4th back pixel, by its distance to the back's border, scored per band.
+void scoreByBorder(const Options& o, const sim::StereoFrame& frame, const camera::StereoModel& geometry,
+                   const Scorer& scorer, PairResult* res) {
+  cv::Mat back_mask = (frame.left.labels == sim::kLabelBack) & (frame.left_visible > 0);
+  cv::Mat dist;
+  cv::distanceTransform(back_mask, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  const double k = o.width / 640.0;
+  std::map<std::string, std::vector<Query>> bands;
+  for (int y = 2; y < back_mask.rows; y += 4)
+    for (int x = 2; x < back_mask.cols; x += 4) {
+      if (!back_mask.at<std::uint8_t>(y, x)) continue;
+      const double dpx = dist.at<float>(y, x) / k;
+      std::size_t b = 0;
+      while (b + 1 < borderBands().size() && dpx >= borderBands()[b + 1].first) ++b;
+      const cv::Point2f raw(static_cast<float>(x), static_cast<float>(y));
+      bands[borderBands()[b].second].push_back(Query{geometry.toRectified(raw), nullptr, {}});
+    }
+  for (const auto& [band, qs] : bands)
+    std::tie(res->border["cect/" + band], res->border["sgbm/" + band]) = scorer.score(qs, static_cast<int>(qs.size()));
+}
+
+/// The acupoints in view (the simulator's truth): how many the chain gave, the layout's error there (the placed
+/// pixel's surface point against the anatomical acupoint), and the queries at their true pixels.
+std::vector<Query> scorePlacement(const cect::LocatedAcupoints& result,
+                                  const std::map<std::string, sim::PointTruth>& seen,
+                                  const std::map<std::string, Eigen::Vector3d>& anatomical,
+                                  const camera::StereoModel& geometry, const Scorer& scorer, PairResult* res) {
   std::vector<Query> given;
   for (const cect::LocatedAcupoint& a : result.points) {
     const auto t = seen.find(a.name);
     if (t == seen.end()) continue;
     if (!t->second.in_view) {
-      res.placed_out_of_view += a.valid ? 1 : 0;
+      res->placed_out_of_view += a.valid ? 1 : 0;
       continue;
     }
-    ++res.in_view;
-    res.placed_in_view += a.valid ? 1 : 0;
+    ++res->in_view;
+    res->placed_in_view += a.valid ? 1 : 0;
     const cv::Point2f raw(static_cast<float>(t->second.left_pixel.x()), static_cast<float>(t->second.left_pixel.y()));
     given.push_back(Query{geometry.toRectified(raw), nullptr, {}});
     const auto it = anatomical.find(a.name);
     Eigen::Vector3d gt;
-    if (!a.placed || it == anatomical.end() || !truth(a.rectified, &gt)) continue;
-    res.model.errors_mm.push_back(1000.0 * (gt - it->second).norm());
+    if (!a.placed || it == anatomical.end() || !scorer.truth(a.rectified, &gt)) continue;
+    res->model.errors_mm.push_back(1000.0 * (gt - it->second).norm());
   }
-  res.model.queried = res.in_view;
-  std::tie(res.stats["cect/given"], res.stats["sgbm/given"]) = score(given, static_cast<int>(given.size()));
+  res->model.queried = res->in_view;
+  return given;
+}
+
+PairResult evaluatePair(const Options& o, const Condition& c, int subject, const cect::AcupointModel& model,
+                        const cect::CectParams& params) {
+  PairResult res;
+  const RenderedPair r = renderPair(o, c, subject);
+  const sim::StereoFrame& frame = r.frame;
+  const camera::StereoModel geometry(r.pair.left_info, r.pair.right_info);
+
+  // CECT: segmentation to 3D acupoints, timed; SGBM on the same rectified pair.
+  const auto t0 = Clock::now();
+  const cect::CectFrame f = cect::CectFrame::analyse(frame.left.image, frame.right.image, geometry, params);
+  cect::LocateOptions lo;
+  lo.correct_parallax = o.parallax;
+  lo.levels_in_3d = o.levels_3d;
+  const cect::LocatedAcupoints result = cect::locateAcupoints(f, model, lo);
+  if (!result.valid) res.failure = result.reason;
+  res.cect_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  const auto t1 = Clock::now();
+  const cv::Mat sgbm = sgbmDisparity(geometry, frame, o.width);
+  res.sgbm_ms = std::chrono::duration<double, std::milli>(Clock::now() - t1).count();
+  const Scorer scorer(f, geometry, frame, r.pair.left.world_from_camera.inverse(), sgbm, &res);
+
+  // Point sets: the model's acupoints, random back pixels, back pixels next to the arms (within 20 px at 640).
+  std::vector<Query> acu;
+  for (const cect::LocatedAcupoint& a : result.points)
+    if (a.placed) {
+      acu.push_back(Query{a.rectified, &a.point, a.name});
+    } else if (result.valid) {
+      Stats& pp = res.per_point[a.name];
+      pp.queried = 1;
+      pp.misses["placement: " + a.reason] = 1;
+    }
+  const cv::Mat visible_back = (frame.left.labels == sim::kLabelBack) & (frame.left_visible > 0);
+  cv::Mat inner_back;
+  cv::erode(visible_back, inner_back, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(17, 17)));
+  const std::vector<Query> rnd =
+      randomQueries(inner_back, static_cast<std::uint32_t>(1000 + subject), o.random_points, geometry);
+  std::vector<Query> near_arms;
+  const cv::Mat arms = frame.left.labels == sim::kLabelArm;
+  if (cv::countNonZero(arms) > 0) {
+    const int radius = std::max(2, cvRound(20.0 * o.width / 640.0));
+    cv::Mat near;
+    cv::dilate(arms, near, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
+    near_arms =
+        randomQueries(near & visible_back, static_cast<std::uint32_t>(2000 + subject), o.random_points, geometry);
+  }
+  std::tie(res.stats["cect/acupoints"], res.stats["sgbm/acupoints"]) =
+      scorer.score(acu, static_cast<int>(model.points.size()));
+  std::tie(res.stats["cect/random"], res.stats["sgbm/random"]) = scorer.score(rnd, static_cast<int>(rnd.size()));
+  if (o.by_border) scoreByBorder(o, frame, geometry, scorer, &res);
+
+  // Model placement against the anatomical acupoints.
+  auto turned = r.back->acupoints();
+  for (auto& [name, point] : turned) point = r.turn * point;
+  const auto anatomical = sim::toCameraFrame(turned, r.pair.left);
+  const auto seen = sim::acupointTruth(turned, r.pair, frame);
+  const std::vector<Query> given = scorePlacement(result, seen, anatomical, geometry, scorer, &res);
+  std::tie(res.stats["cect/given"], res.stats["sgbm/given"]) = scorer.score(given, static_cast<int>(given.size()));
   std::tie(res.stats["cect/near_arms"], res.stats["sgbm/near_arms"]) =
-      score(nearArms, static_cast<int>(nearArms.size()));
-  if (!o.pictures.empty()) writePicture(o, c, subject, f, result, anatomical, geometry, truth);
+      scorer.score(near_arms, static_cast<int>(near_arms.size()));
+  if (!o.pictures.empty()) {
+    writePicture(o, c, subject, f, result, anatomical, geometry,
+                 [&](const cv::Point2f& q, Eigen::Vector3d* p) { return scorer.truth(q, p); });
+  }
   return res;
 }
 
