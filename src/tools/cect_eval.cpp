@@ -590,15 +590,8 @@ void printSummary(const std::vector<SummaryRow>& rows) {
   }
 }
 
-void run(const Options& o) {
-  stereo::retainFreedMemory();  // page faults would otherwise dominate the per-pair timings
-  const cect::AcupointModel model =
-      cect::loadAcupointModel(o.acupoints.empty() ? tools::packageFile("config/acupoints.yaml") : o.acupoints);
-  cect::CectParams params;
-  if (o.seed_step >= 0) params.seed_step = o.seed_step;
-  if (o.query_search >= 0) params.query_search = o.query_search;
-  tools::applyParams(params, o.params);
-
+/// The experiments' conditions, each with its subjects.
+std::vector<Condition> conditionsOf(const Options& o) {
   std::vector<Condition> conditions;
   auto range = [](int n) {
     std::vector<int> v;
@@ -621,6 +614,133 @@ void run(const Options& o) {
                               range(o.condition_subjects)});
     }
   }
+  return conditions;
+}
+
+/// One condition's pairs added up.
+struct ConditionResult {
+  std::map<std::string, Stats> total, per_point, border;
+  Stats model_total;
+  int in_view = 0, placed_in_view = 0, placed_out_of_view = 0;
+  std::vector<double> cect_ms, sgbm_ms;
+  std::vector<std::string> failures;
+};
+
+/// Every subject of the condition (--csv: a row per subject and figure as they come).
+ConditionResult evaluateCondition(const Options& o, const Condition& c, const cect::AcupointModel& model,
+                                  const cect::CectParams& params) {
+  ConditionResult cr;
+  for (int s : c.subjects) {
+    const PairResult r = evaluatePair(o, c, s, model, params);
+    for (const auto& [key, st] : r.stats) {
+      cr.total[key].add(st);
+      if (o.csv) {
+        const auto slash = key.find('/');
+        std::cout << c.name << "," << s << "," << key.substr(0, slash) << "," << key.substr(slash + 1) << ","
+                  << fmt(st.mean(), 3) << "," << fmt(st.max(), 3) << "," << fmt(st.accRate(), 4) << "\n";
+      }
+    }
+    cr.model_total.add(r.model);
+    if (o.csv)
+      std::cout << c.name << "," << s << ",model,layout," << fmt(r.model.mean(), 3) << "," << fmt(r.model.max(), 3)
+                << "," << fmt(r.model.accRate(), 4) << "\n";
+    cr.in_view += r.in_view;
+    cr.placed_in_view += r.placed_in_view;
+    cr.placed_out_of_view += r.placed_out_of_view;
+    for (const auto& [name, st] : r.per_point) cr.per_point[name].add(st);
+    for (const auto& [key, st] : r.border) cr.border[key].add(st);
+    cr.cect_ms.push_back(r.cect_ms);
+    cr.sgbm_ms.push_back(r.sgbm_ms);
+    if (!r.failure.empty()) cr.failures.push_back("subject " + std::to_string(s) + ": " + r.failure);
+  }
+  return cr;
+}
+
+std::string validShare(const Stats& st) {
+  return fmt(st.queried ? 100.0 * st.errors_mm.size() / st.queried : std::nan(""), 1);
+}
+
+/// The condition's table rows, the placement and timing line, the acupoints in view, the failures and the sigmas;
+/// returns its summary row.
+SummaryRow printCondition(const Condition& c, ConditionResult& cr) {
+  for (const auto& [key, st] : cr.total) {
+    const auto slash = key.find('/');
+    std::cout << std::left << std::setw(18) << c.name << std::setw(8) << key.substr(0, slash) << std::setw(11)
+              << key.substr(slash + 1) << std::right << std::setw(8) << st.queried << std::setw(8) << validShare(st)
+              << std::setw(9) << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(9)
+              << fmt(st.quantile(0.95)) << std::setw(8) << fmt(100.0 * st.accRate(), 1) << "%\n";
+  }
+  std::cout << std::left << std::setw(18) << c.name << "model placement vs anatomical acupoints: mean "
+            << fmt(cr.model_total.mean(), 1) << " mm, max " << fmt(cr.model_total.max(), 1) << " mm; CECT "
+            << fmt(medianOf(cr.cect_ms), 1) << " ms median (max "
+            << fmt(*std::max_element(cr.cect_ms.begin(), cr.cect_ms.end()), 1) << "), SGBM "
+            << fmt(medianOf(cr.sgbm_ms), 1) << " ms; " << c.subjects.size() << " subjects\n";
+  const Stats& g = cr.total["cect/given"];
+  const Stats& sg = cr.total["sgbm/given"];
+  SummaryRow row{c.name, cr.in_view, cr.placed_in_view,          cr.placed_out_of_view, cr.model_total,
+                 g,      sg,         cr.total["cect/near_arms"], medianOf(cr.cect_ms)};
+  std::cout << std::left << std::setw(18) << c.name << "acupoints in view " << cr.in_view << ": "
+            << fmt(row.placedShare(), 1) << " % placed (" << cr.placed_out_of_view
+            << " placed though out of view); layout vs anatomical mean " << fmt(cr.model_total.mean(), 1) << " mm, p95 "
+            << fmt(cr.model_total.quantile(0.95), 1) << " mm\n"
+            << std::setw(18) << ""
+            << "at the true acupoint pixels: CECT mean " << fmt(g.mean()) << " mm, p95 " << fmt(g.quantile(0.95))
+            << ", " << fmt(100.0 * g.accRate(), 1) << " % within 1 cm; SGBM mean " << fmt(sg.mean()) << " mm, "
+            << fmt(100.0 * sg.accRate(), 1) << " % within 1 cm\n";
+  for (const auto& f : cr.failures) std::cout << "  CECT failed on " << f << "\n";
+  const Stats& a = cr.total["cect/acupoints"];
+  const Stats& r = cr.total["cect/random"];
+  std::cout << std::left << std::setw(18) << c.name << "CECT's disparity sigma: acupoints median "
+            << fmt(medianOf(a.sigma_px)) << " px, " << fmt(100.0 * a.within2Sigma(), 1)
+            << " % of their errors within 2 sigma; random points " << fmt(medianOf(r.sigma_px)) << " px, "
+            << fmt(100.0 * r.within2Sigma(), 1) << " %\n";
+  return row;
+}
+
+/// --by-border: the back's pixels by their distance to the border, per band and method.
+void printBorderBands(const std::map<std::string, Stats>& border) {
+  std::cout << "  back pixels by distance to the border (every 4th pixel, both views):\n"
+            << "  " << std::left << std::setw(10) << "band" << std::setw(8) << "method" << std::right << std::setw(8)
+            << "queried" << std::setw(8) << "valid%" << std::setw(9) << "mean mm" << std::setw(9) << "max mm"
+            << std::setw(9) << "acc<1cm" << std::setw(10) << "sigma px" << std::setw(9) << "in 2sig"
+            << "\n";
+  for (const auto& [edge, band] : borderBands())
+    for (const char* method : {"cect", "sgbm"}) {
+      const auto it = border.find(std::string(method) + "/" + band);
+      if (it == border.end()) continue;
+      const Stats& st = it->second;
+      std::cout << "  " << std::left << std::setw(10) << band << std::setw(8) << method << std::right << std::setw(8)
+                << st.queried << std::setw(8) << validShare(st) << std::setw(9) << fmt(st.mean()) << std::setw(9)
+                << fmt(st.max()) << std::setw(8) << fmt(100.0 * st.accRate(), 1) << "%" << std::setw(10)
+                << fmt(medianOf(st.sigma_px)) << std::setw(8) << fmt(100.0 * st.within2Sigma(), 1)
+                << (st.z.empty() ? " " : "%") << "\n";
+    }
+}
+
+/// --per-point: every acupoint of the model.
+void printPerPoint(const std::map<std::string, Stats>& per_point, const cect::AcupointModel& model) {
+  std::cout << "  " << std::left << std::setw(14) << "acupoint" << std::right << std::setw(8) << "queried"
+            << std::setw(8) << "valid%" << std::setw(9) << "mean mm" << std::setw(9) << "max mm" << std::setw(9)
+            << "acc<1cm"
+            << "  commonest miss\n";
+  for (const std::string& name : model.names()) {
+    const auto it = per_point.find(name);
+    if (it == per_point.end()) continue;
+    const Stats& st = it->second;
+    std::cout << "  " << std::left << std::setw(14) << name << std::right << std::setw(8) << st.queried << std::setw(8)
+              << validShare(st) << std::setw(9) << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(8)
+              << fmt(100.0 * st.accRate(), 1) << "%  " << st.commonestMiss() << "\n";
+  }
+}
+
+void run(const Options& o) {
+  stereo::retainFreedMemory();  // page faults would otherwise dominate the per-pair timings
+  const cect::AcupointModel model =
+      cect::loadAcupointModel(o.acupoints.empty() ? tools::packageFile("config/acupoints.yaml") : o.acupoints);
+  cect::CectParams params;
+  if (o.seed_step >= 0) params.seed_step = o.seed_step;
+  if (o.query_search >= 0) params.query_search = o.query_search;
+  tools::applyParams(params, o.params);
 
   if (o.csv)
     std::cout << "condition,subject,method,points,mean_mm,max_mm,acc_rate\n";
@@ -634,107 +754,12 @@ void run(const Options& o) {
               << std::setw(9) << "max mm" << std::setw(9) << "p95 mm" << std::setw(9) << "acc<1cm"
               << "\n";
   std::vector<SummaryRow> summary;
-  for (const Condition& c : conditions) {
-    std::map<std::string, Stats> total, per_point, border;
-    Stats model_total;
-    int in_view = 0, placed_in_view = 0, placed_out_of_view = 0;
-    std::vector<double> cect_ms, sgbm_ms;
-    std::vector<std::string> failures;
-    for (int s : c.subjects) {
-      const PairResult r = evaluatePair(o, c, s, model, params);
-      for (const auto& [key, st] : r.stats) {
-        total[key].add(st);
-        if (o.csv) {
-          const auto slash = key.find('/');
-          std::cout << c.name << "," << s << "," << key.substr(0, slash) << "," << key.substr(slash + 1) << ","
-                    << fmt(st.mean(), 3) << "," << fmt(st.max(), 3) << "," << fmt(st.accRate(), 4) << "\n";
-        }
-      }
-      model_total.add(r.model);
-      if (o.csv)
-        std::cout << c.name << "," << s << ",model,layout," << fmt(r.model.mean(), 3) << "," << fmt(r.model.max(), 3)
-                  << "," << fmt(r.model.accRate(), 4) << "\n";
-      in_view += r.in_view;
-      placed_in_view += r.placed_in_view;
-      placed_out_of_view += r.placed_out_of_view;
-      for (const auto& [name, st] : r.per_point) per_point[name].add(st);
-      for (const auto& [key, st] : r.border) border[key].add(st);
-      cect_ms.push_back(r.cect_ms);
-      sgbm_ms.push_back(r.sgbm_ms);
-      if (!r.failure.empty()) failures.push_back("subject " + std::to_string(s) + ": " + r.failure);
-    }
+  for (const Condition& c : conditionsOf(o)) {
+    ConditionResult cr = evaluateCondition(o, c, model, params);
     if (o.csv) continue;
-    for (const auto& [key, st] : total) {
-      const auto slash = key.find('/');
-      std::cout << std::left << std::setw(18) << c.name << std::setw(8) << key.substr(0, slash) << std::setw(11)
-                << key.substr(slash + 1) << std::right << std::setw(8) << st.queried << std::setw(8)
-                << fmt(st.queried ? 100.0 * st.errors_mm.size() / st.queried : std::nan(""), 1) << std::setw(9)
-                << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(9) << fmt(st.quantile(0.95))
-                << std::setw(8) << fmt(100.0 * st.accRate(), 1) << "%\n";
-    }
-    std::cout << std::left << std::setw(18) << c.name << "model placement vs anatomical acupoints: mean "
-              << fmt(model_total.mean(), 1) << " mm, max " << fmt(model_total.max(), 1) << " mm; CECT "
-              << fmt(medianOf(cect_ms), 1) << " ms median (max "
-              << fmt(*std::max_element(cect_ms.begin(), cect_ms.end()), 1) << "), SGBM " << fmt(medianOf(sgbm_ms), 1)
-              << " ms; " << c.subjects.size() << " subjects\n";
-    {
-      const Stats& g = total["cect/given"];
-      const Stats& sg = total["sgbm/given"];
-      SummaryRow row{c.name, in_view, placed_in_view,          placed_out_of_view, model_total,
-                     g,      sg,      total["cect/near_arms"], medianOf(cect_ms)};
-      std::cout << std::left << std::setw(18) << c.name << "acupoints in view " << in_view << ": "
-                << fmt(row.placedShare(), 1) << " % placed (" << placed_out_of_view
-                << " placed though out of view); layout vs anatomical mean " << fmt(model_total.mean(), 1)
-                << " mm, p95 " << fmt(model_total.quantile(0.95), 1) << " mm\n"
-                << std::setw(18) << ""
-                << "at the true acupoint pixels: CECT mean " << fmt(g.mean()) << " mm, p95 " << fmt(g.quantile(0.95))
-                << ", " << fmt(100.0 * g.accRate(), 1) << " % within 1 cm; SGBM mean " << fmt(sg.mean()) << " mm, "
-                << fmt(100.0 * sg.accRate(), 1) << " % within 1 cm\n";
-      summary.push_back(row);
-    }
-    for (const auto& f : failures) std::cout << "  CECT failed on " << f << "\n";
-    {
-      const Stats& a = total["cect/acupoints"];
-      const Stats& r = total["cect/random"];
-      std::cout << std::left << std::setw(18) << c.name << "CECT's disparity sigma: acupoints median "
-                << fmt(medianOf(a.sigma_px)) << " px, " << fmt(100.0 * a.within2Sigma(), 1)
-                << " % of their errors within 2 sigma; random points " << fmt(medianOf(r.sigma_px)) << " px, "
-                << fmt(100.0 * r.within2Sigma(), 1) << " %\n";
-    }
-    if (o.by_border) {
-      std::cout << "  back pixels by distance to the border (every 4th pixel, both views):\n"
-                << "  " << std::left << std::setw(10) << "band" << std::setw(8) << "method" << std::right
-                << std::setw(8) << "queried" << std::setw(8) << "valid%" << std::setw(9) << "mean mm" << std::setw(9)
-                << "max mm" << std::setw(9) << "acc<1cm" << std::setw(10) << "sigma px" << std::setw(9) << "in 2sig"
-                << "\n";
-      for (const auto& [edge, band] : borderBands())
-        for (const char* method : {"cect", "sgbm"}) {
-          const auto it = border.find(std::string(method) + "/" + band);
-          if (it == border.end()) continue;
-          const Stats& st = it->second;
-          std::cout << "  " << std::left << std::setw(10) << band << std::setw(8) << method << std::right
-                    << std::setw(8) << st.queried << std::setw(8)
-                    << fmt(st.queried ? 100.0 * st.errors_mm.size() / st.queried : std::nan(""), 1) << std::setw(9)
-                    << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(8) << fmt(100.0 * st.accRate(), 1)
-                    << "%" << std::setw(10) << fmt(medianOf(st.sigma_px)) << std::setw(8)
-                    << fmt(100.0 * st.within2Sigma(), 1) << (st.z.empty() ? " " : "%") << "\n";
-        }
-    }
-    if (o.per_point) {
-      std::cout << "  " << std::left << std::setw(14) << "acupoint" << std::right << std::setw(8) << "queried"
-                << std::setw(8) << "valid%" << std::setw(9) << "mean mm" << std::setw(9) << "max mm" << std::setw(9)
-                << "acc<1cm"
-                << "  commonest miss\n";
-      for (const std::string& name : model.names()) {
-        const auto it = per_point.find(name);
-        if (it == per_point.end()) continue;
-        const Stats& st = it->second;
-        std::cout << "  " << std::left << std::setw(14) << name << std::right << std::setw(8) << st.queried
-                  << std::setw(8) << fmt(st.queried ? 100.0 * st.errors_mm.size() / st.queried : std::nan(""), 1)
-                  << std::setw(9) << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(8)
-                  << fmt(100.0 * st.accRate(), 1) << "%  " << st.commonestMiss() << "\n";
-      }
-    }
+    summary.push_back(printCondition(c, cr));
+    if (o.by_border) printBorderBands(cr.border);
+    if (o.per_point) printPerPoint(cr.per_point, model);
     std::cout << "\n";
   }
   if (!o.csv) printSummary(summary);
