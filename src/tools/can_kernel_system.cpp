@@ -331,7 +331,8 @@ void waitAllOperational(System& s, const std::string& what, milliseconds timeout
   }
 }
 
-int run(const std::string& config_path, const std::string& interface, canid_t fault_id) {
+/// The configuration with the timeouts an emulated CPU needs.
+CanConfig systemConfig(const std::string& config_path) {
   // 1. config
   step("load " + config_path);
   CanConfig config = loadCanConfig(config_path);
@@ -345,10 +346,22 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
   ok(std::to_string(config.axes.size()) + " axes; SDO timeout " + std::to_string(config.sdo_timeout_ms) +
      " ms, boot timeout " + std::to_string(config.boot_timeout_ms) + " ms, heartbeat consumer >= 1000 ms, SYNC " +
      std::to_string(config.sync_period_us / 1000) + " ms");
+  return config;
+}
 
-  System s(interface, config);
-  s.master().start();
+/// Moves of every axis `d` metres away from home (the other way where the limit is near), inside the limits.
+std::vector<std::pair<std::uint8_t, double>> targetsAway(System& s, double d) {
+  std::vector<std::pair<std::uint8_t, double>> t;
+  for (auto& a : s.axes()) {
+    const AxisConfig& c = a->config();
+    const double home = c.home_offset;
+    const double to = home + d <= c.max_position ? home + d : home - d;
+    t.emplace_back(a->node(), std::clamp(to, c.min_position, c.max_position));
+  }
+  return t;
+}
 
+void bringUp(System& s, const std::string& interface) {
   // 2. bring-up
   step("bring up all nodes on " + interface + " (NMT reset communication, SDO PDO mapping, NMT start)");
   s.master().bringUp();
@@ -365,7 +378,9 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
     ok("node " + std::to_string(n) + " (" + a->name() +
        ") operational; RPDO1 and TPDO1 mapping read back: 2 entries each");
   }
+}
 
+void enableAndHome(System& s) {
   // 3. enable
   step("enable all CiA 402 axes");
   for (auto& a : s.axes()) a->enable();
@@ -381,20 +396,9 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
       fail("homing: axis " + describe(*a) + " is not homed at " + std::to_string(a->config().home_offset) + " m");
     ok(describe(*a));
   }
+}
 
-  // 5. moves a few cm away from home, inside the limits.
-  auto targets = [&](double d) {
-    std::vector<std::pair<std::uint8_t, double>> t;
-    for (auto& a : s.axes()) {
-      const AxisConfig& c = a->config();
-      const double home = c.home_offset;
-      const double to = home + d <= c.max_position ? home + d : home - d;
-      t.emplace_back(a->node(), std::clamp(to, c.min_position, c.max_position));
-    }
-    return t;
-  };
-  moveAll(s, targets(0.04), "move");
-
+void driveFault(System& s, const std::string& interface, canid_t fault_id) {
   // 6. drive fault on the second axis.
   Cia402Axis& victim = *s.axes().at(1);
   const std::uint8_t vn = victim.node();
@@ -444,7 +448,9 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
           {{vn, victim.config().home_offset +
                     (victim.config().home_offset + 0.06 <= victim.config().max_position ? 0.06 : -0.06)}},
           "move after fault recovery");
+}
 
+void errorStates(System& s, const std::string& interface) {
   // 7. error-passive and bus-off, injected as error frames by a second socket.
   {
     SocketCanOptions o;
@@ -486,7 +492,7 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
     ok("master reports error-active again");
 
     // b. bus-off while every axis moves.
-    auto moves = targets(0.01);
+    auto moves = targetsAway(s, 0.01);
     std::vector<double> from;
     for (auto& a : s.axes()) from.push_back(a->position());
     startMoves(s, moves, "moves across the bus-off");
@@ -532,7 +538,9 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
     ok("outages " + std::to_string(outage1) + " ms then " + std::to_string(outage2) +
        " ms; nodes operational, axes enabled");
   }
+}
 
+void interfaceLoss(System& s, const std::string& interface) {
   // 8. interface down / up: the SocketCanBus handles it like a bus-off (close,
   // reopen with back-off, recovered).
   const BusStatus before = s.bus().status();
@@ -578,8 +586,19 @@ int run(const std::string& config_path, const std::string& interface, canid_t fa
   for (auto& a : s.axes()) a->enable();  // a no-op for drives that stayed enabled
   s.waitAxes("enable after interface recovery", seconds(15));
   checkEnabled(s, "after interface recovery");
-  moveAll(s, targets(0.02), "move after interface recovery");
+  moveAll(s, targetsAway(s, 0.02), "move after interface recovery");
+}
 
+int run(const std::string& config_path, const std::string& interface, canid_t fault_id) {
+  System s(interface, systemConfig(config_path));
+  s.master().start();
+  bringUp(s, interface);
+  enableAndHome(s);
+  // 5. moves a few cm away from home, inside the limits.
+  moveAll(s, targetsAway(s, 0.04), "move");
+  driveFault(s, interface, fault_id);
+  errorStates(s, interface);
+  interfaceLoss(s, interface);
   const MasterStats st = s.master().stats();
   std::printf("master stats: syncs %llu rpdos %llu tpdos %llu emcys %llu heartbeats %llu sdo %llu send_failures %llu\n",
               static_cast<unsigned long long>(st.syncs), static_cast<unsigned long long>(st.rpdos),
