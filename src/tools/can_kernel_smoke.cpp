@@ -372,174 +372,177 @@ void errorFrameCheck(int ifindex) {
       "through CAN_RAW_ERR_FILTER by class, not to error mask 0 nor to the writer)\n");
 }
 
+// 2. loopback semantics
+void loopbackCheck(int ifindex) {
+  Socket tx, rx;
+  if (int e = tx.bindTo(ifindex)) {
+    errno = e;
+    fail(errnoText("bind tx"));
+  }
+  if (int e = rx.bindTo(ifindex)) {
+    errno = e;
+    fail(errnoText("bind rx"));
+  }
+  int loopback = -1, recvOwn = -1;
+  socklen_t len = sizeof loopback;
+  if (::getsockopt(tx.fd(), SOL_CAN_RAW, CAN_RAW_LOOPBACK, &loopback, &len) != 0)
+    fail(errnoText("getsockopt(LOOPBACK)"));
+  len = sizeof recvOwn;
+  if (::getsockopt(tx.fd(), SOL_CAN_RAW, CAN_RAW_RECV_OWN_MSGS, &recvOwn, &len) != 0)
+    fail(errnoText("getsockopt(RECV_OWN_MSGS)"));
+  if (loopback != 1 || recvOwn != 0)
+    fail("default CAN_RAW_LOOPBACK=" + std::to_string(loopback) + " CAN_RAW_RECV_OWN_MSGS=" + std::to_string(recvOwn) +
+         ", expected 1 and 0");
+
+  const can_frame f = makeFrame(0x321, 4, 0x40);
+  tx.send(f);
+  Received r;
+  if (!receive(rx, 1000, &r)) fail("loopback: the other socket did not receive frame 0x321 within 1 s");
+  if (!sameFrame(r.frame, f)) fail("loopback: received frame differs from the sent one");
+  if (r.flags & MSG_CONFIRM) fail("loopback: frame from another socket flagged MSG_CONFIRM");
+  expectNothing(tx, 100, "RECV_OWN_MSGS off: sender");
+
+  tx.setOpt(SOL_CAN_RAW, CAN_RAW_RECV_OWN_MSGS, 1, "setsockopt(RECV_OWN_MSGS)");
+  tx.send(f);
+  if (!receive(tx, 1000, &r)) fail("RECV_OWN_MSGS on: the sender did not get its own frame");
+  if (!(r.flags & MSG_CONFIRM)) fail("RECV_OWN_MSGS on: own frame not flagged MSG_CONFIRM");
+  if (!receive(rx, 1000, &r) || !sameFrame(r.frame, f)) fail("RECV_OWN_MSGS on: the other socket lost the frame");
+
+  Socket quiet;
+  if (int e = quiet.bindTo(ifindex)) {
+    errno = e;
+    fail(errnoText("bind quiet"));
+  }
+  quiet.setOpt(SOL_CAN_RAW, CAN_RAW_LOOPBACK, 0, "setsockopt(LOOPBACK)");
+  quiet.send(f);
+  expectNothing(rx, 100, "LOOPBACK off: other socket");
+  std::printf(
+      "can_kernel_smoke: loopback semantics OK (LOOPBACK=1, RECV_OWN_MSGS=0 defaults; MSG_CONFIRM on own frames)\n");
+}
+
+// 3. filters, order, timestamps, DLC
+void filterCheck(int ifindex) {
+  Socket tx, rx;
+  if (int e = tx.bindTo(ifindex)) {
+    errno = e;
+    fail(errnoText("bind tx"));
+  }
+  // Standard ids 0x100..0x1FF (EFF flag in the mask: extended frames do not match),
+  // and exactly the extended id 0x12345678.
+  rx.setFilters({{0x100, 0x700 | CAN_EFF_FLAG | CAN_RTR_FLAG},
+                 {0x12345678 | CAN_EFF_FLAG, CAN_EFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG}});
+  rx.setOpt(SOL_SOCKET, SO_TIMESTAMP, 1, "setsockopt(SO_TIMESTAMP)");
+  if (int e = rx.bindTo(ifindex)) {
+    errno = e;
+    fail(errnoText("bind rx"));
+  }
+
+  struct Sent {
+    can_frame f;
+    bool wanted;
+  };
+  const std::vector<Sent> sent = {
+      {makeFrame(0x123, 8, 0x01), true},
+      {makeFrame(0x200, 8, 0x02), false},                 // standard id outside the mask
+      {makeFrame(0x1FF, 0, 0x03), true},                  // DLC 0
+      {makeFrame(0x123 | CAN_EFF_FLAG, 8, 0x04), false},  // extended id 0x123: not the standard 0x123
+      {makeFrame(0x12345678 | CAN_EFF_FLAG, 8, 0x05), true},
+      {makeFrame(0x12345679 | CAN_EFF_FLAG, 3, 0x06), false},
+      {makeFrame(0x100, 1, 0x07), true},
+      {makeFrame(0x12345678 | CAN_EFF_FLAG, 0, 0x08), true},  // extended, DLC 0
+      {makeFrame(0x7FF, 8, 0x09), false},
+      {makeFrame(0x1AA, 8, 0x0A), true},  // last: sentinel
+  };
+  timeval before{};
+  ::gettimeofday(&before, nullptr);
+  for (const Sent& s : sent) tx.send(s.f);
+
+  double lastStamp = 0;
+  int count = 0;
+  for (const Sent& s : sent) {
+    if (!s.wanted) continue;
+    Received r;
+    if (!receive(rx, 1000, &r)) fail("filters: frame " + idText(s.f.can_id) + " did not arrive within 1 s");
+    if (!sameFrame(r.frame, s.f))
+      fail("filters/order: expected " + idText(s.f.can_id) + " dlc " + std::to_string(s.f.can_dlc) + ", got " +
+           idText(r.frame.can_id) + " dlc " + std::to_string(r.frame.can_dlc));
+    if (!r.hasStamp) fail("SO_TIMESTAMP: frame " + idText(r.frame.can_id) + " has no timestamp");
+    const double st = stampUs(r.stamp);
+    if (st < lastStamp) fail("SO_TIMESTAMP: timestamps go backwards");
+    if (std::abs(st - stampUs(before)) > 5e6) fail("SO_TIMESTAMP: timestamp more than 5 s from the wall clock");
+    lastStamp = st;
+    ++count;
+  }
+  expectNothing(rx, 200, "filters: after the sentinel");
+
+  can_frame bad = makeFrame(0x123, 8, 0);
+  bad.can_dlc = 9;
+  if (::write(tx.fd(), &bad, sizeof bad) >= 0 || errno != EINVAL)
+    fail("a frame with DLC 9 was not refused with EINVAL (" + errnoText("write") + ")");
+  std::printf(
+      "can_kernel_smoke: filters OK (%d of %zu frames passed, in order, SO_TIMESTAMP present and monotonic, "
+      "DLC 9 refused)\n",
+      count, sent.size());
+}
+
+// 4. latency
+void latencyCheck(const Options& opt, int ifindex) {
+  Socket tx, rx;
+  if (int e = tx.bindTo(ifindex)) {
+    errno = e;
+    fail(errnoText("bind tx"));
+  }
+  if (int e = rx.bindTo(ifindex)) {
+    errno = e;
+    fail(errnoText("bind rx"));
+  }
+  std::vector<double> us;
+  us.reserve(static_cast<size_t>(opt.frames));
+  for (int i = 0; i < opt.frames; ++i) {
+    can_frame f = makeFrame(0x080 + (i & 0x3F), 8, static_cast<uint8_t>(i));
+    std::memcpy(f.data, &i, sizeof i);
+    const double t0 = monoUs();
+    tx.send(f);
+    Received r;
+    if (!receive(rx, 1000, &r)) fail("latency: frame " + std::to_string(i) + " lost");
+    const double t1 = monoUs();
+    if (!sameFrame(r.frame, f)) fail("latency: frame " + std::to_string(i) + " out of order or corrupted");
+    us.push_back(t1 - t0);
+  }
+  const Percentiles pc = percentiles(us);
+  const double p50 = pc.p50, p99 = pc.p99, mx = pc.max;
+  std::printf("can_kernel_smoke: latency send->receive over %d frames: p50 %.1f us, p99 %.1f us, max %.1f us\n",
+              opt.frames, p50, p99, mx);
+  if (opt.maxP99Us > 0 && p99 > opt.maxP99Us)
+    fail("latency p99 " + std::to_string(p99) + " us above the limit " + std::to_string(opt.maxP99Us) + " us");
+}
+
+// 5. nonexistent interface
+void missingInterfaceCheck() {
+  Socket s;
+  ifreq ifr{};
+  std::snprintf(ifr.ifr_name, IFNAMSIZ, "%s", "nosuchcan9");
+  if (::ioctl(s.fd(), SIOCGIFINDEX, &ifr) == 0 || errno != ENODEV)
+    fail("SIOCGIFINDEX of a nonexistent interface did not fail with ENODEV (" + errnoText("ioctl") + ")");
+  if (::if_nametoindex("nosuchcan9") != 0 || errno != ENODEV)
+    fail("if_nametoindex of a nonexistent interface did not fail with ENODEV");
+  int e = s.bindTo(4242);  // an ifindex no interface has in the guest
+  if (e != ENODEV) {
+    errno = e;
+    fail("bind() to a nonexistent ifindex did not fail with ENODEV (" + errnoText("bind") + ")");
+  }
+  std::printf("can_kernel_smoke: nonexistent interface -> ENODEV OK\n");
+}
+
 void run(const Options& opt) {
   int mtu = 0;
   const int ifindex = interfaceIndex(opt.iface, &mtu);
   std::printf("can_kernel_smoke: %s ifindex %d, ARPHRD_CAN, up, MTU %d (%s)\n", opt.iface.c_str(), ifindex, mtu,
               mtu == static_cast<int>(CANFD_MTU) ? "CAN FD capable" : "classic CAN");
-
-  // --- 2. loopback semantics ------------------------------------------------
-  {
-    Socket tx, rx;
-    if (int e = tx.bindTo(ifindex)) {
-      errno = e;
-      fail(errnoText("bind tx"));
-    }
-    if (int e = rx.bindTo(ifindex)) {
-      errno = e;
-      fail(errnoText("bind rx"));
-    }
-    int loopback = -1, recvOwn = -1;
-    socklen_t len = sizeof loopback;
-    if (::getsockopt(tx.fd(), SOL_CAN_RAW, CAN_RAW_LOOPBACK, &loopback, &len) != 0)
-      fail(errnoText("getsockopt(LOOPBACK)"));
-    len = sizeof recvOwn;
-    if (::getsockopt(tx.fd(), SOL_CAN_RAW, CAN_RAW_RECV_OWN_MSGS, &recvOwn, &len) != 0)
-      fail(errnoText("getsockopt(RECV_OWN_MSGS)"));
-    if (loopback != 1 || recvOwn != 0)
-      fail("default CAN_RAW_LOOPBACK=" + std::to_string(loopback) +
-           " CAN_RAW_RECV_OWN_MSGS=" + std::to_string(recvOwn) + ", expected 1 and 0");
-
-    const can_frame f = makeFrame(0x321, 4, 0x40);
-    tx.send(f);
-    Received r;
-    if (!receive(rx, 1000, &r)) fail("loopback: the other socket did not receive frame 0x321 within 1 s");
-    if (!sameFrame(r.frame, f)) fail("loopback: received frame differs from the sent one");
-    if (r.flags & MSG_CONFIRM) fail("loopback: frame from another socket flagged MSG_CONFIRM");
-    expectNothing(tx, 100, "RECV_OWN_MSGS off: sender");
-
-    tx.setOpt(SOL_CAN_RAW, CAN_RAW_RECV_OWN_MSGS, 1, "setsockopt(RECV_OWN_MSGS)");
-    tx.send(f);
-    if (!receive(tx, 1000, &r)) fail("RECV_OWN_MSGS on: the sender did not get its own frame");
-    if (!(r.flags & MSG_CONFIRM)) fail("RECV_OWN_MSGS on: own frame not flagged MSG_CONFIRM");
-    if (!receive(rx, 1000, &r) || !sameFrame(r.frame, f)) fail("RECV_OWN_MSGS on: the other socket lost the frame");
-
-    Socket quiet;
-    if (int e = quiet.bindTo(ifindex)) {
-      errno = e;
-      fail(errnoText("bind quiet"));
-    }
-    quiet.setOpt(SOL_CAN_RAW, CAN_RAW_LOOPBACK, 0, "setsockopt(LOOPBACK)");
-    quiet.send(f);
-    expectNothing(rx, 100, "LOOPBACK off: other socket");
-    std::printf(
-        "can_kernel_smoke: loopback semantics OK (LOOPBACK=1, RECV_OWN_MSGS=0 defaults; MSG_CONFIRM on own frames)\n");
-  }
-
-  // --- 3. filters, order, timestamps, DLC ----------------------------------
-  {
-    Socket tx, rx;
-    if (int e = tx.bindTo(ifindex)) {
-      errno = e;
-      fail(errnoText("bind tx"));
-    }
-    // Standard ids 0x100..0x1FF (EFF flag in the mask: extended frames do not match),
-    // and exactly the extended id 0x12345678.
-    rx.setFilters({{0x100, 0x700 | CAN_EFF_FLAG | CAN_RTR_FLAG},
-                   {0x12345678 | CAN_EFF_FLAG, CAN_EFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG}});
-    rx.setOpt(SOL_SOCKET, SO_TIMESTAMP, 1, "setsockopt(SO_TIMESTAMP)");
-    if (int e = rx.bindTo(ifindex)) {
-      errno = e;
-      fail(errnoText("bind rx"));
-    }
-
-    struct Sent {
-      can_frame f;
-      bool wanted;
-    };
-    const std::vector<Sent> sent = {
-        {makeFrame(0x123, 8, 0x01), true},
-        {makeFrame(0x200, 8, 0x02), false},                 // standard id outside the mask
-        {makeFrame(0x1FF, 0, 0x03), true},                  // DLC 0
-        {makeFrame(0x123 | CAN_EFF_FLAG, 8, 0x04), false},  // extended id 0x123: not the standard 0x123
-        {makeFrame(0x12345678 | CAN_EFF_FLAG, 8, 0x05), true},
-        {makeFrame(0x12345679 | CAN_EFF_FLAG, 3, 0x06), false},
-        {makeFrame(0x100, 1, 0x07), true},
-        {makeFrame(0x12345678 | CAN_EFF_FLAG, 0, 0x08), true},  // extended, DLC 0
-        {makeFrame(0x7FF, 8, 0x09), false},
-        {makeFrame(0x1AA, 8, 0x0A), true},  // last: sentinel
-    };
-    timeval before{};
-    ::gettimeofday(&before, nullptr);
-    for (const Sent& s : sent) tx.send(s.f);
-
-    double lastStamp = 0;
-    int count = 0;
-    for (const Sent& s : sent) {
-      if (!s.wanted) continue;
-      Received r;
-      if (!receive(rx, 1000, &r)) fail("filters: frame " + idText(s.f.can_id) + " did not arrive within 1 s");
-      if (!sameFrame(r.frame, s.f))
-        fail("filters/order: expected " + idText(s.f.can_id) + " dlc " + std::to_string(s.f.can_dlc) + ", got " +
-             idText(r.frame.can_id) + " dlc " + std::to_string(r.frame.can_dlc));
-      if (!r.hasStamp) fail("SO_TIMESTAMP: frame " + idText(r.frame.can_id) + " has no timestamp");
-      const double st = stampUs(r.stamp);
-      if (st < lastStamp) fail("SO_TIMESTAMP: timestamps go backwards");
-      if (std::abs(st - stampUs(before)) > 5e6) fail("SO_TIMESTAMP: timestamp more than 5 s from the wall clock");
-      lastStamp = st;
-      ++count;
-    }
-    expectNothing(rx, 200, "filters: after the sentinel");
-
-    can_frame bad = makeFrame(0x123, 8, 0);
-    bad.can_dlc = 9;
-    if (::write(tx.fd(), &bad, sizeof bad) >= 0 || errno != EINVAL)
-      fail("a frame with DLC 9 was not refused with EINVAL (" + errnoText("write") + ")");
-    std::printf(
-        "can_kernel_smoke: filters OK (%d of %zu frames passed, in order, SO_TIMESTAMP present and monotonic, "
-        "DLC 9 refused)\n",
-        count, sent.size());
-  }
-
-  // --- 4. latency -------------------------------------------------------------
-  {
-    Socket tx, rx;
-    if (int e = tx.bindTo(ifindex)) {
-      errno = e;
-      fail(errnoText("bind tx"));
-    }
-    if (int e = rx.bindTo(ifindex)) {
-      errno = e;
-      fail(errnoText("bind rx"));
-    }
-    std::vector<double> us;
-    us.reserve(static_cast<size_t>(opt.frames));
-    for (int i = 0; i < opt.frames; ++i) {
-      can_frame f = makeFrame(0x080 + (i & 0x3F), 8, static_cast<uint8_t>(i));
-      std::memcpy(f.data, &i, sizeof i);
-      const double t0 = monoUs();
-      tx.send(f);
-      Received r;
-      if (!receive(rx, 1000, &r)) fail("latency: frame " + std::to_string(i) + " lost");
-      const double t1 = monoUs();
-      if (!sameFrame(r.frame, f)) fail("latency: frame " + std::to_string(i) + " out of order or corrupted");
-      us.push_back(t1 - t0);
-    }
-    const Percentiles pc = percentiles(us);
-    const double p50 = pc.p50, p99 = pc.p99, mx = pc.max;
-    std::printf("can_kernel_smoke: latency send->receive over %d frames: p50 %.1f us, p99 %.1f us, max %.1f us\n",
-                opt.frames, p50, p99, mx);
-    if (opt.maxP99Us > 0 && p99 > opt.maxP99Us)
-      fail("latency p99 " + std::to_string(p99) + " us above the limit " + std::to_string(opt.maxP99Us) + " us");
-  }
-
-  // --- 5. nonexistent interface ----------------------------------------------
-  {
-    Socket s;
-    ifreq ifr{};
-    std::snprintf(ifr.ifr_name, IFNAMSIZ, "%s", "nosuchcan9");
-    if (::ioctl(s.fd(), SIOCGIFINDEX, &ifr) == 0 || errno != ENODEV)
-      fail("SIOCGIFINDEX of a nonexistent interface did not fail with ENODEV (" + errnoText("ioctl") + ")");
-    if (::if_nametoindex("nosuchcan9") != 0 || errno != ENODEV)
-      fail("if_nametoindex of a nonexistent interface did not fail with ENODEV");
-    int e = s.bindTo(4242);  // an ifindex no interface has in the guest
-    if (e != ENODEV) {
-      errno = e;
-      fail("bind() to a nonexistent ifindex did not fail with ENODEV (" + errnoText("bind") + ")");
-    }
-    std::printf("can_kernel_smoke: nonexistent interface -> ENODEV OK\n");
-  }
-
+  loopbackCheck(ifindex);
+  filterCheck(ifindex);
+  latencyCheck(opt, ifindex);
+  missingInterfaceCheck();
   errorFrameCheck(ifindex);
   if (opt.peer > 0) peerCheck(opt, ifindex);
 }
