@@ -17,111 +17,33 @@
 // The recursion stops when a set holds one level: its pixels get that
 // disparity. Nodes with no pixels are dropped.
 //
-// Implementation choices (not fixed by the thesis):
+// Implementation choices (not fixed by the thesis; what each was measured against: docs/stereo.md, "HBDS
+// implementation notes"):
 //  * Source side of the cut = B (background, smaller disparities).
-//  * The break point histogram of a node is built from the within-set WTA
-//    (argmin of S over [lo, hi], ties to the smaller d, as winnerTakesAll())
-//    of the node's active pixels, i.e. the thesis' "rough disparity map"
-//    restricted to the node. It is counted directly from the per-pixel argmins
-//    computed for the data term (same result as disparityHistogram() of that
-//    rough map masked to the node, without an image-sized pass per node).
-//    Evaluated alternative (not kept): histograms of the whole-volume WTA
-//    restricted to [lo, hi]. Over a 69-setting (u_max, u_min, tau) sweep on
-//    Tsukuba/Venus/Teddy/Cones the mean bad>1px moved from 12.59 % to
-//    12.38 % and the best setting from 9.18 % to 9.16 %: no real gain, so
-//    the thesis' within-layer rough map stays.
-//  * Per-node work is O(active pixels x set size): the set minimum and its
-//    argmin of every pixel are known (the root computes them in one pass over
-//    d in [lo, hi]; every other node inherits them from its parent, for which
-//    they were the minimum and argmin of one side); after psi is known the side
-//    holding the argmin already has its minimum, so one pass only visits the
-//    other side (d outer, pixels inner, so each slice is read in ascending
-//    memory order; pixel lists are kept sorted) and records its argmin for the
-//    child. Compared with recomputing each node's pass: same results (ties go
-//    to the smaller d either way), a third less work over the volume.
-//  * Active pixels are mapped to compact graph ids with a reusable index
-//    image. Whether a neighbour is in the node, or which way it went, is
-//    kept per pixel as 2 bits per neighbour (Context::relation): "same node"
-//    until the cut that separates the two pixels, which records "above" for
-//    the one sent to B and "below" for the one sent to F. Only the node
-//    owning both pixels writes them, and only nodes owning the pixel read
-//    them, so the boundary term needs no other node's state (it used to read
-//    the neighbours' current disparity sets, which is only schedule-proof
-//    when sibling sets are disjoint; see the overlap below). For disjoint
-//    sets both rules give the same answer.
-//  * A node alone at its depth (the root) splits its two data-term passes
-//    over pixel chunks on the thread pool; the max-flow is sequential.
-//  * Nodes are independent once their parent is cut (disjoint pixels; what a
-//    node knows of a neighbour outside it was written by the ancestor that
-//    separated them, before the node was queued), so a small
-//    std::thread pool cuts every queued node as soon as a worker is free,
-//    largest first, with no barrier between depths. Each worker reuses one
-//    MaxFlow (MaxFlow::reset keeps its memory). Results are independent of
-//    the thread count and the schedule (every node is processed identically).
-//  * Our choice — overlapping subsets (optional, `overlap` = m levels; 0 =
-//    the thesis's disjoint split, the default of the tools). Measured: most
-//    of HBDS's bad pixels on Middlebury have their true disparity next to
-//    the break point of the split that sent them the wrong way (bad>1px
-//    nonocc whose GT is within one level of that psi: Tsukuba 1.55 of 3.38,
-//    Venus 1.38 of 1.67, Teddy 6.64 of 9.92, Cones 3.46 of 5.38 points):
-//    slanted surfaces crossing psi, where the cut is a hard decision the
-//    children cannot undo. With m > 0 the children are B = [lo, psi + m] and
-//    F = [psi + 1 - m, hi] (each kept strictly smaller than [lo, hi]), so
-//    such a pixel can still reach its disparity from either side; D(B),
-//    D(F) of Eq. 2.4 are the minima over these sets, |D*| / 2 of Eq. 2.5 is
-//    unchanged. m = 1: bad>1px 3.38 / 1.67 / 9.92 / 5.38 -> 3.18 / 1.58 /
-//    9.35 / 5.19, energy / alpha-expansion's 1.048 / 1.050 -> 1.044 / 1.035
-//    (Teddy / Cones), the rendered back at 320 x 240: 8.5 -> 6.6 % bad; but
-//    ~1.5-1.8x the time (a deeper tree; pixels whose argmin lies in both
-//    children's sets have equal data terms, and wide regions of them make
-//    BK's cuts slow: the 8-level gradient set takes 0.27 s instead of
-//    0.03 s). m = 2, 3 were worse than 1 (Venus 1.81 / 2.20, Teddy 10.1).
-//    Overlapping only sets of >= 4 / 8 / 16 levels saves time but loses most
-//    of the gain. Pinning the equal-data-term pixels to their argmin's side
-//    (to speed the cuts) is winner-takes-all by another name: Tsukuba 23 %.
-//  * Our choice — pairs crossing the layer boundary (evaluated, kept). The
-//    thesis's Eq. 2.3 sums V over the pairs of the layer P^B / P^F being
-//    split and says nothing about a pair {p, q} whose q was already sent to
-//    another layer (q's set lies entirely above hi or below lo). Ignoring such
-//    pairs (the previous implementation) lets the cut move p away from q for
-//    free although Eq. 2.2 will charge u_pq |d_p - d_q|. We keep Eq. 2.5 and
-//    treat q as a pixel whose bilateral label is fixed to the side nearer its
-//    set: the label away from q pays u_pq |D*| / 2 (a unary term; q above:
-//    added to D_p(B), q below: added to D_p(F)). |D*| / 2 is exactly the
-//    distance between the centres of B = [lo, psi] and F = [psi + 1, hi]
-//    for every psi, i.e. the change of u_pq |d_p - d_q| in Eq. 2.2 between
-//    the two labels when d_p sits at its subset's centre. Measured (defaults,
-//    bad>1px nonocc Tsukuba / Venus / Teddy / Cones; energy / alpha-expansion's):
-//    without 3.36 / 1.86 / 10.24 / 5.40 (mean 5.22), energy 1.040 / 1.020 /
-//    1.069 / 1.071; with 3.38 / 1.67 / 9.92 / 5.38 (mean 5.09), energy
-//    1.029 / 1.013 / 1.048 / 1.050. Cost: two more neighbour reads per pixel.
-//  * Evaluated, not kept (noise-level or mixed; all with the boundary term
-//    above, mean bad>1px of the four scenes; baseline 5.09, energy ratio
-//    1.035): break point histogram counts weighted by confidence 1 - min S
-//    (5.09, 1.035); histogram smoothed by a 3- / 5-level box before Otsu and
-//    the valley search (5.36 / 5.01, 1.038 / 1.034; Tsukuba 4.72 with the
-//    3-level box, Teddy worse with the 5-level one); rough map = WTA of the
-//    box-aggregated (3x3 .. 11x11) cost volume, restricted to the node's
-//    pixels whose aggregated WTA falls in [lo, hi] with or without the
-//    within-set WTA as fallback (4.90 .. 5.22 depending on the box, no
-//    consistent winner, energy 1.036 .. 1.037, +20 ms); the thesis's literal
-//    split B = [lo, psi - 1], F = [psi, hi] (valley level to F): 5.24, 1.038.
-//  * Evaluated, not kept (2026-11): a smooth term from the jump the two
-//    subset argmins imply (the Eq. 2.2 cost of the labels Eq. 2.4 assumes):
-//    a pair cut with p in B and q in F pays u_pq (f_q - b_p), b / f the
-//    argmins of S over B / F (asymmetric arcs, always submodular). Pure HBDS
-//    energy / alpha-expansion's fell from 1.048 / 1.050 to 1.022 / 1.022
-//    (Teddy / Cones); clamped at |D*| / 2: 1.020 / 1.019; but bad>1px moved
-//    3.38 / 1.67 / 9.92 / 5.38 -> 3.42 / 2.34 / 9.38 / 5.68 (clamped 3.23 /
-//    2.45 / 9.35 / 5.63): Venus's texture-poor slanted planes get noisy
-//    argmins and too weak a coupling. Eq. 2.5 stays; the energy gap is
-//    closed instead by the optional local-expansion polish (pipeline.h).
-//  * The Eq. 2.5 penalty is not truncated by SmoothParams::truncation (the
-//    thesis' V has no truncation); truncation only enters the reported
-//    energy, which is Eq. 2.2 via labellingEnergy() so it is comparable with
-//    alpha-expansion.
-//  * layers = number of hierarchy depths at which at least one cut was
-//    solved (ceil(log2(levels)) for a balanced split; 0 when dmin == dmax).
+//  * The break point histogram of a node is built from the within-set WTA (argmin of S over [lo, hi], ties to the
+//    smaller d) of the node's active pixels - the thesis's rough disparity map restricted to the node - counted from
+//    the per-pixel argmins the data term computes anyway.
+//  * Per-node work is O(active pixels x set size): every node inherits its pixels' set minimum and argmin from its
+//    parent (the root computes them); after psi is known only the side without the argmin needs a pass (d outer,
+//    pixels inner, in ascending memory order) and records its argmin for the child.
+//  * Whether a neighbour is in the node, or which way it went, is kept per pixel as 2 bits per neighbour
+//    (Context::relation): "same node" until the cut that separates the two pixels, which records "above" for the one
+//    sent to B and "below" for the one sent to F. Only the node owning both pixels writes them, so the boundary term
+//    needs no other node's state and the results do not depend on the schedule.
+//  * A node alone at its depth (the root) splits its data-term passes over the thread pool; the max-flow is
+//    sequential. Nodes are independent once their parent is cut, so a small pool cuts every queued node as soon as
+//    a worker is free, largest first, with no barrier between depths; each worker reuses one MaxFlow.
+//  * Overlapping subsets (optional, `overlap` = m levels; 0 = the thesis's disjoint split): B = [lo, psi + m],
+//    F = [psi + 1 - m, hi], each kept strictly smaller than [lo, hi], so a pixel whose disparity lies next to the
+//    break point can still reach it from either side.
+//  * Pairs crossing the layer boundary: a pair {p, q} whose q already left the node charges u_pq |D*| / 2 to the
+//    label of p away from q's set (a unary term; |D*| / 2 is the distance between the centres of B and F).
+//  * Coarse-to-fine cuts (optional, `coarse` = C): a layer of >= kCoarseMinPixels pixels is cut over C x C blocks,
+//    then at full resolution in a one-block band around the blocks' label boundary.
+//  * The Eq. 2.5 penalty is not truncated by SmoothParams::truncation (the thesis's V has none); truncation only
+//    enters the reported energy, Eq. 2.2 via labellingEnergy(), comparable with alpha-expansion's.
+//  * layers = number of hierarchy depths at which at least one cut was solved (ceil(log2(levels)) for a balanced
+//    split; 0 when dmin == dmax).
 #include <algorithm>
 #include <atomic>
 #include <condition_variable>

@@ -84,8 +84,8 @@ struct CectParams {
   /// Across the body the back has its finest relief: the spine's groove
   /// between the paraspinal ridges, ~40 px ridge to ridge at 640x480. With
   /// seed_step columns its reconstruction depends on where the columns fall
-  /// (the body's place in the image: 2.97-3.11 mm over the grid's phases);
-  /// half-step columns make it independent of that. Along the body the back
+  /// (the body's place in the image); half-step columns make it independent
+  /// of that. Along the body the back
   /// changes slowly.
   int seed_column_step = 8;
   int ncc_radius = 11;  ///< matching window half-width r for the refinement along the epipolar line
@@ -146,7 +146,7 @@ struct CectParams {
   bool rim_profile = true;
   double query_search = 0.0;  ///< pixels searched either side of a query's prediction (0: transfer only, the default:
                               ///< single windows on skin are noisier than the smoothed seeds, and the reported sigma
-                              ///< undercovers them: 78 % of the acupoints' errors within 2 sigma at query_search=2)
+                              ///< undercovers them)
   /// Weakest accepted correlation peak. Low on purpose: on dark skin and
   /// under sheen the skin's texture correlates weakly, and a gap without
   /// seeds is extrapolated far worse (up to 30 mm) than weak seeds err;
@@ -196,10 +196,8 @@ struct CectParams {
   ///   (pixels per pixel; the containing triangle's plane, or the seeds'
   ///   quadratic outside the triangulation): a window on sloping skin
   ///   compares pixels of different disparities.
-  /// Calibrated on the simulator's 28 subjects by maximum likelihood (every
-  /// 4th back pixel, ideal conditions; it holds under the side lights and
-  /// the camera shifts and on raw pairs: 94-99 % of the errors within 2 sigma
-  /// in every band).
+  /// Calibrated on the simulator's subjects by maximum likelihood (every 4th
+  /// back pixel; docs/cect.md, design notes).
   /// 0 turns a part off.
   double border_sigma = 1.0;
   double border_sigma_reach = 3.0;  ///< seed steps
@@ -232,9 +230,7 @@ cv::Vec2d disparityRange(const CectParams& p, const camera::StereoModel& geometr
 /// 1 / scale^2. Scale-free (seed steps, metres, angles, NCC) and sub-pixel
 /// ones (lr_tolerance, pixel_sigma; the reported uncertainty scales the
 /// latter itself, CectFrame::matchingSigma) stay, and so do min_disparity and
-/// max_disparity. (Scaling the tolerances by the relief's disparity instead,
-/// ~scale^2 / fx B, was worse with the camera 1.3 m above the table: 3.79 mm,
-/// 95.7 % within 1 cm, against 3.70 mm, 96.6 %.)
+/// max_disparity.
 CectParams scaledParams(const CectParams& p, double scale);
 
 /// One correspondence in rectified coordinates (same row in both views).
