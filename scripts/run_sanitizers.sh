@@ -6,10 +6,12 @@
 # (scripts/run_fuzz.sh). Any sanitizer report, test failure or fuzz finding
 # fails the run.
 #
-# Default (ctest's `sanitizers`, ~6 min on 2 cores): the CAN stack, the arm,
-# the camera and the stereo library, and the CAN and stereo fuzz targets.
-# --all adds the CECT library's gtests and the YAML-loader and CECT fuzz
-# targets (~22 min on 2 cores: the CECT sources alone take minutes to compile
+# Default (ctest's `sanitizers`, ~5 min on 2 cores beside the other tests):
+# the CAN stack's, the arm's and the camera's gtests, and the CAN and stereo
+# fuzz targets (fuzz_stereo_match drives the whole stereo library under the
+# sanitizers with a thousand drawn images and parameter sets). --all adds the
+# stereo and CECT libraries' gtests and the YAML-loader and CECT fuzz targets
+# (~22 min on 2 cores: the CECT sources alone take minutes to compile
 # instrumented), run by hand before a release (docs/safety.md).
 #
 #   scripts/run_sanitizers.sh [--all] [build-folder] [fuzz-inputs-per-target]
@@ -23,10 +25,10 @@ fuzz_runs=${2:-1000}
 export PYENV_VERSION=system
 tests=(test_can_bus test_can_canopen test_can_config test_can_master test_can_cia402 test_can_sim_drive test_can_drive
        test_arm_config test_arm_profile test_arm_plan test_arm_controller test_arm_session
-       test_camera
-       test_stereo_cost_volume test_stereo_graph_cuts test_stereo_hbds test_stereo_refine)
+       test_camera)
 fuzzers=(fuzz_can_frames fuzz_can_master fuzz_stereo_match)
 if [ $all = 1 ]; then
+  tests+=(test_stereo_cost_volume test_stereo_graph_cuts test_stereo_hbds test_stereo_refine)
   tests+=(test_cect_robustness test_cect_segmentation test_cect_cect test_cect_acupoint_model
           test_cect_temporal_filter test_cect_real_backs)
   fuzzers+=(fuzz_yaml_loaders fuzz_cect)
