@@ -4,6 +4,7 @@
 
 add_library(massage_cell_arm STATIC
   src/arm/config.cpp
+  src/arm/node_options.cpp
   src/arm/profile.cpp
   src/arm/plan.cpp
   src/arm/controller.cpp
@@ -23,9 +24,9 @@ install(TARGETS arm_bench RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
 # ROS wrapper: the arm nodelet (its own plugin library, see nodelet_plugins.xml)
 # and node; the plain URDF of the cell (urdf/massage_arm.urdf) for
 # robot_state_publisher; rostests with simulated drives.
-add_library(massage_cell_arm_nodelet src/nodes/arm_nodelet.cpp)
+add_library(massage_cell_arm_nodelet src/nodes/arm_nodelet.cpp src/nodes/arm_interface.cpp)
 target_include_directories(massage_cell_arm_nodelet PRIVATE include ${CATKIN_DEVEL_PREFIX}/include ${catkin_INCLUDE_DIRS})
-target_link_libraries(massage_cell_arm_nodelet massage_cell_arm ${catkin_LIBRARIES} yaml-cpp)
+target_link_libraries(massage_cell_arm_nodelet massage_cell_arm massage_cell_node_tf ${catkin_LIBRARIES})
 add_dependencies(massage_cell_arm_nodelet ${PROJECT_NAME}_generate_messages_cpp)
 add_executable(arm_node src/nodes/arm_node.cpp)
 target_include_directories(arm_node PRIVATE ${catkin_INCLUDE_DIRS})

@@ -787,4 +787,24 @@ ArmStatus Controller::status() const {
   return s;
 }
 
+Health health(const ArmStatus& s) {
+  using Level = Health::Level;
+  if (s.mode == Mode::kFault) {
+    std::string f;
+    for (const auto& x : s.faults) f += (f.empty() ? "" : "; ") + x;
+    return {Level::kError, "fault: " + f};
+  }
+  if (s.mode == Mode::kEstop) return {Level::kError, "e-stop latched"};
+  if (s.mode == Mode::kReleasing) return {Level::kError, "e-stop latched, releasing the pressure"};
+  if (!s.homed || s.mode == Mode::kStarting) return {Level::kWarn, std::string(toString(s.mode)) + ": not homed"};
+  return {Level::kOk, toString(s.mode)};
+}
+
+std::string describeAxis(const AxisStatus& a) {
+  char position[48];
+  std::snprintf(position, sizeof position, "%.6f m", a.position);
+  return std::string(position) + ", " + can::toString(a.state) + ", node " + can::toString(a.node) +
+         (a.homed ? ", homed" : ", not homed");
+}
+
 }  // namespace massage_cell::arm

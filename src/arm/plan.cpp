@@ -315,4 +315,31 @@ std::string planMassage(const ArmConfig& c, const Eigen::Vector3d& from, const P
   return "";
 }
 
+std::string pressSettings(const ArmConfig& config, const MassageFields& f, PressRequest* out) {
+  const std::string n = std::to_string(f.targets);
+  if (f.targets == 0) return "no target (frames or points) given";
+  if (f.targets > static_cast<std::size_t>(config.press.max_targets)) {
+    return n + " targets: at most " + std::to_string(config.press.max_targets) + " in one request (press.max_targets)";
+  }
+  if (!std::isfinite(f.hold)) return "hold must be a finite number of seconds (0: the default; < 0: none)";
+  if (f.regions != 0 && f.regions != f.targets) {
+    return "regions has " + std::to_string(f.regions) + " entries for " + n + " targets";
+  }
+  if (f.normals != 0 && f.normals != f.targets) {
+    return "normals has " + std::to_string(f.normals) + " entries for " + n + " targets";
+  }
+  if (f.technique.empty() || f.technique == "press") {
+    out->technique = Technique::kPress;
+  } else if (f.technique == "knead") {
+    out->technique = Technique::kKnead;
+  } else {
+    return "unknown technique '" + f.technique + "' (press or knead)";
+  }
+  out->depth = f.depth;
+  out->hold = f.hold == 0.0 ? -1.0 : std::max(0.0, f.hold);
+  out->speed = f.speed;
+  out->repeats = f.repeats == 0 ? 1 : f.repeats;
+  return "";
+}
+
 }  // namespace massage_cell::arm

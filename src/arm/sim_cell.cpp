@@ -1,6 +1,9 @@
 // The arm on simulated drives (see sim_cell.h).
 #include "massage_cell/arm/sim_cell.h"
 
+#include <sstream>
+#include <string>
+
 namespace massage_cell::arm {
 
 SimCell::SimCell(ArmConfig config) : bus_(can::SteadyClock::instance()) {
@@ -46,6 +49,26 @@ void SimCell::stop() {
   stop_ = true;
   for (auto& t : threads_) t.join();
   threads_.clear();
+}
+
+bool parseFaultInjection(const ArmConfig& config, const std::string& text, int* axis, std::uint16_t* code) {
+  std::istringstream in(text);
+  std::string name, code_text, rest;
+  if (!(in >> name >> code_text) || (in >> rest)) return false;
+  *axis = -1;
+  for (int i = 0; i < 3; ++i) {
+    if (config.axis_names[i] == name) *axis = i;
+  }
+  std::size_t used = 0;
+  unsigned long value = 0;
+  try {
+    value = std::stoul(code_text, &used, 0);
+  } catch (const std::exception&) {
+    return false;
+  }
+  if (*axis < 0 || used != code_text.size() || value == 0 || value > 0xFFFF) return false;
+  *code = static_cast<std::uint16_t>(value);
+  return true;
 }
 
 }  // namespace massage_cell::arm

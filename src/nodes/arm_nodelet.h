@@ -46,6 +46,7 @@
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 
+#include "arm_interface.h"
 #include "massage_cell/Massage.h"
 #include "massage_cell/MoveTo.h"
 #include "massage_cell/arm/controller.h"
@@ -61,12 +62,6 @@ class ArmNodelet : public nodelet::Nodelet {
   ~ArmNodelet() override;
 
  private:
-  /// A target of the running massage that is a tf frame (monitored while pressed).
-  struct FrameTarget {
-    int index = -1;
-    std::string frame;
-  };
-
   void onInit() override;
   void readParameters();
   /// The controller, or null while the CAN interface is not open.
@@ -91,23 +86,11 @@ class ArmNodelet : public nodelet::Nodelet {
   bool massage(massage_cell::Massage::Request& req, massage_cell::Massage::Response& res);
   /// Waits for the command: its success, and its message in `message`.
   bool wait(const arm::Accepted& accepted, std::string* message);
-  /// The transform base_frame <- frame at `stamp` (0: latest); the problem in `error` when unusable.
-  /// The skin as the arm knows it: every current acupoint frame, in base_frame.
-  arm::BodySurface bodySurface() const;
-  bool lookup(const std::string& frame, const ros::Time& stamp, geometry_msgs::TransformStamped* out,
-              std::string* error);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
 
   // Parameters.
   std::string config_path_;
-  std::string can_interface_ = "sim";
-  std::string base_frame_ = "arm_base_link";
-  double publish_rate_ = 50.0;
-  double max_target_age_ = 0.5;
-  double tf_timeout_ = 0.2;
-  std::string acupoint_prefix_ = "acupoint/";
-  double command_timeout_ = 300.0;
-  can::RealtimeOptions realtime_options_;
+  arm::NodeOptions options_;  ///< config/arm.yaml's node: section under the private parameters
 
   // The controller and what it runs on.
   std::unique_ptr<arm::SimCell> sim_;
@@ -130,12 +113,13 @@ class ArmNodelet : public nodelet::Nodelet {
   ros::WallTimer timer_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  std::unique_ptr<ArmTargets> targets_;  ///< the services' targets through tf_buffer_
   std::unique_ptr<diagnostic_updater::Updater> updater_;
 
   // The running massage's frame targets (guarded by targets_mutex_).
   std::mutex targets_mutex_;
   std::uint64_t massage_command_ = 0;
-  std::vector<FrameTarget> frame_targets_;
+  std::vector<ArmTargets::FrameTarget> frame_targets_;  ///< its targets that are tf frames (monitored)
 };
 
 }  // namespace massage_cell::nodes

@@ -2,6 +2,9 @@
 // cfg's names meet cect::CectParams and cect::TemporalFilterParams.
 #pragma once
 
+#include <sstream>
+#include <string>
+
 #include "massage_cell/CECTConfig.h"
 #include "massage_cell/cect/cect.h"
 #include "massage_cell/cect/temporal_filter.h"
@@ -56,6 +59,25 @@ inline cect::TemporalFilterParams filterParams(const CECTConfig& c) {
   p.reacquire_after = c.reacquire_after;
   p.max_age = c.max_age;
   return p;
+}
+
+/// The parameters a user tunes most, in one line for the log.
+inline std::string describe(const CECTConfig& c) {
+  auto bound = [](double px, const char* otherwise) {
+    std::ostringstream s;
+    if (px > 0)
+      s << px;
+    else
+      s << otherwise;
+    return s.str();
+  };
+  std::ostringstream s;
+  s << "seed_step " << c.seed_step << ", ncc_radius " << c.ncc_radius << ", seed_search " << c.seed_search
+    << ", query_search " << c.query_search << ", min_ncc " << c.min_ncc << ", depths " << c.min_depth << ".."
+    << c.max_depth << " m, disparities " << bound(c.min_disparity, "from max_depth") << ".."
+    << bound(c.max_disparity, "from min_depth") << ", filter alpha " << c.alpha << " gate " << c.gate
+    << " m reacquire_after " << c.reacquire_after << " max_age " << c.max_age << " s";
+  return s.str();
 }
 
 }  // namespace massage_cell::nodes

@@ -48,6 +48,7 @@
 #include <Eigen/Core>
 #include <boost/thread/recursive_mutex.hpp>
 
+#include "cect_status.h"
 #include "massage_cell/CECTConfig.h"
 #include "massage_cell/GetAcupoint.h"
 #include "massage_cell/LocalizePixels.h"
@@ -57,6 +58,7 @@
 #include "massage_cell/cect/cect.h"
 #include "massage_cell/cect/tracker.h"
 #include "stereo_pair_input.h"
+#include "wall_diagnostics.h"
 
 namespace massage_cell::nodes {
 
@@ -130,22 +132,10 @@ class CectNodelet : public nodelet::Nodelet {
   Analysed latest_;
 
   // Status for the diagnostics (guarded by status_mutex_).
-  std::unique_ptr<diagnostic_updater::Updater> updater_;
-  ros::WallTimer diagnostics_timer_;
+  WallDiagnostics diagnostics_;
   std::mutex status_mutex_;
   PairStats stats_;
-  std::uint64_t unusable_ = 0;
-  std::string last_problem_;  ///< why the last analysed pair gave no acupoints (empty: it did)
-  int last_valid_ = 0, last_measured_ = 0;
-  int rejected_outliers_ = 0;
-  double last_cect_ms_ = 0.0;
-  double last_scale_ = 1.0;                   ///< the last valid pair's view scale (auto_scale)
-  cv::Vec2d last_disparity_range_{0.0, 0.0};  ///< the disparities the last pair searched
-  double last_body_angle_ = 0.0;  ///< the last pair's body turn against the image columns (landmarks), degrees
-  std::string last_landmarks_;    ///< which landmarks the last pair measured and which it inferred
-  std::string last_trunk_;        ///< what the last pair's segmentation cut away (arms, cloth)
-  std::string last_background_;   ///< what the last pair's depth gate called far background
-  std::string geometry_summary_;
+  CectStatus status_;
 };
 
 }  // namespace massage_cell::nodes

@@ -31,6 +31,7 @@
 #include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/stereo/pipeline.h"
 #include "stereo_pair_input.h"
+#include "wall_diagnostics.h"
 
 namespace massage_cell::nodes {
 
@@ -93,8 +94,7 @@ class HbdsNodelet : public nodelet::Nodelet {
   ProblemThrottle log_throttle_;                      // per-problem log throttling
 
   // Status for the diagnostics (guarded by status_mutex_).
-  std::unique_ptr<diagnostic_updater::Updater> updater_;
-  ros::WallTimer diagnostics_timer_;
+  WallDiagnostics diagnostics_;
   std::mutex status_mutex_;
   PairStats stats_;
   double last_matcher_ms_ = 0.0;

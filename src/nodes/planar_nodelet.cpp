@@ -127,19 +127,14 @@ void PlanarNodelet::init() {
   views_frame_ = typedParam<std::string>(pnh, "views_frame", "planar_views");
   output_prefix_ = typedParam<std::string>(pnh, "output_prefix", "");
   config_ = Config::__getDefault__();
-  for (const std::string& problem : startParameterProblems<Config>(pnh)) NODELET_ERROR_STREAM(problem);
-  reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<Config>>(config_mutex_, pnh);
-  reconfigure_server_->setCallback([this](Config& config, uint32_t level) { configCb(config, level); });
+  reconfigure_server_ = serveConfig<Config>(pnh, config_mutex_, this, &PlanarNodelet::configCb,
+                                            [this](const std::string& problem) { NODELET_ERROR_STREAM(problem); });
 
   mesh_pub_ = pnh.advertise<visualization_msgs::Marker>("mesh", 1, /*latch=*/true);
   planes_pub_ = pnh.advertise<massage_cell::PlanarModel>("planes", 1, /*latch=*/true);
   reconstruct_srv_ = pnh.advertiseService("reconstruct", &PlanarNodelet::reconstructCb, this);
 
-  updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh, pnh.getNamespace());
-  updater_->setHardwareID("none");
-  updater_->add("planar reconstruction", this, &PlanarNodelet::diagnose);
-  diagnostics_timer_ =
-      nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_->force_update(); });
+  diagnostics_.start(nh, pnh, "planar reconstruction", this, &PlanarNodelet::diagnose);
 
   const SyncOptions sync = SyncOptions::fromParameters(pnh);
   if (!sync.problem.empty()) NODELET_ERROR_STREAM(sync.problem);
@@ -258,14 +253,9 @@ massage_cell::PlanarModel PlanarNodelet::run(const std::vector<planar::View>& vi
 }
 
 void PlanarNodelet::failed(const std::string& source, const std::string& problem) {
-  std::uint64_t bad = 0;
-  {
-    std::lock_guard<std::mutex> lock(status_mutex_);
-    bad = stats_.badOne(problem);
-  }
-  if (log_throttle_.due(problem)) {
-    NODELET_ERROR_STREAM("no planes from the " << source << ": " << problem << " (" << bad << " failures so far)");
-  }
+  const std::string line =
+      countFailure("no planes from the " + source, problem, "failures", status_mutex_, stats_, log_throttle_);
+  if (!line.empty()) NODELET_ERROR_STREAM(line);
 }
 
 void PlanarNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {

@@ -25,6 +25,7 @@
 #include "massage_cell/Reconstruct.h"
 #include "massage_cell/planar/reconstruct.h"
 #include "stereo_pair_input.h"
+#include "wall_diagnostics.h"
 
 namespace massage_cell::nodes {
 
@@ -67,8 +68,7 @@ class PlanarNodelet : public nodelet::Nodelet {
   int last_planes_ = 0;
   planar::StageTimes last_times_;
   ProblemThrottle log_throttle_;
-  std::unique_ptr<diagnostic_updater::Updater> updater_;
-  ros::WallTimer diagnostics_timer_;
+  WallDiagnostics diagnostics_;
 };
 
 }  // namespace massage_cell::nodes

@@ -2,12 +2,16 @@
 #pragma once
 
 #include <algorithm>
+#include <functional>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include <dynamic_reconfigure/server.h>
 #include <ros/ros.h>
 #include <boost/any.hpp>
+#include <boost/thread/recursive_mutex.hpp>
 
 #include "typed_param.h"
 
@@ -60,6 +64,18 @@ std::vector<std::string> startParameterProblems(const ros::NodeHandle& pnh) {
     }
   }
   return problems;
+}
+
+/// Serves `Config` on `pnh`: each start-up problem (startParameterProblems) goes to `log_error` first; `callback`
+/// then runs with `mutex` held, at once with the start-up values and on every change.
+template <class Config, class Owner>
+std::unique_ptr<dynamic_reconfigure::Server<Config>> serveConfig(
+    ros::NodeHandle& pnh, boost::recursive_mutex& mutex, Owner* owner, void (Owner::*callback)(Config&, uint32_t),
+    const std::function<void(const std::string&)>& log_error) {
+  for (const std::string& problem : startParameterProblems<Config>(pnh)) log_error(problem);
+  auto server = std::make_unique<dynamic_reconfigure::Server<Config>>(mutex, pnh);
+  server->setCallback([owner, callback](Config& config, uint32_t level) { (owner->*callback)(config, level); });
+  return server;
 }
 
 }  // namespace massage_cell::nodes

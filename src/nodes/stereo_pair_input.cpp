@@ -4,6 +4,10 @@
 #include <cmath>
 #include <utility>
 
+#include <cv_bridge/cv_bridge.h>
+#include <sensor_msgs/image_encodings.h>
+#include <opencv2/imgproc.hpp>
+
 #include "calibration_msg.h"
 #include "typed_param.h"
 
@@ -119,6 +123,46 @@ std::shared_ptr<const camera::StereoModel> StereoModelCache::get(const sensor_ms
   return model_;
 }
 
+cv::Mat matchableImage(const sensor_msgs::ImageConstPtr& msg, const std::string& which) {
+  namespace enc = sensor_msgs::image_encodings;
+  const std::string& e = msg->encoding;
+  if (e != enc::MONO8 && e != enc::BGR8 && e != enc::RGB8) {
+    throw BadInput(which + " image encoding '" + e + "' is not supported (mono8, bgr8 or rgb8)");
+  }
+  cv_bridge::CvImageConstPtr cv_image;
+  try {
+    cv_image = cv_bridge::toCvShare(msg);
+  } catch (const cv_bridge::Exception& ex) {
+    throw BadInput(which + " image cannot be read: " + ex.what());
+  }
+  if (cv_image->image.empty()) throw BadInput(which + " image is empty");
+  if (e == enc::RGB8) {
+    cv::Mat bgr;
+    cv::cvtColor(cv_image->image, bgr, cv::COLOR_RGB2BGR);
+    return bgr;
+  }
+  return cv_image->image;
+}
+
+cv::Mat colourImage(const sensor_msgs::ImageConstPtr& msg, const std::string& which) {
+  namespace enc = sensor_msgs::image_encodings;
+  const std::string& e = msg->encoding;
+  if (!enc::isColor(e) && !enc::isBayer(e)) {
+    throw BadInput(which + " image encoding '" + e +
+                   "' has no colour: CECT finds the back by its skin colour (bgr8, rgb8, bgra8, rgba8 or Bayer)");
+  }
+  cv_bridge::CvImageConstPtr cv_image;
+  try {
+    cv_image = cv_bridge::toCvShare(msg, enc::BGR8);
+  } catch (const cv_bridge::Exception& ex) {
+    throw BadInput(which + " image cannot be read: " + ex.what());
+  } catch (const cv::Exception& ex) {
+    throw BadInput(which + " image cannot be converted to bgr8: " + ex.what());
+  }
+  if (cv_image->image.empty()) throw BadInput(which + " image is empty");
+  return cv_image->image;
+}
+
 bool ProblemThrottle::due(const std::string& problem) {
   const ros::WallTime now = ros::WallTime::now();
   if (last_.size() > 100) last_.clear();
@@ -175,6 +219,17 @@ void PairStats::addTimes(diagnostic_updater::DiagnosticStatusWrapper& status, co
   status.add(stage_label, stage_ms);
   status.add("mean processing time (ms)", processed_ > 0 ? total_ms_ / processed_ : 0.0);
   if (waited_ > 0) status.add("mean wait camera stamp -> processing (ms)", total_waited_ms_ / waited_);
+}
+
+std::string countFailure(const std::string& what, const std::string& problem, const std::string& counted,
+                         std::mutex& mutex, PairStats& stats, ProblemThrottle& throttle) {
+  std::uint64_t count = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    count = stats.badOne(problem);
+  }
+  if (!throttle.due(problem)) return "";
+  return what + ": " + problem + " (" + std::to_string(count) + " " + counted + " so far)";
 }
 
 }  // namespace massage_cell::nodes

@@ -23,6 +23,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -37,6 +38,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <opencv2/core.hpp>
 
 #include "massage_cell/camera/latest_worker.h"
 #include "massage_cell/camera/stereo_model.h"
@@ -120,6 +122,14 @@ std::string sizeText(unsigned width, unsigned height);
 /// declares or the camera_info uses binning / a region of interest.
 void checkImageSize(const sensor_msgs::CameraInfo& info, const sensor_msgs::Image& image, const std::string& which);
 
+/// The image for matching: 8-bit grey or BGR, shared with the message when possible (rgb8 is converted). Throws
+/// BadInput naming `which` for other encodings (mono16, floats, Bayer, ...) and unreadable or empty images.
+cv::Mat matchableImage(const sensor_msgs::ImageConstPtr& msg, const std::string& which);
+
+/// The image as 8-bit BGR (for methods that need colour): any colour or Bayer encoding cv_bridge converts. Throws
+/// BadInput naming `which` for images without colour and unreadable or empty ones.
+cv::Mat colourImage(const sensor_msgs::ImageConstPtr& msg, const std::string& which);
+
 /// Appends everything of `info` a calibration change affects, to detect
 /// changes cheaply by comparing keys.
 void appendCalibrationKey(std::vector<double>& key, const sensor_msgs::CameraInfo& info);
@@ -190,5 +200,10 @@ class PairStats {
   std::uint64_t waited_ = 0;
   std::deque<ros::WallTime> times_;  // recent completions, for the rate
 };
+
+/// A failure (a skipped pair): counted in `stats` (under `mutex`, the nodelet's status mutex). Returns the line to
+/// log, "<what>: <problem> (<count> <counted> so far)", or "" while `throttle` holds this problem back.
+std::string countFailure(const std::string& what, const std::string& problem, const std::string& counted,
+                         std::mutex& mutex, PairStats& stats, ProblemThrottle& throttle);
 
 }  // namespace massage_cell::nodes

@@ -1,11 +1,15 @@
 // config/arm.yaml loads; every kind of mistake is an ArmConfigError naming the field.
 #include <gtest/gtest.h>
 
+#include <stdlib.h>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <regex>
 
 #include "massage_cell/arm/config.h"
+#include "massage_cell/arm/node_options.h"
 
 #ifndef MASSAGE_CELL_SOURCE_DIR
 #define MASSAGE_CELL_SOURCE_DIR "."
@@ -116,6 +120,68 @@ TEST(ArmConfig, AcupointFileOfTheWrongShapeIsNamed) {
   std::ofstream(path) << "points: 3\n";
   EXPECT_THROW(loadAcupointRegions(path), ArmConfigError);
   std::remove(path.c_str());
+}
+
+// ------------------------------------------------------------ node options --
+
+std::string writeTemp(const std::string& text) {
+  char path[] = "/tmp/test_arm_node_options_XXXXXX";
+  const int fd = mkstemp(path);
+  EXPECT_GE(fd, 0);
+  std::FILE* f = fdopen(fd, "w");
+  std::fputs(text.c_str(), f);
+  std::fclose(f);
+  return path;
+}
+
+TEST(NodeOptions, ShippedFileSetsTheNodeSection) {
+  const NodeOptions o = loadNodeOptions(kConfigDir + "/arm.yaml");
+  EXPECT_EQ(o.can_interface, "sim");
+  EXPECT_EQ(o.base_frame, "arm_base_link");
+  EXPECT_DOUBLE_EQ(o.max_target_age, 1.0);  // the file's value, not the struct's default (0.5)
+  EXPECT_EQ(o.acupoint_prefix, "acupoint/");
+  EXPECT_NO_THROW(validate(o));
+}
+
+TEST(NodeOptions, MissingSectionKeepsTheDefaults) {
+  const std::string path = writeTemp("joints: {}\n");
+  const NodeOptions o = loadNodeOptions(path);
+  std::remove(path.c_str());
+  EXPECT_EQ(o.can_interface, "sim");
+  EXPECT_DOUBLE_EQ(o.publish_rate, 50.0);
+  EXPECT_EQ(o.realtime.priority, 0);
+}
+
+TEST(NodeOptions, WrongTypeNamesTheFileAndSection) {
+  const std::string path = writeTemp("node:\n  publish_rate: fast\n");
+  try {
+    loadNodeOptions(path);
+    ADD_FAILURE() << "no error for publish_rate: fast";
+  } catch (const ArmConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find(path + ": node:"), std::string::npos) << e.what();
+  }
+  std::remove(path.c_str());
+}
+
+TEST(NodeOptions, ValidateNamesTheBadOption) {
+  auto problem = [](const std::function<void(NodeOptions&)>& edit) {
+    NodeOptions o;
+    edit(o);
+    try {
+      validate(o);
+    } catch (const ArmConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(problem([](NodeOptions&) {}), "");
+  EXPECT_EQ(problem([](NodeOptions& o) { o.publish_rate = 0.0; }).rfind("publish_rate must be > 0", 0), 0u);
+  EXPECT_EQ(problem([](NodeOptions& o) { o.publish_rate = std::nan(""); }).rfind("publish_rate", 0), 0u);
+  EXPECT_EQ(problem([](NodeOptions& o) { o.max_target_age = -1.0; }).rfind("max_target_age", 0), 0u);
+  EXPECT_EQ(problem([](NodeOptions& o) { o.tf_timeout = -0.1; }).rfind("tf_timeout must be >= 0", 0), 0u);
+  EXPECT_EQ(problem([](NodeOptions& o) { o.command_timeout = 0.0; }).rfind("command_timeout", 0), 0u);
+  EXPECT_EQ(problem([](NodeOptions& o) { o.can_interface.clear(); }).rfind("can_interface", 0), 0u);
+  EXPECT_EQ(problem([](NodeOptions& o) { o.realtime.priority = 100; }).rfind("realtime_priority", 0), 0u);
 }
 
 }  // namespace

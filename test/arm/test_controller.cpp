@@ -760,6 +760,40 @@ TEST(SimCell, NormalSchedulingByDefault) {
   cell.stop();
 }
 
+TEST(Controller, HealthOfTheStatus) {
+  ArmStatus s;
+  s.mode = Mode::kReady;
+  s.homed = true;
+  EXPECT_EQ(health(s).level, Health::Level::kOk);
+  EXPECT_EQ(health(s).text, toString(Mode::kReady));
+  s.homed = false;
+  EXPECT_EQ(health(s).level, Health::Level::kWarn);
+  EXPECT_NE(health(s).text.find("not homed"), std::string::npos);
+  s.mode = Mode::kEstop;
+  EXPECT_EQ(health(s).level, Health::Level::kError);
+  EXPECT_EQ(health(s).text, "e-stop latched");
+  s.mode = Mode::kFault;
+  s.faults = {"Y: EMCY 0x2310", "bus off"};
+  EXPECT_EQ(health(s).level, Health::Level::kError);
+  EXPECT_EQ(health(s).text, "fault: Y: EMCY 0x2310; bus off");
+}
+
+TEST(Controller, ParseFaultInjection) {
+  ArmConfig c;
+  c.axis_names = {"X", "Y", "Z"};
+  int axis = -1;
+  std::uint16_t code = 0;
+  EXPECT_TRUE(parseFaultInjection(c, "Y 0x2310", &axis, &code));
+  EXPECT_EQ(axis, 1);
+  EXPECT_EQ(code, 0x2310);
+  EXPECT_TRUE(parseFaultInjection(c, "Z 8977", &axis, &code));
+  EXPECT_EQ(axis, 2);
+  EXPECT_EQ(code, 8977);
+  for (const char* bad : {"", "Y", "W 0x2310", "Y 0", "Y 0x10000", "Y 0x23g0", "Y 0x2310 extra", "Y -1"}) {
+    EXPECT_FALSE(parseFaultInjection(c, bad, &axis, &code)) << bad;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {

@@ -2,6 +2,9 @@
 // normals, kneading, refusals with messages naming the target.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <functional>
+
 #include <Eigen/Geometry>
 
 #include "massage_cell/arm/plan.h"
@@ -256,6 +259,45 @@ TEST(Plan, RetractStepsGoBackToTheApproachPointThenUp) {
   EXPECT_TRUE(r[0].retract);
   EXPECT_DOUBLE_EQ(r[0].speed, c.press.retract_speed);
   EXPECT_TRUE(r[1].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.28)));
+}
+
+TEST(Plan, PressSettingsOfAServiceCall) {
+  const ArmConfig c = config();
+  MassageFields f;
+  f.targets = 2;
+  PressRequest r;
+  EXPECT_EQ(pressSettings(c, f, &r), "");
+  EXPECT_EQ(r.technique, Technique::kPress);
+  EXPECT_EQ(r.hold, -1.0);  // 0: the default
+  EXPECT_EQ(r.repeats, 1);  // 0: once
+  f.technique = "knead";
+  f.hold = -2.0;
+  f.repeats = 3;
+  f.depth = 0.004;
+  EXPECT_EQ(pressSettings(c, f, &r), "");
+  EXPECT_EQ(r.technique, Technique::kKnead);
+  EXPECT_EQ(r.hold, 0.0);  // < 0: none
+  EXPECT_EQ(r.repeats, 3);
+  EXPECT_EQ(r.depth, 0.004);
+}
+
+TEST(Plan, PressSettingsRefusals) {
+  const ArmConfig c = config();
+  auto refusal = [&](const std::function<void(MassageFields&)>& edit) {
+    MassageFields f;
+    f.targets = 2;
+    edit(f);
+    PressRequest r;
+    return pressSettings(c, f, &r);
+  };
+  EXPECT_EQ(refusal([](MassageFields& f) { f.targets = 0; }), "no target (frames or points) given");
+  EXPECT_NE(refusal([&](MassageFields& f) { f.targets = c.press.max_targets + 1; }).find("press.max_targets"),
+            std::string::npos);
+  EXPECT_NE(refusal([](MassageFields& f) { f.hold = std::nan(""); }).find("hold must be a finite"), std::string::npos);
+  EXPECT_EQ(refusal([](MassageFields& f) { f.regions = 1; }), "regions has 1 entries for 2 targets");
+  EXPECT_EQ(refusal([](MassageFields& f) { f.normals = 3; }), "normals has 3 entries for 2 targets");
+  EXPECT_EQ(refusal([](MassageFields& f) { f.technique = "tap"; }), "unknown technique 'tap' (press or knead)");
+  EXPECT_EQ(refusal([](MassageFields& f) { f.regions = 2; }), "");
 }
 
 }  // namespace

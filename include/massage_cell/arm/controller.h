@@ -123,6 +123,17 @@ struct ArmStatus {
   int presses_done = 0;       ///< of the running (or last) massage
 };
 
+/// How the arm is, for diagnostics: ERROR in fault or e-stop, WARN until homed, else OK; `text` says which.
+struct Health {
+  enum class Level { kOk, kWarn, kError };
+  Level level = Level::kOk;
+  std::string text;
+};
+Health health(const ArmStatus& status);
+
+/// "0.123456 m, operation enabled, node operational, homed".
+std::string describeAxis(const AxisStatus& axis);
+
 /// The outcome of a command.
 struct CommandResult {
   bool done = false;

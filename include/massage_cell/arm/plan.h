@@ -41,6 +41,23 @@ struct PressRequest {
   int repeats = 1;     ///< presses per target
 };
 
+/// A massage request's settings as a service call carries them (its targets are resolved separately).
+struct MassageFields {
+  std::size_t targets = 0;  ///< frames + points
+  std::size_t regions = 0;  ///< entries of the per-target regions (0: none given)
+  std::size_t normals = 0;  ///< entries of the per-target normals (0: none given)
+  std::string technique;    ///< "" or "press", "knead"
+  double depth = 0.0;       ///< as PressRequest::depth
+  double hold = 0.0;        ///< s; 0: the default; < 0: none
+  double speed = 0.0;       ///< as PressRequest::speed
+  int repeats = 0;          ///< 0: once
+};
+
+/// `out`'s technique, depth, hold, speed and repeats from `fields` (its targets stay): empty, or why the request is
+/// refused (no target, more than press.max_targets, a region or normal count that does not match, an unknown
+/// technique, a hold that is not finite).
+std::string pressSettings(const ArmConfig& config, const MassageFields& fields, PressRequest* out);
+
 /// One step of a plan.
 struct Step {
   enum class Kind { kMove, kHold };

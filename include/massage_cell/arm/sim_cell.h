@@ -16,6 +16,10 @@
 
 namespace massage_cell::arm {
 
+/// The simulator's fault hook text "<axis> <EMCY code>" ("Y 0x2310"): the axis index (0..2) of a name in
+/// `config`.axis_names and the code (1..0xFFFF, decimal or 0x-hex); false for anything else.
+bool parseFaultInjection(const ArmConfig& config, const std::string& text, int* axis, std::uint16_t* code);
+
 class SimCell {
  public:
   explicit SimCell(ArmConfig config);

@@ -1,6 +1,6 @@
-#include "acupoint_markers.h"
+#include "acupoint_messages.h"
 
-#include <string>
+#include <limits>
 
 #include <std_msgs/ColorRGBA.h>
 
@@ -32,6 +32,70 @@ std_msgs::ColorRGBA regionColour(const std::string& region, bool measured) {
 }
 
 }  // namespace
+
+namespace {
+
+geometry_msgs::Point toPoint(const Eigen::Vector3d& p) {
+  geometry_msgs::Point out;
+  out.x = p.x();
+  out.y = p.y();
+  out.z = p.z();
+  return out;
+}
+
+}  // namespace
+
+void toRowMajor(const Eigen::Matrix3d& m, double* out) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out[3 * r + c] = m(r, c);
+}
+
+massage_cell::Acupoint acupointMsg(const cect::TrackedAcupoint& p) {
+  massage_cell::Acupoint a;
+  a.name = p.name;
+  a.region = p.region;
+  a.u = p.placed ? p.raw.x : std::numeric_limits<float>::quiet_NaN();
+  a.v = p.placed ? p.raw.y : std::numeric_limits<float>::quiet_NaN();
+  a.valid = p.valid;
+  a.reason = p.reason;
+  if (p.valid) {
+    a.position = toPoint(p.position);
+    toRowMajor(p.covariance, a.covariance.data());
+  }
+  return a;
+}
+
+geometry_msgs::TransformStamped acupointTransform(const std_msgs::Header& header, const std::string& prefix,
+                                                  const cect::TrackedAcupoint& p) {
+  geometry_msgs::TransformStamped t;
+  t.header = header;
+  t.child_frame_id = prefix + p.name;
+  t.transform.translation.x = p.position.x();
+  t.transform.translation.y = p.position.y();
+  t.transform.translation.z = p.position.z();
+  t.transform.rotation.w = 1.0;
+  return t;
+}
+
+void fillResponse(const std_msgs::Header& header, const cect::PixelPoints& located,
+                  massage_cell::LocalizePixels::Response* response) {
+  const std::size_t n = located.points.size();
+  response->header = header;
+  response->success = located.success;
+  response->message = located.message;
+  response->points.assign(n, geometry_msgs::Point());
+  response->covariances.assign(9 * n, 0.0);
+  response->valid.assign(n, false);
+  response->reasons.assign(n, "");
+  for (std::size_t i = 0; i < n; ++i) {
+    const cect::PixelPoint& p = located.points[i];
+    response->valid[i] = p.valid;
+    response->reasons[i] = p.reason;
+    if (!p.valid) continue;
+    response->points[i] = toPoint(p.position);
+    toRowMajor(p.covariance, &response->covariances[9 * i]);
+  }
+}
 
 void addAcupointMarkers(const std_msgs::Header& header, int index, const cect::TrackedAcupoint& p,
                         visualization_msgs::MarkerArray* markers) {

@@ -1,0 +1,162 @@
+#include "arm_interface.h"
+
+#include <tf2_geometry_msgs/tf2_geometry_msgs.h>
+
+#include "tf_lookup.h"
+
+namespace massage_cell::nodes {
+
+namespace {
+
+Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
+Eigen::Vector3d toEigen(const geometry_msgs::Vector3& v) { return {v.x, v.y, v.z}; }
+
+}  // namespace
+
+massage_cell::ArmState armStateMsg(const arm::ArmStatus& s, const std::string& base_frame, const ros::Time& stamp) {
+  massage_cell::ArmState st;
+  st.header.stamp = stamp;
+  st.header.frame_id = base_frame;
+  st.mode = arm::toString(s.mode);
+  st.homed = s.homed;
+  st.estop_active = s.estop_input;
+  st.estop_latched = s.estop_latched;
+  for (const arm::AxisStatus& a : s.axes) {
+    st.axis_names.push_back(a.name);
+    st.position.push_back(a.position);
+    st.axis_state.push_back(can::toString(a.state));
+    st.node_state.push_back(can::toString(a.node));
+    st.axis_homed.push_back(a.homed);
+  }
+  st.tool.x = s.tool.x();
+  st.tool.y = s.tool.y();
+  st.tool.z = s.tool.z();
+  st.faults = s.faults;
+  st.activity = s.activity;
+  st.last_error = s.last_error;
+  st.bus_state = can::toString(s.bus);
+  return st;
+}
+
+sensor_msgs::JointState jointStateMsg(const arm::ArmStatus& s, const arm::ArmConfig& config, const ros::Time& stamp) {
+  sensor_msgs::JointState js;
+  js.header.stamp = stamp;
+  for (int i = 0; i < 3; ++i) {
+    js.name.push_back(config.joint_names[i]);
+    js.position.push_back(s.axes[i].position);
+  }
+  return js;
+}
+
+void reportArm(const arm::ArmStatus& s, const arm::NodeOptions& options, const can::RealtimeStatus& realtime,
+               diagnostic_updater::DiagnosticStatusWrapper* out) {
+  using diagnostic_msgs::DiagnosticStatus;
+  using Level = arm::Health::Level;
+  const arm::Health health = arm::health(s);
+  out->summary(health.level == Level::kError  ? DiagnosticStatus::ERROR
+               : health.level == Level::kWarn ? DiagnosticStatus::WARN
+                                              : DiagnosticStatus::OK,
+               health.text);
+  out->add("mode", arm::toString(s.mode));
+  out->add("homed", s.homed);
+  out->add("e-stop input", s.estop_input);
+  out->add("e-stop latched", s.estop_latched);
+  out->add("CAN interface", options.can_interface);
+  out->add("real-time scheduling", realtime.describe());
+  out->add("bus state", can::toString(s.bus));
+  for (const auto& a : s.axes) out->add("axis " + a.name, arm::describeAxis(a));
+  out->add("tool (" + options.base_frame + ")", arm::formatPoint(s.tool));
+  out->add("activity", s.activity);
+  out->add("last error", s.last_error);
+  out->add("controller cycles", s.cycles);
+}
+
+bool ArmTargets::lookup(const std::string& frame, const ros::Time& stamp, geometry_msgs::TransformStamped* out,
+                        std::string* error) const {
+  return lookupFresh(tf_, options_.base_frame, frame, stamp, options_.tf_timeout, options_.max_target_age, out, error);
+}
+
+arm::BodySurface ArmTargets::body() const {
+  arm::BodySurface body;
+  body.points = framePositions(tf_, options_.base_frame, options_.acupoint_prefix, options_.max_target_age);
+  return body;
+}
+
+std::string ArmTargets::moveGoal(const geometry_msgs::PointStamped& target, const Eigen::Vector3d& tool,
+                                 Eigen::Vector3d* goal) const {
+  if (target.header.frame_id.empty()) return "move_to refused: the target has no frame_id";
+  geometry_msgs::TransformStamped t;
+  std::string error;
+  if (!lookup(target.header.frame_id, target.header.stamp, &t, &error)) {
+    return "move_to refused: the target frame " + error;
+  }
+  geometry_msgs::Point p;
+  tf2::doTransform(target.point, p, t);
+  *goal = toEigen(p);
+  if (!arm::checkTool(config_, *goal).empty()) return "";  // outside the envelope: the controller says so
+  const std::string why =
+      arm::checkBodyClearance(config_, body(), tool, *goal, config_.limitsOf(config_.default_region).max_depth);
+  return why.empty() ? "" : "move refused: " + why;
+}
+
+std::string ArmTargets::pressRequest(const massage_cell::Massage::Request& req, arm::PressRequest* press,
+                                     std::vector<FrameTarget>* frames) const {
+  arm::MassageFields fields;
+  fields.targets = req.frames.size() + req.points.size();
+  fields.regions = req.regions.size();
+  fields.normals = req.normals.size();
+  fields.technique = req.technique;
+  fields.depth = req.depth;
+  fields.hold = req.hold;
+  fields.speed = req.speed;
+  fields.repeats = req.repeats;
+  if (std::string why = arm::pressSettings(config_, fields, press); !why.empty()) return why;
+  const arm::BodySurface skin = body();
+  for (std::size_t i = 0; i < fields.targets; ++i) {
+    arm::PressTarget target;
+    if (std::string why = pressTarget(req, i, skin, &target); !why.empty()) return why;
+    if (i < req.frames.size()) frames->emplace_back(static_cast<int>(i), req.frames[i]);
+    press->targets.push_back(target);
+  }
+  return "";
+}
+
+std::string ArmTargets::pressTarget(const massage_cell::Massage::Request& req, std::size_t i,
+                                    const arm::BodySurface& body, arm::PressTarget* target) const {
+  geometry_msgs::TransformStamped t;
+  std::string error;
+  if (i < req.frames.size()) {  // an acupoint's (or any) tf frame
+    const std::string& frame = req.frames[i];
+    if (!lookup(frame, ros::Time(0), &t, &error)) return "target " + std::to_string(i + 1) + ": the frame " + error;
+    const std::string& prefix = options_.acupoint_prefix;
+    target->name = frame.rfind(prefix, 0) == 0 ? frame.substr(prefix.size()) : frame;
+    target->point = {t.transform.translation.x, t.transform.translation.y, t.transform.translation.z};
+    target->region = config_.regionOf(target->name);
+  } else {  // a point in any frame
+    const geometry_msgs::PointStamped& ps = req.points[i - req.frames.size()];
+    target->name = "point " + std::to_string(i - req.frames.size() + 1);
+    if (ps.header.frame_id.empty()) return target->name + " has no frame_id";
+    if (!lookup(ps.header.frame_id, ps.header.stamp, &t, &error)) return target->name + ": the frame " + error;
+    geometry_msgs::Point p;
+    tf2::doTransform(ps.point, p, t);
+    target->point = toEigen(p);
+  }
+  if (!req.regions.empty() && !req.regions[i].empty()) target->region = req.regions[i];
+  // A surface point under the skin the arm knows would press deeper than the region allows.
+  const double limit = config_.limitsOf(target->region.empty() ? config_.default_region : target->region).max_depth;
+  if (std::string why = arm::checkBodyClearance(config_, body, target->point, target->point, limit); !why.empty()) {
+    return target->name + ": " + why;
+  }
+  if (!req.normals.empty()) {
+    const geometry_msgs::Vector3Stamped& ns = req.normals[i];
+    if (!lookup(ns.header.frame_id.empty() ? options_.base_frame : ns.header.frame_id, ros::Time(0), &t, &error)) {
+      return target->name + ": the normal's frame " + error;
+    }
+    geometry_msgs::Vector3 v;
+    tf2::doTransform(ns.vector, v, t);
+    target->normal = toEigen(v);
+  }
+  return "";
+}
+
+}  // namespace massage_cell::nodes

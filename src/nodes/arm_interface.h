@@ -1,0 +1,69 @@
+// The arm node's ROS side of the arm library: its state as messages, and its service requests' targets resolved
+// through tf into the arm base frame and checked against the body the arm knows (the acupoints' tf frames).
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <diagnostic_updater/DiagnosticStatusWrapper.h>
+#include <geometry_msgs/PointStamped.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <sensor_msgs/JointState.h>
+#include <tf2_ros/buffer.h>
+
+#include "massage_cell/ArmState.h"
+#include "massage_cell/Massage.h"
+#include "massage_cell/arm/controller.h"
+#include "massage_cell/arm/node_options.h"
+
+namespace massage_cell::nodes {
+
+/// ~state of `status` (in `base_frame`, stamped `stamp`).
+massage_cell::ArmState armStateMsg(const arm::ArmStatus& status, const std::string& base_frame, const ros::Time& stamp);
+
+/// joint_states of `status` (the URDF's joint names from `config`).
+sensor_msgs::JointState jointStateMsg(const arm::ArmStatus& status, const arm::ArmConfig& config,
+                                      const ros::Time& stamp);
+
+/// The arm's diagnostics: its health (arm::health) as the summary, then its mode, e-stop, bus, axes and tool.
+void reportArm(const arm::ArmStatus& status, const arm::NodeOptions& options, const can::RealtimeStatus& realtime,
+               diagnostic_updater::DiagnosticStatusWrapper* out);
+
+/// Service targets into the arm base frame. Holds references: `tf`, `options` and `config` outlive it.
+class ArmTargets {
+ public:
+  /// A target of a massage that is a tf frame, monitored while it is pressed: (target index, frame).
+  using FrameTarget = std::pair<int, std::string>;
+
+  ArmTargets(const tf2_ros::Buffer& tf, const arm::NodeOptions& options, const arm::ArmConfig& config)
+      : tf_(tf), options_(options), config_(config) {}
+
+  /// The transform base_frame <- `frame` at `stamp` (0: the latest), no older than max_target_age; false with the
+  /// reason in `error`.
+  bool lookup(const std::string& frame, const ros::Time& stamp, geometry_msgs::TransformStamped* out,
+              std::string* error) const;
+
+  /// The skin as the arm knows it: every current acupoint frame, in base_frame.
+  arm::BodySurface body() const;
+
+  /// ~move_to's goal in base_frame for a tool now at `tool`: "" or the refusal (unknown or stale frame, a path into
+  /// the body).
+  std::string moveGoal(const geometry_msgs::PointStamped& target, const Eigen::Vector3d& tool,
+                       Eigen::Vector3d* goal) const;
+
+  /// ~massage's request with every target resolved and checked, and its targets that are tf frames: "" or why the
+  /// request is refused.
+  std::string pressRequest(const massage_cell::Massage::Request& req, arm::PressRequest* press,
+                           std::vector<FrameTarget>* frames) const;
+
+ private:
+  std::string pressTarget(const massage_cell::Massage::Request& req, std::size_t i, const arm::BodySurface& body,
+                          arm::PressTarget* target) const;
+
+  const tf2_ros::Buffer& tf_;
+  const arm::NodeOptions& options_;
+  const arm::ArmConfig& config_;
+};
+
+}  // namespace massage_cell::nodes

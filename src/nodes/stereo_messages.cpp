@@ -1,0 +1,104 @@
+#include "stereo_messages.h"
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include <cv_bridge/cv_bridge.h>
+#include <sensor_msgs/image_encodings.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+#include <boost/make_shared.hpp>
+
+#include "calibration_msg.h"
+
+namespace massage_cell::nodes {
+
+namespace {
+
+std::uint32_t packRgb(const cv::Mat& image, int x, int y) {
+  if (image.channels() == 1) {
+    const std::uint32_t g = image.at<std::uint8_t>(y, x);
+    return (g << 16) | (g << 8) | g;
+  }
+  const cv::Vec3b& bgr = image.at<cv::Vec3b>(y, x);
+  return (static_cast<std::uint32_t>(bgr[2]) << 16) | (static_cast<std::uint32_t>(bgr[1]) << 8) | bgr[0];
+}
+
+}  // namespace
+
+ValidDisparity validDisparity(const stereo::MatchResult& result, const stereo::StereoParams& params, bool lr_fill) {
+  const int width = result.disparity.cols, height = result.disparity.rows;
+  ValidDisparity v;
+  v.x0 = params.lr_check ? 0 : params.cost.dmax;
+  v.disparity.create(height, width, CV_32F);
+  v.mask.create(height, width, CV_8U);
+  const cv::Mat keep = params.lr_check && !lr_fill ? result.consistent : cv::Mat();
+  for (int y = 0; y < height; ++y) {
+    const float* in = result.disparity.ptr<float>(y);
+    float* out = v.disparity.ptr<float>(y);
+    unsigned char* mask = v.mask.ptr<unsigned char>(y);
+    const unsigned char* k = keep.empty() ? nullptr : keep.ptr<unsigned char>(y);
+    for (int x = 0; x < width; ++x) {
+      const bool ok = x >= v.x0 && std::isfinite(in[x]) && (k == nullptr || k[x] != 0);
+      out[x] = ok ? in[x] : std::numeric_limits<float>::quiet_NaN();
+      mask[x] = ok ? 255 : 0;
+    }
+  }
+  return v;
+}
+
+stereo_msgs::DisparityImagePtr disparityImage(const std_msgs::Header& header, const camera::StereoModel& model,
+                                              const stereo::StereoParams& params, const ValidDisparity& valid,
+                                              float delta_d) {
+  const float offset = static_cast<float>(model.offset());
+  auto msg = boost::make_shared<stereo_msgs::DisparityImage>();
+  msg->header = header;
+  msg->f = static_cast<float>(model.fx());
+  msg->T = static_cast<float>(model.baseline());
+  msg->min_disparity = static_cast<float>(params.cost.dmin) - offset;
+  msg->max_disparity = static_cast<float>(params.cost.dmax) - offset;
+  msg->delta_d = delta_d;
+  msg->valid_window.x_offset = valid.x0;
+  msg->valid_window.width = valid.disparity.cols - valid.x0;
+  msg->valid_window.height = valid.disparity.rows;
+  cv::Mat published = valid.disparity - offset;
+  cv::patchNaNs(published, msg->min_disparity - 1.0f);
+  msg->image = *cv_bridge::CvImage(header, sensor_msgs::image_encodings::TYPE_32FC1, published).toImageMsg();
+  return msg;
+}
+
+sensor_msgs::CameraInfo depthInfo(const std_msgs::Header& header, const camera::StereoModel& model) {
+  sensor_msgs::CameraInfo info;
+  info.header = header;
+  info.width = model.size().width;
+  info.height = model.size().height;
+  fromCalibration(model.rectifiedLeft(), info);
+  return info;
+}
+
+sensor_msgs::PointCloud2Ptr pointCloud(const std_msgs::Header& header, const cv::Mat& points, const cv::Mat& colours) {
+  auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
+  cloud->header = header;
+  cloud->height = points.rows;
+  cloud->width = points.cols;
+  sensor_msgs::PointCloud2Modifier modifier(*cloud);
+  modifier.setPointCloud2Fields(4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
+                                "z", 1, sensor_msgs::PointField::FLOAT32, "rgb", 1, sensor_msgs::PointField::FLOAT32);
+  cloud->is_dense = false;
+  cloud->is_bigendian = false;
+  sensor_msgs::PointCloud2Iterator<float> it(*cloud, "x");
+  for (int y = 0; y < points.rows; ++y) {
+    const cv::Vec3f* p = points.ptr<cv::Vec3f>(y);
+    for (int x = 0; x < points.cols; ++x, ++it) {
+      float* out = &it[0];
+      out[0] = p[x][0];
+      out[1] = p[x][1];
+      out[2] = p[x][2];
+      const std::uint32_t rgb = packRgb(colours, x, y);
+      std::memcpy(&out[3], &rgb, sizeof(rgb));
+    }
+  }
+  return cloud;
+}
+
+}  // namespace massage_cell::nodes

@@ -1,0 +1,41 @@
+// The hbds node's outputs as ROS messages: which disparities are valid, and the stereo_msgs/DisparityImage,
+// organised sensor_msgs/PointCloud2 and depth camera_info (REP 118) built from them.
+#pragma once
+
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <std_msgs/Header.h>
+#include <stereo_msgs/DisparityImage.h>
+#include <opencv2/core.hpp>
+
+#include "massage_cell/camera/stereo_model.h"
+#include "massage_cell/stereo/pipeline.h"
+
+namespace massage_cell::nodes {
+
+/// The disparities a pair's result may publish.
+struct ValidDisparity {
+  cv::Mat disparity;  ///< CV_32F x_l - x_r where valid, NaN elsewhere
+  cv::Mat mask;       ///< CV_8U 255 where valid
+  int x0 = 0;         ///< the first column that can be valid
+};
+
+/// Invalid: what the method left empty (NaN); without the left-right check the left band x < dmax, whose search ran
+/// off the right image's edge; with it and `lr_fill` off, what the right view does not confirm (with `lr_fill` on
+/// those pixels hold the background's disparity and the confidence image marks them).
+ValidDisparity validDisparity(const stereo::MatchResult& result, const stereo::StereoParams& params, bool lr_fill);
+
+/// stereo_msgs/DisparityImage as the message defines it: d = x_l - x_r - (cx_l - cx_r); invalid pixels hold
+/// min_disparity - 1, below the searched range (as stereo_image_proc does). `delta_d`: the disparity's resolution.
+stereo_msgs::DisparityImagePtr disparityImage(const std_msgs::Header& header, const camera::StereoModel& model,
+                                              const stereo::StereoParams& params, const ValidDisparity& valid,
+                                              float delta_d);
+
+/// The camera_info of the depth image: the processed images' rectified left camera.
+sensor_msgs::CameraInfo depthInfo(const std_msgs::Header& header, const camera::StereoModel& model);
+
+/// Organised cloud `x y z rgb` of `points` (CV_32FC3, NaN where unknown) coloured by `colours` (8-bit grey or BGR of
+/// the same size): REP 103, the left optical frame.
+sensor_msgs::PointCloud2Ptr pointCloud(const std_msgs::Header& header, const cv::Mat& points, const cv::Mat& colours);
+
+}  // namespace massage_cell::nodes
