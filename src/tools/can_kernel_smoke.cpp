@@ -107,6 +107,12 @@ class Socket {
     addr.can_ifindex = ifindex;
     return ::bind(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 ? 0 : errno;
   }
+  void bindOrFail(int ifindex, const char* what) {
+    if (int e = bindTo(ifindex)) {
+      errno = e;
+      fail(errnoText(what));
+    }
+  }
   void send(const can_frame& f) {
     ssize_t n = ::write(fd_, &f, sizeof f);
     if (n != static_cast<ssize_t>(sizeof f)) fail(errnoText("write(can_frame)"));
@@ -247,10 +253,7 @@ void serve(const Options& opt) {
     if (tries >= 100) fail("serve: no interface " + opt.iface);
     ::usleep(100000);
   }
-  if (int e = s.bindTo(ifindex)) {
-    errno = e;
-    fail(errnoText("serve: bind"));
-  }
+  s.bindOrFail(ifindex, "serve: bind");
   std::printf("can_kernel_smoke: serving 0x%03X -> 0x%03X on %s\n", kRequestId, kReplyId, opt.iface.c_str());
   std::fflush(stdout);
   long served = 0;
@@ -276,10 +279,7 @@ void serve(const Options& opt) {
 void peerCheck(const Options& opt, int ifindex) {
   Socket s;
   s.setFilters({{kReplyId, CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG}});
-  if (int e = s.bindTo(ifindex)) {
-    errno = e;
-    fail(errnoText("peer: bind"));
-  }
+  s.bindOrFail(ifindex, "peer: bind");
   // Wait for the responder (it may still be starting): one request every 100 ms, 10 s.
   Received r;
   bool up = false;
@@ -319,12 +319,7 @@ void errorFrameCheck(int ifindex) {
   busoffOnly.setOpt(SOL_CAN_RAW, CAN_RAW_ERR_FILTER, static_cast<can_err_mask_t>(CAN_ERR_BUSOFF),
                     "setsockopt(CAN_RAW_ERR_FILTER)");
   // `none` keeps the defaults: every data frame, error mask 0.
-  for (Socket* s : {&inj, &all, &busoffOnly, &none}) {
-    if (int e = s->bindTo(ifindex)) {
-      errno = e;
-      fail(errnoText("error frames: bind"));
-    }
-  }
+  for (Socket* s : {&inj, &all, &busoffOnly, &none}) s->bindOrFail(ifindex, "error frames: bind");
   can_frame busoff{};
   busoff.can_id = CAN_ERR_FLAG | CAN_ERR_BUSOFF;
   busoff.can_dlc = CAN_ERR_DLC;
@@ -375,14 +370,8 @@ void errorFrameCheck(int ifindex) {
 // 2. loopback semantics
 void loopbackCheck(int ifindex) {
   Socket tx, rx;
-  if (int e = tx.bindTo(ifindex)) {
-    errno = e;
-    fail(errnoText("bind tx"));
-  }
-  if (int e = rx.bindTo(ifindex)) {
-    errno = e;
-    fail(errnoText("bind rx"));
-  }
+  tx.bindOrFail(ifindex, "bind tx");
+  rx.bindOrFail(ifindex, "bind rx");
   int loopback = -1, recvOwn = -1;
   socklen_t len = sizeof loopback;
   if (::getsockopt(tx.fd(), SOL_CAN_RAW, CAN_RAW_LOOPBACK, &loopback, &len) != 0)
@@ -409,10 +398,7 @@ void loopbackCheck(int ifindex) {
   if (!receive(rx, 1000, &r) || !sameFrame(r.frame, f)) fail("RECV_OWN_MSGS on: the other socket lost the frame");
 
   Socket quiet;
-  if (int e = quiet.bindTo(ifindex)) {
-    errno = e;
-    fail(errnoText("bind quiet"));
-  }
+  quiet.bindOrFail(ifindex, "bind quiet");
   quiet.setOpt(SOL_CAN_RAW, CAN_RAW_LOOPBACK, 0, "setsockopt(LOOPBACK)");
   quiet.send(f);
   expectNothing(rx, 100, "LOOPBACK off: other socket");
@@ -423,19 +409,13 @@ void loopbackCheck(int ifindex) {
 // 3. filters, order, timestamps, DLC
 void filterCheck(int ifindex) {
   Socket tx, rx;
-  if (int e = tx.bindTo(ifindex)) {
-    errno = e;
-    fail(errnoText("bind tx"));
-  }
+  tx.bindOrFail(ifindex, "bind tx");
   // Standard ids 0x100..0x1FF (EFF flag in the mask: extended frames do not match),
   // and exactly the extended id 0x12345678.
   rx.setFilters({{0x100, 0x700 | CAN_EFF_FLAG | CAN_RTR_FLAG},
                  {0x12345678 | CAN_EFF_FLAG, CAN_EFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG}});
   rx.setOpt(SOL_SOCKET, SO_TIMESTAMP, 1, "setsockopt(SO_TIMESTAMP)");
-  if (int e = rx.bindTo(ifindex)) {
-    errno = e;
-    fail(errnoText("bind rx"));
-  }
+  rx.bindOrFail(ifindex, "bind rx");
 
   struct Sent {
     can_frame f;
@@ -488,14 +468,8 @@ void filterCheck(int ifindex) {
 // 4. latency
 void latencyCheck(const Options& opt, int ifindex) {
   Socket tx, rx;
-  if (int e = tx.bindTo(ifindex)) {
-    errno = e;
-    fail(errnoText("bind tx"));
-  }
-  if (int e = rx.bindTo(ifindex)) {
-    errno = e;
-    fail(errnoText("bind rx"));
-  }
+  tx.bindOrFail(ifindex, "bind tx");
+  rx.bindOrFail(ifindex, "bind rx");
   std::vector<double> us;
   us.reserve(static_cast<size_t>(opt.frames));
   for (int i = 0; i < opt.frames; ++i) {
