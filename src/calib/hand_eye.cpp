@@ -10,6 +10,8 @@
 
 #include <Eigen/SVD>
 
+#include "massage_cell/camera/point_spread.h"
+
 namespace massage_cell::calib {
 namespace {
 
@@ -42,7 +44,7 @@ void validate(const std::vector<Correspondence>& pairs, const FitOptions& o) {
 /// Singular values (descending) of the 3xN matrix of centred points.
 Eigen::Vector3d spreadOf(const Eigen::Matrix3Xd& points) {
   const Eigen::Matrix3Xd centred = points.colwise() - points.rowwise().mean();
-  return Eigen::JacobiSVD<Eigen::Matrix3Xd>(centred).singularValues();
+  return camera::principalAxes(centred).spread;
 }
 
 /// Throws for collinear / coplanar base points; adds a warning for weak spread.

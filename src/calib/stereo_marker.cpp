@@ -8,9 +8,11 @@
 #include <stdexcept>
 
 #include <Eigen/SVD>
+
 #include <opencv2/aruco/charuco.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
+#include "massage_cell/camera/point_spread.h"
 
 namespace massage_cell::calib {
 namespace {
@@ -206,7 +208,7 @@ MarkerDetection detectMarker(const cv::Mat& left, const cv::Mat& right, const Re
   }
   // Corners along one line leave the board's turn about that line free.
   const Eigen::Matrix3Xd centred = in_board.colwise() - in_board.rowwise().mean();
-  const Eigen::Vector3d spread = Eigen::JacobiSVD<Eigen::Matrix3Xd>(centred).singularValues();
+  const Eigen::Vector3d spread = camera::principalAxes(centred).spread;
   if (spread(1) < 0.5 * spec.square_length) {
     d.problem = "the " + std::to_string(d.corners) + " board corners seen in both views lie on one line";
     return d;

@@ -15,6 +15,8 @@
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
 
+#include "massage_cell/camera/point_spread.h"
+
 namespace massage_cell::planar {
 
 namespace {
@@ -297,16 +299,15 @@ bool Plane::fit(const std::vector<Eigen::Vector3d>& points, Plane* plane) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& X : points) mean += X;
   mean /= static_cast<double>(points.size());
-  Eigen::MatrixX3d centred(points.size(), 3);
-  for (std::size_t i = 0; i < points.size(); ++i)
-    centred.row(static_cast<Eigen::Index>(i)) = (points[i] - mean).transpose();
+  Eigen::Matrix3Xd centred(3, static_cast<Eigen::Index>(points.size()));
+  for (std::size_t i = 0; i < points.size(); ++i) centred.col(static_cast<Eigen::Index>(i)) = points[i] - mean;
   if (!centred.allFinite()) return false;
   // The normal is the direction of least spread; the points must spread
   // along two directions (rank 2) for it to be defined.
-  const Eigen::JacobiSVD<Eigen::MatrixX3d> svd(centred, Eigen::ComputeFullV);
-  const Eigen::Vector3d sigma = svd.singularValues();
+  const camera::PrincipalAxes axes = camera::principalAxes(centred);
+  const Eigen::Vector3d& sigma = axes.spread;
   if (!(sigma(1) > kCollinear * sigma(0))) return false;
-  plane->n = svd.matrixV().col(2).normalized();
+  plane->n = axes.axes.col(2).normalized();
   plane->d = -plane->n.dot(mean);
   return true;
 }
