@@ -20,22 +20,13 @@
 #include <utility>
 
 #include "massage_cell/cect/cect.h"
+#include "stats_detail.h"  // median
 
 namespace massage_cell::cect {
 
 namespace detail {
 
 using Clock = std::chrono::steady_clock;
-
-inline double median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const std::size_t m = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(m), v.end());
-  double hi = v[m];
-  if (v.size() % 2 == 1) return hi;
-  const double lo = *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(m));
-  return 0.5 * (lo + hi);
-}
 
 /// Bilinear sample of a CV_32F image (clamped at the border).
 inline float sample(const cv::Mat& img, float x, float y) {

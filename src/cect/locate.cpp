@@ -26,6 +26,48 @@ LocatedAcupoints unplaced(const AcupointModel& model, const std::string& why) {
   return out;
 }
 
+/// The pair not published: every point keeps its placement and 3D point but is not valid, for `why`.
+void refuse(LocatedAcupoints* out, const std::string& why) {
+  out->valid = false;
+  out->reason = why;
+  for (LocatedAcupoint& p : out->points) {
+    p.valid = false;
+    p.reason = why;
+  }
+}
+
+/// A valid pair whose points are yet to be placed.
+LocatedAcupoints validPair(const AcupointModel& model) {
+  LocatedAcupoints out = unplaced(model, "not placed by the acupoint model");
+  out.valid = true;
+  out.reason.clear();
+  return out;
+}
+
+/// The model's placement of `name`, or null.
+const AcupointPixel* placementOf(const std::vector<AcupointPixel>& placed, const std::string& name) {
+  const auto it = std::find_if(placed.begin(), placed.end(), [&](const AcupointPixel& a) { return a.name == name; });
+  return it == placed.end() ? nullptr : &*it;
+}
+
+/// The given landmarks put into `landmarks`; false, with `refused` naming the problem, when they cannot be.
+bool putGiven(BackLandmarks* landmarks, const AcupointModel& model, const LocateOptions& options,
+              LocatedAcupoints* refused) {
+  const std::string problem = applyGivenLandmarks(landmarks, options.given);
+  if (problem.empty()) return true;
+  *refused = unplaced(model, "given landmarks not usable: " + problem);
+  refused->landmarks = std::move(*landmarks);
+  return false;
+}
+
+/// The layout's plausibility into `out` (refused when it fails and the options check it), and its landmarks.
+void checkAndKeep(LocatedAcupoints* out, BackLandmarks&& landmarks, const AcupointModel& model, const PixelScale& scale,
+                  const LocateOptions& options) {
+  out->check = checkLayout(landmarks, model, scale, options.require_c7_at_neck);
+  if (options.check_layout && !out->check.trusted) refuse(out, out->check.reason());
+  out->landmarks = std::move(landmarks);
+}
+
 }  // namespace
 
 LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& model, const LocateOptions& options) {
@@ -35,20 +77,16 @@ LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& mo
 
   const PointLookup points = framePoints(frame);
   if (options.correct_parallax) correctMidlineParallax(&landmarks, frame.left(), points);
-  if (options.levels_in_3d) {
-    correctWaistParallax(&landmarks, model, frame.left(), points);
-    measureLevelsIn3D(&landmarks, points);
-  }
+  if (options.levels_in_3d) correctWaistParallax(&landmarks, model, frame.left(), points);
+  if (LocatedAcupoints refused; !putGiven(&landmarks, model, options, &refused)) return refused;
+  if (options.levels_in_3d) measureLevelsIn3D(&landmarks, points);
   const PixelScale scale = frameScale(frame);
   const std::vector<AcupointPixel> placed = placeAcupoints(landmarks, model, scale);
 
-  LocatedAcupoints out = unplaced(model, "not placed by the acupoint model");
-  out.valid = true;
-  out.reason.clear();
+  LocatedAcupoints out = validPair(model);
   for (LocatedAcupoint& p : out.points) {
-    const auto it =
-        std::find_if(placed.begin(), placed.end(), [&](const AcupointPixel& a) { return a.name == p.name; });
-    if (it == placed.end()) continue;
+    const AcupointPixel* it = placementOf(placed, p.name);
+    if (!it) continue;
     if (!it->valid) {
       p.reason = "not placed: " + it->reason;
       continue;
@@ -75,7 +113,29 @@ LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& mo
     }
     p.reason = p.valid ? std::string() : "not localised: " + p.point.reason;
   }
-  out.landmarks = std::move(landmarks);
+  checkAndKeep(&out, std::move(landmarks), model, scale, options);
+  return out;
+}
+
+LocatedAcupoints locateLayout(const Segmentation& view, const AcupointModel& model, const LocateOptions& options) {
+  BackLandmarks landmarks = findLandmarks(view, model);
+  if (!landmarks.valid) return unplaced(model, "no landmarks of the back: " + landmarks.reason);
+  if (LocatedAcupoints refused; !putGiven(&landmarks, model, options, &refused)) return refused;
+  // One scale for the whole image: placeAcupoints takes the cun as cun_per_shoulder_width x shoulder width (px) x
+  // scale and converts it back to pixels with the same scale, so any constant gives lateral offsets of
+  // lateral_cun x cun_per_shoulder_width x shoulder width pixels.
+  const PixelScale one_metre_per_pixel = [](const cv::Point2f&) { return 1.0; };
+  const std::vector<AcupointPixel> placed = placeAcupoints(landmarks, model, one_metre_per_pixel);
+  LocatedAcupoints out = validPair(model);
+  for (LocatedAcupoint& p : out.points) {
+    const AcupointPixel* it = placementOf(placed, p.name);
+    if (!it) continue;
+    p.placed = it->valid;
+    p.valid = it->valid;
+    p.rectified = p.raw = it->pixel;
+    p.reason = it->valid ? std::string() : "not placed: " + it->reason;
+  }
+  checkAndKeep(&out, std::move(landmarks), model, PixelScale(), options);  // no scale: the proportions only
   return out;
 }
 

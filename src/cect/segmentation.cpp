@@ -65,6 +65,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "stats_detail.h"
+
 namespace massage_cell::cect {
 
 namespace {
@@ -105,13 +107,9 @@ constexpr double kFillInset = 1.0 / 60.0;
 /// Score given to pixels whose sign had to be forced to agree with the mask.
 constexpr float kForcedScore = 0.5f;
 
-/// Median of `v` (reorders it); 0 for an empty vector.
-double median(std::vector<float>& v) {
-  if (v.empty()) return 0.0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
+// The skin model's medians are the upper middle sample of an even count (its thresholds were tuned with that).
+using detail::median;  // stats_detail.h
+constexpr detail::EvenCount kUpperMiddle = detail::EvenCount::kUpperMiddle;
 
 struct OtsuSplit {
   int bin = -1;             ///< first bin of the upper class; -1 when the range cannot be split
@@ -482,7 +480,8 @@ ChromaSamples sampleChroma(const Detection& d, const SegmentationParams& params,
 SkinModel skinModel(const Detection& d, const SegmentationParams& params, const cv::Mat& depth, cv::Size size) {
   SkinModel m;
   ChromaSamples s = sampleChroma(d, params, depth, size);
-  const double skin_chroma = median(s.sl);
+  // Nothing sampled: no skin (0 is below the threshold; the median of nothing is NaN, which is below nothing).
+  const double skin_chroma = s.sl.empty() ? 0.0 : median(s.sl, kUpperMiddle);
   if (skin_chroma < kMinSkinChroma) {
     char buf[160];
     std::snprintf(buf, sizeof(buf),
@@ -504,7 +503,8 @@ SkinModel skinModel(const Detection& d, const SegmentationParams& params, const 
     m.problem = "no back in view: skin colour everywhere, no surroundings to tell it from";
     return m;
   }
-  const cv::Vec2d mu_s(median(s.su), median(s.sv)), mu_b(median(s.bu), median(s.bv));
+  const cv::Vec2d mu_s(median(s.su, kUpperMiddle), median(s.sv, kUpperMiddle)),
+      mu_b(median(s.bu, kUpperMiddle), median(s.bv, kUpperMiddle));
   const cv::Vec2d diff = mu_s - mu_b;
   const double contrast = cv::norm(diff);
   if (contrast < kMinContrast) {
@@ -514,12 +514,17 @@ SkinModel skinModel(const Detection& d, const SegmentationParams& params, const 
   // score = w . (u, v) + bias: +0.5 at mu_s, -0.5 at mu_b.
   m.w = diff / (contrast * contrast);
   m.bias = -0.5 * (mu_s + mu_b).dot(m.w);
-  // Skin is uniform in chroma: robust spread (MAD) of the core's score.
+  // Skin is uniform in chroma: robust spread (MAD) of the core's score. The score pairs su[i] with sv[i] as the
+  // medians' selection (std::nth_element) leaves each of them, reordered on its own: not one pixel's (u, v). The
+  // former median reordered its argument in place, and kMaxSkinSpread and the tests were tuned with that (pairing
+  // the pixels' own u and v lets colour alone find the back in RealBacks.ASheetOfSkinsColourIsLeftOutByTheTablesPlane).
+  for (std::vector<float>* v : {&s.su, &s.sv})
+    std::nth_element(v->begin(), v->begin() + static_cast<std::ptrdiff_t>(v->size() / 2), v->end());
   std::vector<float> core_score(s.su.size());
   for (std::size_t i = 0; i < s.su.size(); ++i) core_score[i] = static_cast<float>(m.w[0] * s.su[i] + m.w[1] * s.sv[i]);
-  const double med = median(core_score);
+  const double med = median(core_score, kUpperMiddle);
   for (float& x : core_score) x = static_cast<float>(std::abs(x - med));
-  const double spread = 1.4826 * median(core_score);
+  const double spread = 1.4826 * median(core_score, kUpperMiddle);
   if (spread > kMaxSkinSpread) {
     char buf[160];
     std::snprintf(buf, sizeof(buf),
@@ -529,7 +534,7 @@ SkinModel skinModel(const Detection& d, const SegmentationParams& params, const 
     m.problem = buf;
     return m;
   }
-  if (s.ring_depth.size() >= 10) m.ring_depth = median(s.ring_depth);
+  if (s.ring_depth.size() >= 10) m.ring_depth = median(s.ring_depth, kUpperMiddle);
   return m;
 }
 

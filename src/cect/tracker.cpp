@@ -173,6 +173,8 @@ PixelPoints localizePixels(const CectFrame* frame, const camera::Decimation& dec
   return out;
 }
 
+int debugImageScale(int cols, int min_width) { return cols > 0 ? std::max(1, (min_width + cols - 1) / cols) : 1; }
+
 cv::Mat drawAcupoints(const CectFrame& frame, const std::vector<TrackedAcupoint>& points, int min_width) {
   cv::Mat image;
   try {
@@ -183,7 +185,7 @@ cv::Mat drawAcupoints(const CectFrame& frame, const std::vector<TrackedAcupoint>
   if (image.empty()) return image;
   if (image.type() == CV_8UC1) cv::cvtColor(image, image, cv::COLOR_GRAY2BGR);
   if (image.type() != CV_8UC3) return cv::Mat();
-  const int scale = std::max(1, (min_width + image.cols - 1) / image.cols);
+  const int scale = debugImageScale(image.cols, min_width);
   if (scale > 1) cv::resize(image, image, cv::Size(), scale, scale, cv::INTER_NEAREST);
   for (const TrackedAcupoint& p : points) {
     if (!p.placed) continue;

@@ -27,6 +27,7 @@
 #include "cli.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
+#include "massage_cell/cect/evaluation.h"
 #include "massage_cell/cect/locate.h"
 #include "massage_cell/sim/body_model.h"
 #include "massage_cell/sim/ground_truth.h"
@@ -46,7 +47,8 @@ const char* kUsage = R"(Usage: cect_eval [--experiments ideal,lighting,shift] [-
                  [--random-points N] [--width W --height H --fx F --baseline B --camera-height Z]
                  [--yaw DEG] [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX]
                  [--param NAME=VALUE,...] [--csv] [--per-point] [--no-parallax-correction]
-                 [--no-3d-levels] [--pictures DIR] [--by-border]
+                 [--no-3d-levels] [--pictures DIR] [--by-border] [--given-landmarks MM]
+                 [--first-subject N] [--no-layout-check] [--trust-c7-at-top]
 
 Renders prone subjects with the scene simulator and localises points on their
 backs with CECT (segmentation -> contour correspondences -> barycentric
@@ -95,6 +97,18 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
   --no-parallax-correction  place the acupoints from the silhouette's centre
                line as it is (the default moves it onto the skin's midline in 3D:
                correctMidlineParallax)
+  --given-landmarks MM  the therapist's landmarks: C7 and L4 given to the
+               chain as a palpating therapist would click them, each up to MM mm
+               (uniform over a disc on the skin, seeded per subject) from the
+               simulator's true C7 and iliac-crest line (cect/given_landmarks.h)
+  --no-layout-check  publish every layout the chain finds (the default refuses
+               one that fails the plausibility checks: cect/layout_check.h)
+  --trust-c7-at-top  trust a C7 taken from the back's top where no neck is in
+               view (the default refuses it: the thesis's armless torso, the
+               ideal / lighting / shift experiments, has no neck, its back ends
+               at the neck's base)
+  --first-subject N  the realistic conditions' subjects start at N (default 1;
+               the figures of docs/ were tuned on 1..28: 29.. are unseen)
   --per-point  also print, per condition, every acupoint's CECT figures over the
                subjects and the commonest reason it was not localised
   --by-border  also print, per condition, both methods' figures on every 4th
@@ -117,9 +131,13 @@ struct Options {
   bool raw = false;
   bool csv = false;
   bool per_point = false;
-  bool by_border = false;  ///< --by-border
-  bool parallax = true;    ///< the model's midline corrected for the silhouette's parallax (3D)
-  bool levels_3d = true;   ///< the levels spaced along the body's axis in 3D
+  bool by_border = false;        ///< --by-border
+  double given_mm = -1.0;        ///< --given-landmarks: C7 and L4 clicked within this many mm (< 0: none given)
+  int first_subject = 1;         ///< --first-subject (the realistic conditions)
+  bool layout_check = true;      ///< --no-layout-check: false
+  bool trust_c7_at_top = false;  ///< --trust-c7-at-top
+  bool parallax = true;          ///< the model's midline corrected for the silhouette's parallax (3D)
+  bool levels_3d = true;         ///< the levels spaced along the body's axis in 3D
   std::string acupoints;
   std::string pictures;  ///< --pictures: a folder for every pair's picture
   int seed_step = -1;
@@ -243,6 +261,9 @@ struct PairResult {
   int in_view = 0;             ///< acupoints in view (the simulator's truth)
   int placed_in_view = 0;      ///< ... of them placed and localised
   int placed_out_of_view = 0;  ///< acupoints placed and localised though not in view
+  cect::PairScore score;       ///< the landmarks and the layout against the anatomy (cect/evaluation.h)
+  cect::LayoutCheck check;     ///< the layout's plausibility as the chain judged it
+  std::string landmarks;       ///< describeLandmarks
 };
 
 /// --pictures: one pair's picture (see the usage).
@@ -480,6 +501,47 @@ std::vector<Query> scorePlacement(const cect::LocatedAcupoints& result,
   return given;
 }
 
+/// The rendered back's vertebral levels on the skin (C7, T1..L5), in the left optical frame.
+std::map<std::string, Eigen::Vector3d> trueLevels(const RenderedPair& r) {
+  auto landmarks = r.back->landmarks();
+  for (auto& [name, point] : landmarks) point = r.turn * point;
+  std::map<std::string, Eigen::Vector3d> levels;
+  for (const auto& [name, point] : sim::toCameraFrame(landmarks, r.pair.left))
+    if (name.size() <= 3) levels[name] = point;  // the levels, not the bony landmarks (scapula_..., iliac_crest_...)
+  return levels;
+}
+
+/// --given-landmarks: C7 and L4 as a therapist clicks them, each up to `mm` from the truth (uniform over a disc
+/// facing the camera), as rectified left pixels.
+std::vector<cect::GivenLandmark> clickedLandmarks(const RenderedPair& r, const camera::StereoModel& geometry, double mm,
+                                                  int subject) {
+  std::mt19937 rng(static_cast<std::uint32_t>(7000 + subject));
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<cect::GivenLandmark> out;
+  const auto levels = trueLevels(r);
+  for (const char* name : {"C7", "L4"}) {
+    const double radius = 0.001 * mm * std::sqrt(unit(rng)), angle = 2.0 * M_PI * unit(rng);
+    const Eigen::Vector3d p = levels.at(name) + radius * Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.0);
+    const Eigen::Vector3d q = geometry.project(p);
+    out.push_back({name, cv::Point2f(static_cast<float>(q.x()), static_cast<float>(q.y())), "clicked"});
+  }
+  return out;
+}
+
+/// The anatomy of a rendered pair as the scorer wants it: the levels and the spine line on the skin, the in-view
+/// acupoints and the surface seen at each pixel, in the left optical frame.
+cect::BackTruth backTruth(const RenderedPair& r, const std::map<std::string, sim::PointTruth>& seen,
+                          const std::map<std::string, Eigen::Vector3d>& anatomical, const Scorer& scorer) {
+  cect::BackTruth truth;
+  truth.levels = trueLevels(r);
+  const Eigen::Isometry3d left_from_world = r.pair.left.world_from_camera.inverse();
+  for (const Eigen::Vector3d& p : r.back->midline()) truth.midline.push_back(left_from_world * (r.turn * p));
+  for (const auto& [name, t] : seen)
+    if (t.in_view && anatomical.count(name)) truth.acupoints_in_view[name] = anatomical.at(name);
+  truth.surface = [&scorer](const cv::Point2f& q, Eigen::Vector3d* p) { return scorer.truth(q, p); };
+  return truth;
+}
+
 PairResult evaluatePair(const Options& o, const Condition& c, int subject, const cect::AcupointModel& model,
                         const cect::CectParams& params) {
   PairResult res;
@@ -493,8 +555,13 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   cect::LocateOptions lo;
   lo.correct_parallax = o.parallax;
   lo.levels_in_3d = o.levels_3d;
+  lo.check_layout = o.layout_check;
+  lo.require_c7_at_neck = !o.trust_c7_at_top;
+  if (o.given_mm >= 0.0) lo.given = clickedLandmarks(r, geometry, o.given_mm, subject);
   const cect::LocatedAcupoints result = cect::locateAcupoints(f, model, lo);
   if (!result.valid) res.failure = result.reason;
+  res.check = result.check;
+  res.landmarks = cect::describeLandmarks(result.landmarks);
   res.cect_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   const auto t1 = Clock::now();
   const cv::Mat sgbm = sgbmDisparity(geometry, frame, o.width);
@@ -536,6 +603,7 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   const auto anatomical = sim::toCameraFrame(turned, r.pair.left);
   const auto seen = sim::acupointTruth(turned, r.pair, frame);
   const std::vector<Query> given = scorePlacement(result, seen, anatomical, geometry, scorer, &res);
+  res.score = cect::scorePair(result, model, geometry, backTruth(r, seen, anatomical, scorer));
   std::tie(res.stats["cect/given"], res.stats["sgbm/given"]) = scorer.score(given, static_cast<int>(given.size()));
   std::tie(res.stats["cect/near_arms"], res.stats["sgbm/near_arms"]) =
       scorer.score(near_arms, static_cast<int>(near_arms.size()));
@@ -565,6 +633,7 @@ struct SummaryRow {
   int in_view = 0, placed_in_view = 0, placed_out_of_view = 0;
   Stats layout, given, sgbm_given, near_arms;
   double cect_ms = 0.0;
+  cect::ScoreSummary landmarks;
   double placedShare() const { return in_view ? 100.0 * placed_in_view / in_view : std::nan(""); }
 };
 
@@ -590,12 +659,37 @@ void printSummary(const std::vector<SummaryRow>& rows) {
   }
 }
 
+/// The closing landmark table: per condition, the levels along the body, the spine line across, refusals and the
+/// pairs wrongly trusted.
+void printLandmarkSummary(const std::vector<SummaryRow>& rows) {
+  std::cout
+      << "\nLandmarks against the anatomy (published pairs; mean / p95 mm along the body; spine line mean mm across;\n"
+         "refused = pairs not published; wrong = published with a level more than "
+      << fmt(cect::PairScore::kWrongLevelMm, 0) << " mm off)\n"
+      << std::left << std::setw(18) << "condition" << std::right << std::setw(14) << "C7" << std::setw(14) << "T7"
+      << std::setw(14) << "L4" << std::setw(8) << "spine" << std::setw(10) << "refused" << std::setw(8) << "wrong"
+      << std::setw(9) << "placed%"
+      << "\n";
+  for (const SummaryRow& r : rows) {
+    const cect::ScoreSummary& l = r.landmarks;
+    auto level = [&](const char* name) {
+      const cect::Spread& s = l.levels.at(name);
+      return fmt(s.mean, 1) + " / " + fmt(s.p95, 1);
+    };
+    std::cout << std::left << std::setw(18) << r.condition << std::right << std::setw(14) << level("C7")
+              << std::setw(14) << level("T7") << std::setw(14) << level("L4") << std::setw(8)
+              << fmt(l.midline_across.mean, 1) << std::setw(10)
+              << (std::to_string(l.refused) + "/" + std::to_string(l.pairs)) << std::setw(8) << l.wrongly_trusted
+              << std::setw(9) << fmt(100.0 * l.placedShare(), 1) << "\n";
+  }
+}
+
 /// The experiments' conditions, each with its subjects.
 std::vector<Condition> conditionsOf(const Options& o) {
   std::vector<Condition> conditions;
-  auto range = [](int n) {
+  auto range = [](int n, int first = 1) {
     std::vector<int> v;
-    for (int i = 1; i <= n; ++i) v.push_back(i);
+    for (int i = first; i < first + n; ++i) v.push_back(i);
     return v;
   };
   for (const std::string& e : o.experiments) {
@@ -607,7 +701,8 @@ std::vector<Condition> conditionsOf(const Options& o) {
       conditions.push_back({"light_top_right", sim::LightPreset::kTopRight, 0.0, range(o.condition_subjects)});
     } else if (e == "real") {
       for (const std::string& name : tools::realConditions())
-        conditions.push_back({name, sim::LightPreset::kTopCentre, 0.0, range(o.condition_subjects), true});
+        conditions.push_back(
+            {name, sim::LightPreset::kTopCentre, 0.0, range(o.condition_subjects, o.first_subject), true});
     } else if (e == "shift") {
       for (int cm : {0, 4, 7, 14})
         conditions.push_back({"shift_" + std::to_string(cm) + "cm", sim::LightPreset::kTopCentre, cm / 100.0,
@@ -624,6 +719,7 @@ struct ConditionResult {
   int in_view = 0, placed_in_view = 0, placed_out_of_view = 0;
   std::vector<double> cect_ms, sgbm_ms;
   std::vector<std::string> failures;
+  std::vector<cect::PairScore> scores;  ///< per pair: landmarks, layout, trust
 };
 
 /// Every subject of the condition (--csv: a row per subject and figure as they come).
@@ -649,6 +745,16 @@ ConditionResult evaluateCondition(const Options& o, const Condition& c, const ce
     cr.placed_out_of_view += r.placed_out_of_view;
     for (const auto& [name, st] : r.per_point) cr.per_point[name].add(st);
     for (const auto& [key, st] : r.border) cr.border[key].add(st);
+    cr.scores.push_back(r.score);
+    if (o.csv) {
+      const cect::PairScore& ps = r.score;
+      std::cout << c.name << "," << s << ",landmarks," << (ps.published ? "published" : "refused");
+      for (const cect::LevelError& e : ps.levels) std::cout << "," << e.level << "=" << fmt(e.along_mm, 1);
+      const cect::LayoutCheck& k = r.check;
+      std::cout << ",midline=" << fmt(ps.midline_across_mm, 1) << ",length_m=" << fmt(k.length_m, 3)
+                << ",shoulder_m=" << fmt(k.shoulder_width_m, 3) << ",ratio=" << fmt(k.length_per_shoulder_width, 3)
+                << ",shoulder_below_c7=" << fmt(k.shoulder_below_c7, 3) << ",\"" << r.landmarks << "\"\n";
+    }
     cr.cect_ms.push_back(r.cect_ms);
     cr.sgbm_ms.push_back(r.sgbm_ms);
     if (!r.failure.empty()) cr.failures.push_back("subject " + std::to_string(s) + ": " + r.failure);
@@ -658,6 +764,22 @@ ConditionResult evaluateCondition(const Options& o, const Condition& c, const ce
 
 std::string validShare(const Stats& st) {
   return fmt(st.queried ? 100.0 * st.errors_mm.size() / st.queried : std::nan(""), 1);
+}
+
+/// mean / p95 / max of a spread, one decimal.
+std::string spreadText(const cect::Spread& s) { return fmt(s.mean, 1) + " / " + fmt(s.p95, 1) + " / " + fmt(s.max, 1); }
+
+/// The condition's landmarks against the anatomy and how often the layout was trusted when it should not have been.
+void printLandmarks(const std::string& condition, const cect::ScoreSummary& l) {
+  std::cout << std::left << std::setw(18) << condition << "landmarks of the " << l.published
+            << " published pairs (mean / p95 / max mm along the body):";
+  for (const std::string& level : cect::scoredLevels())
+    std::cout << " " << level << " " << spreadText(l.levels.at(level)) << ";";
+  std::cout << " spine line across " << spreadText(l.midline_across) << "\n"
+            << std::setw(18) << ""
+            << "refused " << l.refused << " of " << l.pairs << " pairs (" << l.refused_wrong << " of them > "
+            << fmt(cect::PairScore::kWrongLevelMm, 0) << " mm off); wrongly trusted (published, a level > "
+            << fmt(cect::PairScore::kWrongLevelMm, 0) << " mm off) " << l.wrongly_trusted << "\n";
 }
 
 /// The condition's table rows, the placement and timing line, the acupoints in view, the failures and the sigmas;
@@ -678,7 +800,8 @@ SummaryRow printCondition(const Condition& c, ConditionResult& cr) {
   const Stats& g = cr.total["cect/given"];
   const Stats& sg = cr.total["sgbm/given"];
   SummaryRow row{c.name, cr.in_view, cr.placed_in_view,          cr.placed_out_of_view, cr.model_total,
-                 g,      sg,         cr.total["cect/near_arms"], medianOf(cr.cect_ms)};
+                 g,      sg,         cr.total["cect/near_arms"], medianOf(cr.cect_ms),  cect::summarise(cr.scores)};
+  printLandmarks(c.name, row.landmarks);
   std::cout << std::left << std::setw(18) << c.name << "acupoints in view " << cr.in_view << ": "
             << fmt(row.placedShare(), 1) << " % placed (" << cr.placed_out_of_view
             << " placed though out of view); layout vs anatomical mean " << fmt(cr.model_total.mean(), 1) << " mm, p95 "
@@ -762,7 +885,10 @@ void run(const Options& o) {
     if (o.per_point) printPerPoint(cr.per_point, model);
     std::cout << "\n";
   }
-  if (!o.csv) printSummary(summary);
+  if (!o.csv) {
+    printSummary(summary);
+    printLandmarkSummary(summary);
+  }
 }
 
 }  // namespace
@@ -825,7 +951,17 @@ int main(int argc, char** argv) {
             o.params.emplace_back(name, tools::parseDouble(opt + " " + name, kv.substr(eq + 1)));
           }
         };
+        t.values["--given-landmarks"] = [&](const std::string& opt, const std::string& v) {
+          o.given_mm = tools::parseDouble(opt, v);
+          tools::require(o.given_mm >= 0.0 && o.given_mm <= 100.0, opt + " must be in 0..100 mm");
+        };
+        t.values["--first-subject"] = [&](const std::string& opt, const std::string& v) {
+          o.first_subject = tools::parseInt(opt, v);
+          tools::require(o.first_subject >= 1 && o.first_subject <= 10000, opt + " must be in 1..10000");
+        };
         t.flags["--raw"] = [&] { o.raw = true; };
+        t.flags["--no-layout-check"] = [&] { o.layout_check = false; };
+        t.flags["--trust-c7-at-top"] = [&] { o.trust_c7_at_top = true; };
         t.flags["--csv"] = [&] { o.csv = true; };
         t.flags["--per-point"] = [&] { o.per_point = true; };
         t.flags["--by-border"] = [&] { o.by_border = true; };

@@ -43,9 +43,10 @@ const char* const kUsage =
     R"(Usage: cect_locate --left L.png --right R.png --left-info LEFT.yaml --right-info RIGHT.yaml
                    [--acupoints FILE] [--format yaml|csv] [--output FILE] [--overlay OUT.png]
                    [--min-depth M] [--max-depth M] [--param NAME=VALUE,...]
-                   [--no-parallax-correction] [--no-3d-levels]
+                   [--no-parallax-correction] [--no-3d-levels] [--landmark NAME=U,V ...]
+                   [--trust-c7-at-top]
        cect_locate --layout-only IMAGE.png [--acupoints FILE] [--format yaml|csv]
-                   [--output FILE] [--overlay OUT.png]
+                   [--output FILE] [--overlay OUT.png] [--landmark NAME=U,V ...] [--trust-c7-at-top]
 
 Finds the acupoints of the acupoint model on a subject lying prone (head toward
 the image top unless the model says `head_up: false`).
@@ -68,6 +69,12 @@ Options:
   --left-info, --right-info FILE   their camera_info YAML files
   --layout-only IMAGE      one image, pixels only (no stereo options then)
   --acupoints FILE         the acupoint model (default: the package's config/acupoints.yaml)
+  --landmark NAME=U,V      a landmark a therapist palpated, at raw left pixel (U, V): C7
+                           (the vertebra prominens) or L4 (the iliac crests' line); it
+                           replaces the found one (repeat the option for both)
+  --trust-c7-at-top        trust a C7 taken from the back's top where no neck is in
+                           view (by default such a layout is "not trusted": give C7);
+                           for backs rendered without a neck
   --format yaml|csv        output format (default yaml)
   --output FILE            write the output there (default: standard output)
   --overlay OUT.png        picture: the (raw) left image with the back's contour
@@ -87,10 +94,14 @@ Options:
 
 Output, one entry per acupoint of the model in the model's order:
   name, region             as in the model
-  valid                    placed and (stereo mode) localised in 3D
+  valid                    placed, (stereo mode) localised in 3D, and the layout
+                           trusted (a layout that fails the plausibility checks
+                           - sizes, proportions, the shoulder line - has every
+                           point invalid with "layout not trusted: ...")
   reason                   why not valid (empty when valid)
   u, v                     the pixel in the raw left image (pixel centres at
                            integers); NaN (YAML) / empty (CSV) when not placed
+                           (a refused layout keeps its pixels, for a look)
 Stereo mode only:
   x, y, z                  the 3D point, metres, in the left camera's optical frame
                            (REP 103: x right, y down, z forward)
@@ -103,7 +114,7 @@ YAML: a header, then the list `acupoints:`. The header: mode; the inputs;
 frame (CECT's status: valid, reason, view_scale, disparity_range searched,
 timings_ms: CECT's stages and the layout + 3D step on this pair, 2 cores; in
 layout-only mode the segmentation's valid and reason); landmarks (valid, reason,
-body_angle_deg, shoulder_width_px, and c7, l4, shoulder_line, waist_line,
+body_angle_deg, shoulder_width_px, measured / inferred / given, and c7, l4, shoulder_line, waist_line,
 iliac_line: points on the midline, raw left pixels [u, v]); valid / reason
 (whether the acupoints could be placed, and why not); acupoints_valid and
 acupoints_total.
@@ -132,6 +143,8 @@ struct Options {
   std::vector<std::pair<std::string, double>> params;  ///< --param
   bool parallax = true;
   bool levels_3d = true;
+  std::vector<cect::GivenLandmark> landmarks;  ///< --landmark, raw left pixels
+  bool trust_c7_at_top = false;                ///< --trust-c7-at-top
   bool stereo() const { return layout_only.empty(); }
 };
 
@@ -151,9 +164,9 @@ struct LandmarkSummary {
   bool valid = false;
   std::string reason;
   double body_angle_deg = kNaN, shoulder_width_px = kNaN;
-  std::vector<std::string> measured, inferred;  ///< which landmarks this view measured / inferred
-  std::string trunk;                            ///< what the segmentation cut away (arms, cloth)
-  std::string background;                       ///< what the depth gate called far background
+  std::vector<std::string> measured, inferred, given;  ///< which landmarks this view measured / inferred / was given
+  std::string trunk;                                   ///< what the segmentation cut away (arms, cloth)
+  std::string background;                              ///< what the depth gate called far background
   /// C7, L4 and the midline at the shoulder, waist and iliac lines, raw left pixels.
   std::vector<std::pair<std::string, cv::Point2f>> points;
 };
@@ -200,6 +213,7 @@ LandmarkSummary summarise(const cect::BackLandmarks& lm, const ToRaw& to_raw) {
   s.shoulder_width_px = lm.shoulder_width;
   s.measured = lm.measured;
   s.inferred = lm.inferred;
+  s.given = lm.given;
   auto image = [&](const cv::Point2f& body) { return to_raw(cect::toImage(lm, body)); };
   s.points = {{"c7", image(lm.c7)},
               {"l4", image(lm.l4)},
@@ -322,6 +336,9 @@ Report locateStereo(const Options& o, const cect::AcupointModel& model) {
   cect::LocateOptions lo;
   lo.correct_parallax = o.parallax;
   lo.levels_in_3d = o.levels_3d;
+  lo.require_c7_at_neck = !o.trust_c7_at_top;
+  for (const cect::GivenLandmark& g : o.landmarks)
+    lo.given.push_back({g.name, in.geometry.toRectified(g.pixel), g.source});
   const auto t0 = std::chrono::steady_clock::now();
   const cect::LocatedAcupoints located = cect::locateAcupoints(frame, model, lo);
   const double locate_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -348,35 +365,31 @@ cect::SegmentationParams segmentationFor(int width) {
 Report locateLayout(const Options& o, const cect::AcupointModel& model) {
   const cv::Mat image = readImage(o.layout_only, "--layout-only");
   const cect::Segmentation seg = cect::segmentBack(image, segmentationFor(image.cols));
-  const cect::BackLandmarks lm = cect::findLandmarks(seg, model);
-  // Without depth one scale for the whole image: placeAcupoints takes the cun
-  // as cun_per_shoulder_width x shoulder width (px) x scale and converts it
-  // back to pixels with the same scale, so any constant gives lateral offsets
-  // of lateral_cun x cun_per_shoulder_width x shoulder width pixels.
-  const cect::PixelScale one_metre_per_pixel = [](const cv::Point2f&) { return 1.0; };
-  const std::vector<cect::AcupointPixel> placed = cect::placeAcupoints(lm, model, one_metre_per_pixel);
+  cect::LocateOptions lo;
+  lo.given = o.landmarks;
+  lo.require_c7_at_neck = !o.trust_c7_at_top;
+  const cect::LocatedAcupoints located = cect::locateLayout(seg, model, lo);
 
   Report r;
   r.stereo = false;
   r.inputs = {{"image", o.layout_only}};
   r.frame_valid = seg.valid;
   r.frame_reason = seg.reason;
-  r.valid = lm.valid;
-  r.reason = lm.valid ? std::string() : "no landmarks of the back: " + lm.reason;
+  r.valid = located.valid;
+  r.reason = located.reason;
   const ToRaw identity = [](const cv::Point2f& p) { return p; };
-  r.landmarks = summarise(lm, identity);
+  r.landmarks = summarise(located.landmarks, identity);
   r.landmarks.trunk = seg.valid ? seg.trunk.summary() : std::string();
-  for (const cect::AcupointPixel& a : placed) {
+  for (const cect::LocatedAcupoint& a : located.points) {
     PointRow row;
     row.name = a.name;
-    const cect::AcupointSpec* spec = model.find(a.name);
-    row.region = spec ? spec->region : std::string();
+    row.region = a.region;
     row.valid = a.valid;
-    row.reason = a.valid ? std::string() : "not placed: " + a.reason;
-    if (a.valid) row.pixel = a.pixel;
+    row.reason = a.reason;
+    if (a.placed) row.pixel = a.rectified;
     r.points.push_back(row);
   }
-  addOutlines(&r, seg, lm, identity);
+  addOutlines(&r, seg, located.landmarks, identity);
   return r;
 }
 
@@ -418,6 +431,7 @@ void emitHeader(YAML::Emitter& y, const Report& r) {
   y << YAML::Key << "shoulder_width_px" << YAML::Value << l.shoulder_width_px;
   y << YAML::Key << "measured" << YAML::Value << YAML::Flow << l.measured;
   y << YAML::Key << "inferred" << YAML::Value << YAML::Flow << l.inferred;
+  y << YAML::Key << "given" << YAML::Value << YAML::Flow << l.given;
   y << YAML::Key << "trunk" << YAML::Value << l.trunk;
   if (!l.background.empty()) y << YAML::Key << "background" << YAML::Value << l.background;
   for (const auto& [name, p] : l.points) emitPixel(y, name, p);
@@ -636,6 +650,21 @@ tools::OptionTable optionTable(Options& o) {
   addParamOption(t, o);
   t.flags["--no-parallax-correction"] = [&o] { o.parallax = false; };
   t.flags["--no-3d-levels"] = [&o] { o.levels_3d = false; };
+  t.flags["--trust-c7-at-top"] = [&o] { o.trust_c7_at_top = true; };
+  t.values["--landmark"] = [&o](const std::string& opt, const std::string& v) {
+    const auto eq = v.find('=');
+    require(eq != std::string::npos, opt + ": expected NAME=U,V, got '" + v + "'");
+    const std::string name = v.substr(0, eq);
+    const std::string problem = cect::checkGivenLandmarkName(name);
+    require(problem.empty(), opt + ": " + problem);
+    const std::vector<std::string> uv = tools::splitList(v.substr(eq + 1));
+    require(uv.size() == 2, opt + " " + name + ": expected the pixel as U,V, got '" + v.substr(eq + 1) + "'");
+    for (const cect::GivenLandmark& g : o.landmarks) require(g.name != name, opt + ": " + name + " given twice");
+    o.landmarks.push_back({name,
+                           cv::Point2f(static_cast<float>(tools::parseDouble(opt + " " + name, uv[0])),
+                                       static_cast<float>(tools::parseDouble(opt + " " + name, uv[1]))),
+                           "given"});
+  };
   return t;
 }
 

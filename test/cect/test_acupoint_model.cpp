@@ -379,6 +379,25 @@ TEST(AcupointModelValidation, OtherProblemsThrowWithClearMessages) {
   EXPECT_DOUBLE_EQ(m.layout_sigma.l4_inferred, 0.3);
   EXPECT_DOUBLE_EQ(m.layout_sigma.c7_measured, cect::AcupointModel{}.layout_sigma.c7_measured);
   EXPECT_TRUE(cect::layoutCovariance(cect::BackLandmarks{}, model(), "L4", 0.002).isZero());
+  auto withBounds = [&](const std::string& map) {
+    std::string t = text;
+    t.insert(t.find("cun_per_shoulder_width"), "plausibility: " + map + "\n");
+    return t;
+  };
+  EXPECT_NE(load("acu_pl_key.yaml", withBounds("{max_length: 0.6}")).find("unknown key 'max_length' (max_length_m"),
+            std::string::npos);
+  EXPECT_NE(load("acu_pl_order.yaml", withBounds("{min_length_m: 0.7}")).find("must be > 0 and < max_length_m"),
+            std::string::npos);
+  EXPECT_NE(load("acu_pl_tol.yaml", withBounds("{proportion_tolerance: 1.5}")).find("is not in (0, 1)"),
+            std::string::npos);
+  const cect::AcupointModel b =
+      cect::loadAcupointModel(writeTemp("acu_pl_ok.yaml", withBounds("{max_shoulder_width_m: 0.7}")));
+  EXPECT_DOUBLE_EQ(b.plausibility.max_shoulder_width_m, 0.7);
+  EXPECT_DOUBLE_EQ(b.plausibility.min_length_m, cect::AcupointModel{}.plausibility.min_length_m);
+  // The given landmarks' sigma and the file's bounds agree with the library's defaults (one value, two places).
+  EXPECT_DOUBLE_EQ(model().layout_sigma.c7_given, cect::AcupointModel{}.layout_sigma.c7_given);
+  EXPECT_DOUBLE_EQ(model().plausibility.max_length_m, cect::AcupointModel{}.plausibility.max_length_m);
+  EXPECT_DOUBLE_EQ(model().plausibility.proportion_tolerance, cect::AcupointModel{}.plausibility.proportion_tolerance);
 }
 
 // ---------------------------------------------------------------------------

@@ -45,10 +45,13 @@ struct PairOnDisk {
   sim::StereoPairModel pair;
   sim::StereoFrame frame;
   std::string file(const std::string& name) const { return (dir->path() / name).string(); }
-  std::string args() const {
+  /// The pair's options; the armless torso rendered here has no neck (its back ends at the neck's base), so its C7
+  /// at the back's top is trusted (--trust-c7-at-top) unless `plain`.
+  std::string args(bool plain = false) const {
     return "--left " + file("left.png") + " --right " + file("right.png") + " --left-info " + file("left.yaml") +
-           " --right-info " + file("right.yaml");
+           " --right-info " + file("right.yaml") + (plain ? "" : kTorso);
   }
+  static constexpr const char* kTorso = " --trust-c7-at-top";
   /// f B of the rectified pair, metres x pixels (-Tx of the right projection).
   double focalBaseline() const { return -pair.right_info.P[3]; }
   /// The surface point seen at a raw left pixel, left optical frame (bilinear
@@ -306,8 +309,9 @@ TEST(CectLocateTool, NamesWithCommasAndQuotesSurviveBothFormats) {
 
 TEST(CectLocateTool, LayoutOnlyPixelsMatchTheStereoMode) {
   const PairOnDisk& p = rectifiedPair();
-  const auto layout_rows =
-      csvTable(runOk("--layout-only " + p.file("left.png") + " --format csv", p.file("layout.csv")), kLayoutHeader);
+  const auto layout_rows = csvTable(
+      runOk("--layout-only " + p.file("left.png") + PairOnDisk::kTorso + " --format csv", p.file("layout.csv")),
+      kLayoutHeader);
   std::vector<std::string> names;
   for (const auto& r : layout_rows) names.push_back(r.at("name"));
   expectModelOrder(names);
@@ -335,7 +339,8 @@ TEST(CectLocateTool, LayoutOnlyPixelsMatchTheStereoMode) {
 
 TEST(CectLocateTool, LayoutOnlyCunComesFromTheShoulderWidth) {
   const PairOnDisk& p = rectifiedPair();
-  const YAML::Node y = YAML::Load(runOk("--layout-only " + p.file("left.png"), p.file("layout.yaml")));
+  const YAML::Node y =
+      YAML::Load(runOk("--layout-only " + p.file("left.png") + PairOnDisk::kTorso, p.file("layout.yaml")));
   EXPECT_EQ(y["mode"].as<std::string>(), "layout_only");
   ASSERT_TRUE(y["valid"].as<bool>()) << y["reason"].as<std::string>();
   const cect::AcupointModel model = cect::loadAcupointModel(kModel);
@@ -452,6 +457,41 @@ TEST(CectLocateTool, BadInputFailsWithAMessage) {
   expectFailure(p.args() + " --min-depth 3", 2, "--min-depth must be less than --max-depth");
   expectFailure("--layout-only " + p.file("left.png") + right, 2, "--layout-only takes one image");
   expectFailure("--layout-only " + p.file("missing.png"), 1, "no such image file");
+}
+
+/// Without a neck in view the layout is not trusted, and says why; C7 and L4 given as a therapist palpates them make
+/// it trusted, placed at them.
+TEST(CectLocateTool, AC7WithoutANeckIsNotTrustedUntilGiven) {
+  const PairOnDisk& p = rectifiedPair();
+  const YAML::Node refused = YAML::Load(runOk(p.args(true), p.file("refused.yaml")));
+  EXPECT_FALSE(refused["valid"].as<bool>());
+  EXPECT_NE(refused["reason"].as<std::string>().find("layout not trusted: C7 not measured"), std::string::npos)
+      << refused["reason"].as<std::string>();
+  EXPECT_EQ(refused["acupoints_valid"].as<int>(), 0);
+  // The therapist's C7 and L4: the simulator's, in the raw left image.
+  const sim::BackModel back(sim::BodyParameters::subject(0));
+  const auto truth = sim::toCameraFrame(back.landmarks(), p.pair.left);
+  auto pixel = [&](const std::string& level) {
+    const Eigen::Vector3d& q = truth.at(level);
+    const double u = p.pair.left_info.K[0] * q.x() / q.z() + p.pair.left_info.K[2];
+    const double v = p.pair.left_info.K[4] * q.y() / q.z() + p.pair.left_info.K[5];
+    return std::make_pair(u, v);
+  };
+  const auto [c7u, c7v] = pixel("C7");
+  const auto [l4u, l4v] = pixel("L4");
+  const std::string given = " --landmark C7=" + std::to_string(c7u) + "," + std::to_string(c7v) +
+                            " --landmark L4=" + std::to_string(l4u) + "," + std::to_string(l4v);
+  const YAML::Node y = YAML::Load(runOk(p.args(true) + given, p.file("given.yaml")));
+  ASSERT_TRUE(y["valid"].as<bool>()) << y["reason"].as<std::string>();
+  EXPECT_GE(y["acupoints_valid"].as<int>(), 90);
+  EXPECT_EQ(y["landmarks"]["given"].size(), 2u);
+  for (const YAML::Node& a : y["acupoints"]) {
+    if (a["name"].as<std::string>() != "GV14" || !a["valid"].as<bool>()) continue;
+    EXPECT_NEAR(a["u"].as<double>(), c7u, 1.0);
+    EXPECT_NEAR(a["v"].as<double>(), c7v, 1.0);
+  }
+  expectFailure(p.args(true) + " --landmark T3=10,10", 2, "unknown landmark 'T3'");
+  expectFailure(p.args(true) + " --landmark C7=10", 2, "expected the pixel as U,V");
 }
 
 }  // namespace

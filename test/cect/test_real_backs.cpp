@@ -184,6 +184,14 @@ TEST(RealBacks, TheFloorBeyondTheTableStaysOutOfThePalestBack) {
   }
 }
 
+/// The chain's options for the scenes that test the segmentation: their hair hides the neck's base, so the default
+/// would not trust a C7 taken from the back's top (layout_check.h); here the layout only shows the back was found.
+cect::LocateOptions segmentationCheck() {
+  cect::LocateOptions o;
+  o.require_c7_at_neck = false;
+  return o;
+}
+
 TEST(RealBacks, RedHairIsNotTakenForTheBack) {
   // Red hair is the most chromatic thing in view, a class of its own above
   // pale skin: the back is the largest region of the class below it.
@@ -197,7 +205,7 @@ TEST(RealBacks, RedHairIsNotTakenForTheBack) {
             << cv::countNonZero(hair) << "\n";
   EXPECT_GT(cv::countNonZero(back), 0.85 * cv::countNonZero(f.left().mask));
   EXPECT_LT(cv::countNonZero(hair), 0.002 * cv::countNonZero(f.left().mask));
-  EXPECT_TRUE(cect::locateAcupoints(f, model()).valid);
+  EXPECT_TRUE(cect::locateAcupoints(f, model(), segmentationCheck()).valid);
 }
 
 TEST(RealBacks, SheenOnDarkSkinDoesNotCutTheBack) {
@@ -219,7 +227,7 @@ TEST(RealBacks, SheenOnDarkSkinDoesNotCutTheBack) {
   EXPECT_GT(coverage(f.left().mask), 0.9);
   EXPECT_TRUE(!colour_only.valid || coverage(colour_only.mask) < 0.8)
       << "colour alone keeps the lit back: this scene no longer tests the depth fill";
-  EXPECT_GE(cect::locateAcupoints(f, model()).validCount(), 80);
+  EXPECT_GE(cect::locateAcupoints(f, model(), segmentationCheck()).validCount(), 80);
 }
 
 TEST(RealBacks, ASheetOfSkinsColourIsLeftOutByTheTablesPlane) {
@@ -239,7 +247,7 @@ TEST(RealBacks, ASheetOfSkinsColourIsLeftOutByTheTablesPlane) {
   EXPECT_FALSE(f.background().left_table.empty() && f.background().right_table.empty());
   const cv::Mat sheet = r.frame.left.labels == sim::kLabelTable;
   EXPECT_LT(cv::countNonZero(f.left().mask & sheet), 0.01 * cv::countNonZero(f.left().mask));
-  EXPECT_GE(cect::locateAcupoints(f, model()).validCount(), 80);
+  EXPECT_GE(cect::locateAcupoints(f, model(), segmentationCheck()).validCount(), 80);
 }
 
 int main(int argc, char** argv) {

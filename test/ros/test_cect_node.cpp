@@ -15,6 +15,11 @@
 // (non-horizontal) pair and grey images are skipped and named in the
 // diagnostics; a pair without a back gives acupoints that are all invalid
 // with a reason; the node stays alive and processes a good pair afterwards.
+// GivenLandmarksMoveTheLayout: a third node in /landmarks: ~set_landmark
+// refuses before any pair, an unknown name and a pixel outside the image; C7
+// given by pixel moves GV14 there; an rviz click (Publish Point) near GV3
+// moves L4 (the nearer landmark) to it, a click on ~debug_image near GV14
+// moves C7; ~clear_landmarks brings the automatic layout back.
 //
 // Parameters (private): bag, ground_truth, acupoints (paths), tolerance (m, 0.03).
 #include <gtest/gtest.h>
@@ -28,8 +33,10 @@
 #include <vector>
 
 #include <geometry_msgs/Point.h>
+#include <geometry_msgs/PointStamped.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 #include <Eigen/Core>
@@ -38,7 +45,9 @@
 #include "massage_cell/AcupointArray.h"
 #include "massage_cell/GetAcupoint.h"
 #include "massage_cell/LocalizePixels.h"
+#include "massage_cell/SetLandmark.h"
 #include "massage_cell/cect/acupoint_model.h"
+#include "massage_cell/cect/tracker.h"
 #include "spin_util.h"
 #include "stereo_node_test.h"
 #include "test_util.h"
@@ -49,6 +58,7 @@ using massage_cell::AcupointArray;
 using massage_cell::AcupointArrayConstPtr;
 using massage_cell::GetAcupoint;
 using massage_cell::LocalizePixels;
+using massage_cell::SetLandmark;
 using namespace massage_cell::test;
 
 const std::string kOptical = "stereo_left_optical_frame";
@@ -440,6 +450,119 @@ TEST_F(CectNode, BadInputIsSkipped) {
   }
   EXPECT_GT(compared, static_cast<int>(names_.size()) / 2);
   EXPECT_GT(countValid(*doubled), static_cast<int>(names_.size()) / 2);
+}
+
+// ------------------------------------------------------------ landmarks --
+
+/// The acupoint `name`'s placed raw pixel in `msg` (NaN when not placed).
+cv::Point2d placedPixel(const AcupointArray& msg, const std::string& name) {
+  const massage_cell::Acupoint* a = findPoint(msg, name);
+  return a ? cv::Point2d(a->u, a->v) : cv::Point2d(std::nan(""), std::nan(""));
+}
+
+TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
+  StereoPair good;
+  ASSERT_NO_FATAL_FAILURE(readFirstPair(bag_path_, &good));
+  ros::NodeHandle ns("/landmarks");
+  PairPublisher input(ns);
+  std::vector<AcupointArrayConstPtr> outputs;
+  ros::Subscriber sub =
+      ns.subscribe<AcupointArray>("acupoints", 10, [&](const AcupointArrayConstPtr& m) { outputs.push_back(m); });
+  ros::Publisher clicks = ns.advertise<geometry_msgs::PointStamped>("clicked_point", 5);
+  ros::Publisher image_clicks = ns.advertise<geometry_msgs::PointStamped>("cect/debug_image_mouse_left", 5);
+  NodeStatus status;
+  ros::Subscriber diag = watchDiagnostics(nh_, "landmarks/cect", kDiagnostics, status);
+  ASSERT_NO_FATAL_FAILURE(waitForNode(input, status, "/landmarks"));
+  ros::ServiceClient set_client = ns.serviceClient<SetLandmark>("cect/set_landmark");
+  ros::ServiceClient clear_client = ns.serviceClient<std_srvs::Trigger>("cect/clear_landmarks");
+  ASSERT_TRUE(set_client.waitForExistence(ros::Duration(5.0)));
+  ASSERT_TRUE(clear_client.waitForExistence(ros::Duration(5.0)));
+  ASSERT_TRUE(spinUntil([&] { return clicks.getNumSubscribers() > 0 && image_clicks.getNumSubscribers() > 0; }, 5.0));
+  auto layoutOf = [&](const ros::Time& stamp) -> AcupointArrayConstPtr {
+    if (!spinUntil([&] { return !outputs.empty() && outputs.back()->header.stamp == stamp; }, 15.0)) return nullptr;
+    return outputs.back();
+  };
+  auto setLandmark = [&](const std::string& name, double u, double v) {
+    SetLandmark call;
+    call.request.name = name;
+    call.request.u = u;
+    call.request.v = v;
+    EXPECT_TRUE(set_client.call(call));
+    return call.response;
+  };
+
+  // Before any pair there is no view to place a landmark in.
+  SetLandmark::Response early = setLandmark("C7", 160.0, 60.0);
+  EXPECT_FALSE(early.success);
+  EXPECT_NE(early.message.find("no stereo pair analysed yet"), std::string::npos) << early.message;
+
+  // 1. The automatic layout.
+  const AcupointArrayConstPtr automatic = layoutOf(input.publish(good));
+  ASSERT_TRUE(automatic) << "no acupoints for a good pair";
+  const cv::Point2d gv14 = placedPixel(*automatic, "GV14"), gv3 = placedPixel(*automatic, "GV3");
+  ASSERT_TRUE(std::isfinite(gv14.x) && std::isfinite(gv3.x)) << "GV14 and GV3 placed";
+
+  // 2. C7 given 8 px toward the feet by ~set_landmark: GV14 (at C7) moves there, GV3 (at L4) stays.
+  SetLandmark::Response c7 = setLandmark("C7", gv14.x, gv14.y + 8.0);
+  ASSERT_TRUE(c7.success) << c7.message;
+  EXPECT_NE(c7.message.find("C7 (service)"), std::string::npos) << c7.message;
+  SetLandmark::Response unknown = setLandmark("T3", gv14.x, gv14.y);
+  EXPECT_FALSE(unknown.success);
+  EXPECT_NE(unknown.message.find("unknown landmark 'T3'"), std::string::npos) << unknown.message;
+  SetLandmark::Response outside = setLandmark("L4", -100.0, -100.0);
+  EXPECT_FALSE(outside.success);
+  EXPECT_NE(outside.message.find("outside"), std::string::npos) << outside.message;
+  AcupointArrayConstPtr given = layoutOf(input.publish(good));
+  ASSERT_TRUE(given);
+  EXPECT_NEAR(placedPixel(*given, "GV14").x, gv14.x, 0.6);
+  EXPECT_NEAR(placedPixel(*given, "GV14").y, gv14.y + 8.0, 0.6);
+  EXPECT_NEAR(placedPixel(*given, "GV3").y, gv3.y, 0.6);
+
+  // 3. rviz's Publish Point 2 cm toward the feet of GV3's 3D point: the nearest landmark, L4, goes there.
+  const massage_cell::Acupoint* gv3_point = findPoint(*given, "GV3");
+  ASSERT_TRUE(gv3_point && gv3_point->valid) << "GV3 localised";
+  geometry_msgs::PointStamped click;
+  click.header.frame_id = kOptical;
+  click.point = gv3_point->position;
+  click.point.y += 0.02;  // the optical frame's y: down the image, toward the feet
+  const auto& P = good.left_info.P;
+  const double expected_v = P[5] * click.point.y / click.point.z + P[6];
+  clicks.publish(click);
+  bool moved = false;
+  for (int k = 0; k < 5 && !moved; ++k) {  // the click and a pair may cross
+    given = layoutOf(input.publish(good));
+    ASSERT_TRUE(given);
+    moved = std::abs(placedPixel(*given, "GV3").y - expected_v) < 1.0;
+  }
+  EXPECT_TRUE(moved) << "GV3 at v " << placedPixel(*given, "GV3").y << ", the click at v " << expected_v
+                     << " (it was at " << gv3.y << ")";
+  EXPECT_NEAR(placedPixel(*given, "GV14").y, gv14.y + 8.0, 0.6) << "C7 stays given";
+
+  // 4. A click on ~debug_image (scaled up to at least 960 px, the node's debug width) 4 px above the automatic C7:
+  // C7, the nearer landmark, goes there.
+  const double k = massage_cell::cect::debugImageScale(static_cast<int>(good.left_info.width), 960);
+  geometry_msgs::PointStamped pixel;
+  pixel.point.x = (gv14.x + 0.5) * k - 0.5;
+  pixel.point.y = (gv14.y - 4.0 + 0.5) * k - 0.5;
+  image_clicks.publish(pixel);
+  moved = false;
+  for (int i = 0; i < 5 && !moved; ++i) {
+    given = layoutOf(input.publish(good));
+    ASSERT_TRUE(given);
+    moved = std::abs(placedPixel(*given, "GV14").y - (gv14.y - 4.0)) < 0.6;
+  }
+  EXPECT_TRUE(moved) << "GV14 at v " << placedPixel(*given, "GV14").y << ", the click at v " << gv14.y - 4.0;
+
+  // 5. ~clear_landmarks: the automatic layout again.
+  std_srvs::Trigger clear;
+  ASSERT_TRUE(clear_client.call(clear));
+  EXPECT_TRUE(clear.response.success);
+  EXPECT_NE(clear.response.message.find("C7 (clicked)"), std::string::npos) << clear.response.message;
+  EXPECT_NE(clear.response.message.find("L4 (clicked)"), std::string::npos) << clear.response.message;
+  const AcupointArrayConstPtr cleared = layoutOf(input.publish(good));
+  ASSERT_TRUE(cleared);
+  EXPECT_NEAR(placedPixel(*cleared, "GV14").y, gv14.y, 0.3);
+  EXPECT_NEAR(placedPixel(*cleared, "GV3").y, gv3.y, 0.3);
 }
 
 }  // namespace

@@ -41,7 +41,7 @@ struct AcupointModel {
   double c7_below_top = 0.0;
   /// The waist (narrowest row between shoulders and hips) lies this fraction
   /// of the C7 -> L4 distance below C7 in the image: with c7_below_top it
-  /// fixes C7 and L4 from the top of the back and the waist (see acupoint_model.cpp).
+  /// fixes C7 and L4 from the top of the back and the waist (see landmarks.cpp).
   double waist_fraction = 0.0;
   /// On the mean subject seen from the cell's centred camera, the spine's
   /// level of the waist lies this fraction of C7 -> L4 below the silhouette's
@@ -63,8 +63,20 @@ struct AcupointModel {
   struct LayoutSigma {
     double c7_measured = 0.025, c7_inferred = 0.22;
     double l4_measured = 0.075, l4_inferred = 0.08;
+    /// A given landmark (given_landmarks.h): a palpated and clicked C7 or L4, ~5 mm of a ~0.45 m C7 -> L4.
+    double c7_given = 0.012, l4_given = 0.012;
     double across = 0.02;
   } layout_sigma;
+  /// Bounds of a believable layout (layout_check.h; optional in the YAML as `plausibility`): adult sizes with a
+  /// margin, and how far the proportions may stray from this model's. Sources: config/acupoints.yaml, docs/cect.md.
+  struct Plausibility {
+    double min_length_m = 0.28, max_length_m = 0.65;                  ///< C7 -> L4 along the body
+    double min_shoulder_width_m = 0.28, max_shoulder_width_m = 0.65;  ///< the upper back's widest row
+    /// C7 -> L4 over the shoulder width may differ from length_per_shoulder_width by this fraction of it.
+    double proportion_tolerance = 0.35;
+    /// The shoulder line below C7, as a fraction of C7 -> L4 (when C7 was not taken from the shoulder line).
+    double min_shoulder_below_c7 = -0.10, max_shoulder_below_c7 = 0.45;
+  } plausibility;
   bool head_up = true;  ///< head toward the image top
   std::vector<AcupointSpec> points;
 
@@ -113,7 +125,11 @@ struct BackLandmarks {
   /// in words.
   bool c7_measured = true;
   bool waist_measured = true;
-  std::vector<std::string> measured, inferred;
+  /// C7 measured at the base of a neck in view (not the back's top taken for it, nor the shoulder line).
+  bool c7_at_neck = false;
+  /// C7 / L4 given from outside (given_landmarks.h: a therapist's click or a skin marker); they override the above.
+  bool c7_given = false, l4_given = false;
+  std::vector<std::string> measured, inferred, given;
   /// How far the body is turned against the image's columns, degrees
   /// (+: the head toward the image right of a head-up view, clockwise on screen); 0 within
   /// 1 degree.
@@ -121,7 +137,8 @@ struct BackLandmarks {
 };
 
 /// One line: the landmarks measured, then those inferred, e.g. "measured: C7
-/// at the neck's base; inferred: L4 from C7 and the shoulder width (...)".
+/// at the neck's base; inferred: L4 from C7 and the shoulder width (...)";
+/// then those given, when any ("; given: C7 (clicked)").
 std::string describeLandmarks(const BackLandmarks& landmarks);
 
 /// A point of the body's frame (BackLandmarks) in the rectified left image.

@@ -11,6 +11,8 @@
 
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
+#include "massage_cell/cect/given_landmarks.h"
+#include "massage_cell/cect/layout_check.h"
 
 namespace massage_cell::cect {
 
@@ -20,6 +22,14 @@ struct LocateOptions {
   /// The waist at the spine's height and the levels spaced along the body
   /// in 3D (correctWaistParallax, measureLevelsIn3D).
   bool levels_in_3d = true;
+  /// Landmarks given from outside (a therapist's clicks, skin markers): they replace the found ones of the same name
+  /// (applyGivenLandmarks). A given landmark that cannot be applied makes the pair invalid with the reason.
+  std::vector<GivenLandmark> given;
+  /// Refuse a layout that fails the plausibility checks (checkLayout): the pair is then not valid, its reason
+  /// "layout not trusted: ...", and its points placed but not valid. Off only to measure what the checks do.
+  bool check_layout = true;
+  /// ... among them: trust only a C7 measured at a neck's base in view, or given (checkLayout).
+  bool require_c7_at_neck = true;
 };
 
 /// One acupoint of the model in one pair.
@@ -44,6 +54,7 @@ struct LocatedAcupoints {
   bool valid = false;
   std::string reason;
   BackLandmarks landmarks;
+  LayoutCheck check;                    ///< the layout's plausibility (when landmarks were found)
   std::vector<LocatedAcupoint> points;  ///< in the model's order
   int validCount() const;
 };
@@ -51,5 +62,10 @@ struct LocatedAcupoints {
 /// Runs the chain on `frame` (valid or not: an invalid frame gives every
 /// point its reason). Never throws for image content.
 LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& model, const LocateOptions& options = {});
+
+/// The layout alone on one view's segmentation (a photo, no 3D): landmarks, the given ones, every acupoint placed in
+/// pixels (lateral offsets from the shoulder width in pixels: one scale for the whole image) and the plausibility
+/// checks that need no scale. Points are valid when placed (no `point`, no covariance). Never throws for image content.
+LocatedAcupoints locateLayout(const Segmentation& view, const AcupointModel& model, const LocateOptions& options = {});
 
 }  // namespace massage_cell::cect

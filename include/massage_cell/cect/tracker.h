@@ -102,4 +102,8 @@ PixelPoints localizePixels(const CectFrame* frame, const camera::Decimation& dec
 /// no left image.
 cv::Mat drawAcupoints(const CectFrame& frame, const std::vector<TrackedAcupoint>& points, int min_width);
 
+/// The integer factor drawAcupoints scales a `cols`-wide view by to reach `min_width` (>= 1); a pixel (x, y) of its
+/// image is the view's ((x + 0.5) / factor - 0.5, (y + 0.5) / factor - 0.5).
+int debugImageScale(int cols, int min_width);
+
 }  // namespace massage_cell::cect

@@ -1,0 +1,124 @@
+// Plausibility checks of a pair's layout (see layout_check.h).
+//
+// Each check compares a quantity that the chain measured with one that the
+// adult population allows, and only where the quantity is not already fixed
+// by the model's own proportions: the C7 -> L4 length over the shoulder width
+// is checked when L4 hangs on the waist or was given (not when L4 was
+// inferred from that very width), the shoulder line's place below C7 when C7
+// was not taken from the shoulder line. A C7 not measured at a neck's base is
+// not trusted at all (require_c7_at_neck, on by default); with C7 and L4 both given, the
+// shoulder line is no longer used (the cun comes from C7 -> L4), so neither
+// are its checks.
+#include "massage_cell/cect/layout_check.h"
+
+#include "stats_detail.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+namespace massage_cell::cect {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+std::string fixed(double v, int precision) {
+  std::ostringstream s;
+  s.precision(precision);
+  s << std::fixed << v;
+  return s.str();
+}
+
+/// The midline point of the body frame's row nearest `row`.
+cv::Point2f midlineNear(const BackLandmarks& l, double row) {
+  const double t = std::clamp(row - l.midline.front().y, 0.0, static_cast<double>(l.midline.size() - 1));
+  return l.midline[static_cast<std::size_t>(std::lround(t))];
+}
+
+/// Median metres per pixel over the midline from C7 to L4 (nine samples), NaN without a scale.
+double midlineMetresPerPixel(const BackLandmarks& l, const PixelScale& scale) {
+  if (!scale) return kNaN;
+  std::vector<double> s;
+  for (int k = 0; k <= 8; ++k) {
+    const double v = scale(toImage(l, midlineNear(l, l.c7.y + k / 8.0 * (l.l4.y - l.c7.y))));
+    if (std::isfinite(v) && v > 0.0) s.push_back(v);
+  }
+  return s.size() < 3 ? kNaN : detail::median(s);
+}
+
+/// C7 -> L4 in metres: along the body in 3D when measured (measureLevelsIn3D), else the rows by the scale.
+double lengthMetres(const BackLandmarks& l, double metres_per_pixel) {
+  if (l.along.size() == l.midline.size() && !l.along.empty()) {
+    const double t = std::clamp(l.l4.y - l.midline.front().y, 0.0f, static_cast<float>(l.midline.size() - 1));
+    const double along = l.along[static_cast<std::size_t>(std::lround(t))];
+    if (std::isfinite(along) && along > 0.0) return along;
+  }
+  return (l.l4.y - l.c7.y) * metres_per_pixel;
+}
+
+void within(LayoutCheck* c, double value, double lo, double hi, const std::string& what, const std::string& unit,
+            int precision) {
+  if (!std::isfinite(value) || (value >= lo && value <= hi)) return;
+  c->problems.push_back(what + " " + fixed(value, precision) + unit + " is outside " + fixed(lo, precision) + ".." +
+                        fixed(hi, precision) + unit);
+}
+
+}  // namespace
+
+std::string LayoutCheck::reason() const {
+  if (trusted) return {};
+  std::string s = "layout not trusted: ";
+  for (std::size_t i = 0; i < problems.size(); ++i) s += (i ? "; " : "") + problems[i];
+  return s;
+}
+
+LayoutCheck checkLayout(const BackLandmarks& l, const AcupointModel& model, const PixelScale& scale,
+                        bool require_c7_at_neck) {
+  LayoutCheck c;
+  c.length_m = c.shoulder_width_m = c.length_per_shoulder_width = c.shoulder_below_c7 = kNaN;
+  if (!l.valid || l.midline.empty()) {
+    c.trusted = false;
+    c.problems.push_back("no landmarks" + (l.reason.empty() ? std::string() : ": " + l.reason));
+    return c;
+  }
+  const AcupointModel::Plausibility& pl = model.plausibility;
+  const double length_rows = static_cast<double>(l.l4.y) - l.c7.y;
+  if (!(length_rows > 0.0)) {
+    c.trusted = false;
+    c.problems.push_back("L4 is not below C7");
+    return c;
+  }
+  if (require_c7_at_neck && !l.c7_given && !l.c7_at_neck)
+    c.problems.push_back(
+        std::string("C7 not measured: ") +
+        (l.c7_measured ? "no neck's base in view, the back's top taken for it" : "taken from the shoulder line") +
+        "; give C7 (a palpated landmark: a click, ~set_landmark, --landmark)");
+  const bool both_given = l.c7_given && l.l4_given;
+  // Sizes, where the back's 3D gives a scale.
+  const double mpp = midlineMetresPerPixel(l, scale);
+  c.length_m = lengthMetres(l, mpp);
+  const double shoulder_mpp = scale ? scale(toImage(l, midlineNear(l, l.shoulder_row))) : kNaN;
+  c.shoulder_width_m = l.shoulder_width * (std::isfinite(shoulder_mpp) && shoulder_mpp > 0.0 ? shoulder_mpp : mpp);
+  within(&c, c.length_m, pl.min_length_m, pl.max_length_m, "C7 -> L4", " m", 3);
+  if (!both_given)
+    within(&c, c.shoulder_width_m, pl.min_shoulder_width_m, pl.max_shoulder_width_m, "the shoulder width", " m", 3);
+  // Proportions, where they are not the model's own.
+  const bool l4_independent = (l.waist_measured || l.l4_given) && !both_given;
+  if (l4_independent && l.shoulder_width > 0.0) {
+    c.length_per_shoulder_width = length_rows / l.shoulder_width;
+    const double expected = model.length_per_shoulder_width, tol = pl.proportion_tolerance * expected;
+    within(&c, c.length_per_shoulder_width, expected - tol, expected + tol, "C7 -> L4 over the shoulder width", "", 2);
+  }
+  const bool c7_independent = (l.c7_measured || l.c7_given) && !both_given;
+  if (c7_independent) {
+    c.shoulder_below_c7 = (l.shoulder_row - l.c7.y) / length_rows;
+    within(&c, c.shoulder_below_c7, pl.min_shoulder_below_c7, pl.max_shoulder_below_c7,
+           "the shoulder line below C7 (of C7 -> L4)", "", 2);
+  }
+  c.trusted = c.problems.empty();
+  return c;
+}
+
+}  // namespace massage_cell::cect

@@ -1,0 +1,243 @@
+// The layout's given landmarks (given_landmarks.h) and plausibility checks (layout_check.h) on hand-made landmarks:
+// a straight back along the image's columns, C7 at row 100 and L4 at row 300 of the body's frame.
+#include <cmath>
+#include <limits>
+
+#include <gtest/gtest.h>
+
+#include "massage_cell/cect/given_landmarks.h"
+#include "massage_cell/cect/layout_check.h"
+
+using namespace massage_cell;
+
+namespace {
+
+/// The back's landmarks: midline at x = 320 (+ `lean` px per row) from row 40 to 420, C7 at 100, L4 at `l4_row`,
+/// shoulder line at 130, 180 px wide; both landmarks measured.
+cect::BackLandmarks back(double l4_row = 300.0, double lean = 0.0) {
+  cect::BackLandmarks l;
+  l.valid = true;
+  for (int y = 40; y <= 420; ++y) {
+    l.midline.emplace_back(static_cast<float>(320.0 + lean * (y - 40)), static_cast<float>(y));
+    const double norm = std::hypot(1.0, lean);
+    l.lateral.emplace_back(static_cast<float>(-1.0 / norm), static_cast<float>(lean / norm));
+  }
+  auto at = [&](double row) {
+    return cv::Point2f(static_cast<float>(320.0 + lean * (row - 40)), static_cast<float>(row));
+  };
+  l.c7 = at(100);
+  l.l4 = at(l4_row);
+  l.shoulder_row = 130;
+  l.shoulder_width = 180;
+  l.waist_row = 100 + 0.8 * (l4_row - 100);
+  l.measured = {"C7 at the neck's base", "the waist"};
+  l.c7_at_neck = true;
+  return l;
+}
+
+cect::AcupointModel model() {
+  cect::AcupointModel m;
+  m.level_fraction = {{"C7", 0.0}, {"T7", 0.36}, {"L4", 1.0}};
+  m.length_per_shoulder_width = 1.22;
+  return m;
+}
+
+/// 2 mm a pixel everywhere.
+const cect::PixelScale kScale = [](const cv::Point2f&) { return 0.002; };
+
+TEST(GivenLandmarks, TheLevelsAndTheMidlinePassThroughTheGivenPixels) {
+  cect::BackLandmarks l = back();
+  l.along.assign(l.midline.size(), 0.0);
+  const std::string problem =
+      cect::applyGivenLandmarks(&l, {{"C7", {330.0f, 110.0f}, "clicked"}, {"L4", {310.0f, 290.0f}, "service"}});
+  ASSERT_EQ(problem, "");
+  EXPECT_NEAR(l.c7.x, 330.0, 1e-3);
+  EXPECT_NEAR(l.c7.y, 110.0, 1e-3);
+  EXPECT_NEAR(l.l4.x, 310.0, 1e-3);
+  EXPECT_NEAR(l.l4.y, 290.0, 1e-3);
+  EXPECT_TRUE(l.c7_given);
+  EXPECT_TRUE(l.l4_given);
+  EXPECT_TRUE(l.along.empty());  // measured from the old C7
+  // The midline: through both, linear between (T7 at 36 % of the way), constant beyond.
+  const cect::AcupointModel m = model();
+  const cv::Point2f t7 = cect::levelPixel(l, m, "T7");
+  EXPECT_NEAR(t7.y, 110.0 + 0.36 * 180.0, 0.6);
+  EXPECT_NEAR(t7.x, 330.0 - 0.36 * 20.0, 0.2);
+  EXPECT_NEAR(l.midline.front().x, 330.0, 1e-3);
+  EXPECT_NEAR(l.midline.back().x, 310.0, 1e-3);
+  for (const cv::Point2f& v : l.lateral) EXPECT_NEAR(std::hypot(v.x, v.y), 1.0, 1e-5);
+  EXPECT_NE(cect::describeLandmarks(l).find("given: C7 (clicked), L4 (service)"), std::string::npos)
+      << cect::describeLandmarks(l);
+}
+
+TEST(GivenLandmarks, OneGivenShiftsTheMidlineAndKeepsTheOther) {
+  cect::BackLandmarks l = back();
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", {324.0f, 92.0f}, ""}}), "");
+  EXPECT_NEAR(l.c7.y, 92.0, 1e-3);
+  EXPECT_NEAR(l.l4.y, 300.0, 1e-3);
+  EXPECT_NEAR(l.l4.x, 324.0, 1e-3);
+  EXPECT_TRUE(l.c7_given);
+  EXPECT_FALSE(l.l4_given);
+}
+
+TEST(GivenLandmarks, APalpatedC7JustAboveTheSilhouettesTopExtendsTheMidline) {
+  cect::BackLandmarks l = back(300.0, 0.05);  // the midline leans 0.05 px a row; its top is row 40
+  const std::size_t before = l.midline.size();
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", {317.0f, 20.0f}, ""}}), "");  // 20 rows above its top
+  EXPECT_EQ(l.midline.size(), before + 20);
+  EXPECT_NEAR(l.midline.front().y, 20.0, 1e-3);
+  EXPECT_NEAR(l.c7.x, 317.0, 1e-3);
+  EXPECT_NEAR(l.c7.y, 20.0, 1e-3);
+  EXPECT_EQ(l.lateral.size(), l.midline.size());
+  // Farther than 15 % of C7 -> L4 (200 rows: 30 rows) beyond the back is not this back's C7.
+  cect::BackLandmarks far = back();
+  EXPECT_NE(cect::applyGivenLandmarks(&far, {{"C7", {320.0f, 5.0f}, ""}}).find("not on the back's rows"),
+            std::string::npos);
+}
+
+TEST(GivenLandmarks, InATurnedBodyFrameTheGivenImagePixelIsKept) {
+  cect::BackLandmarks l = back();
+  const double a = 10.0 * M_PI / 180.0;  // body frame -> image: a rotation by 10 degrees and a shift
+  l.to_image = cv::Matx23d(std::cos(a), -std::sin(a), 40.0, std::sin(a), std::cos(a), -20.0);
+  const cv::Point2f c7_image = cect::toImage(l, cv::Point2f(318.0f, 104.0f));
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", c7_image, ""}}), "");
+  const cv::Point2f back_again = cect::toImage(l, l.c7);
+  EXPECT_NEAR(back_again.x, c7_image.x, 1e-3);
+  EXPECT_NEAR(back_again.y, c7_image.y, 1e-3);
+}
+
+TEST(GivenLandmarks, BadLandmarksAreRefusedNamingTheProblemAndChangeNothing) {
+  const cect::BackLandmarks before = back();
+  auto problem = [&](const std::vector<cect::GivenLandmark>& given) {
+    cect::BackLandmarks l = before;
+    const std::string p = cect::applyGivenLandmarks(&l, given);
+    EXPECT_EQ(l.c7, before.c7);
+    EXPECT_EQ(l.l4, before.l4);
+    EXPECT_EQ(l.midline, before.midline);
+    EXPECT_FALSE(l.c7_given || l.l4_given);
+    return p;
+  };
+  EXPECT_NE(problem({{"T3", {320.0f, 150.0f}, ""}}).find("unknown landmark 'T3' (one of: C7, L4)"), std::string::npos);
+  EXPECT_NE(problem({{"C7", {320.0f, 100.0f}, ""}, {"C7", {320.0f, 110.0f}, ""}}).find("given twice"),
+            std::string::npos);
+  EXPECT_NE(problem({{"L4", {320.0f, 480.0f}, ""}}).find("not on the back's rows"), std::string::npos);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_NE(problem({{"L4", {nan, 200.0f}, ""}}).find("not finite"), std::string::npos);
+  EXPECT_NE(problem({{"C7", {320.0f, 250.0f}, ""}, {"L4", {320.0f, 200.0f}, ""}}).find("not below C7"),
+            std::string::npos);
+  cect::BackLandmarks none;
+  EXPECT_NE(cect::applyGivenLandmarks(&none, {{"C7", {320.0f, 100.0f}, ""}}).find("no landmarks"), std::string::npos);
+  cect::BackLandmarks l = before;
+  EXPECT_EQ(cect::applyGivenLandmarks(&l, {}), "");  // nothing given: nothing to do
+  EXPECT_EQ(cect::checkGivenLandmarkName("L4"), "");
+}
+
+TEST(LayoutCheck, AnAdultBackInProportionIsTrusted) {
+  const cect::LayoutCheck c = cect::checkLayout(back(), model(), kScale);
+  EXPECT_TRUE(c.trusted) << c.reason();
+  EXPECT_EQ(c.reason(), "");
+  EXPECT_NEAR(c.length_m, 0.40, 1e-9);
+  EXPECT_NEAR(c.shoulder_width_m, 0.36, 1e-9);
+  EXPECT_NEAR(c.length_per_shoulder_width, 200.0 / 180.0, 1e-9);
+  EXPECT_NEAR(c.shoulder_below_c7, 30.0 / 200.0, 1e-9);
+}
+
+TEST(LayoutCheck, ASqueezedLayoutIsNotTrustedAndSaysWhy) {
+  // L4 100 rows below C7: 0.2 m, and 0.56 shoulder widths.
+  const cect::LayoutCheck c = cect::checkLayout(back(200.0), model(), kScale);
+  EXPECT_FALSE(c.trusted);
+  ASSERT_EQ(c.problems.size(), 2u) << c.reason();
+  EXPECT_EQ(c.problems[0], "C7 -> L4 0.200 m is outside 0.280..0.650 m");
+  EXPECT_EQ(c.problems[1], "C7 -> L4 over the shoulder width 0.56 is outside 0.79..1.65");
+}
+
+TEST(LayoutCheck, WithoutAScaleOnlyTheProportionsAreChecked) {
+  const cect::PixelScale none;
+  const cect::LayoutCheck ok = cect::checkLayout(back(), model(), none);
+  EXPECT_TRUE(ok.trusted) << ok.reason();
+  EXPECT_TRUE(std::isnan(ok.length_m));
+  const cect::LayoutCheck squeezed = cect::checkLayout(back(200.0), model(), none);
+  EXPECT_FALSE(squeezed.trusted);
+  EXPECT_NE(squeezed.reason().find("layout not trusted: C7 -> L4 over the shoulder width 0.56 is outside 0.79..1.65"),
+            std::string::npos)
+      << squeezed.reason();
+}
+
+TEST(LayoutCheck, ProportionsTheModelImposedAreNotCheckedAgainstThemselves) {
+  // L4 inferred from the shoulder width (no waist): the length over the shoulder width is the model's by
+  // construction, so only the sizes are checked; C7 from the shoulder line likewise.
+  cect::BackLandmarks l = back(200.0);
+  l.waist_measured = false;
+  l.c7_measured = false;
+  l.c7_at_neck = false;
+  const cect::AcupointModel m = model();
+  const cect::LayoutCheck c = cect::checkLayout(l, m, cect::PixelScale(), false);  // the proportions alone here
+  EXPECT_TRUE(c.trusted) << c.reason();
+  EXPECT_TRUE(std::isnan(c.length_per_shoulder_width));
+  EXPECT_TRUE(std::isnan(c.shoulder_below_c7));
+  // ... but a given L4 is the therapist's, and the proportion is checked again.
+  l.l4_given = true;
+  EXPECT_FALSE(cect::checkLayout(l, m, cect::PixelScale(), false).trusted);
+}
+
+TEST(LayoutCheck, AC7NotMeasuredAtANecksBaseIsNotTrustedUnlessGiven) {
+  cect::BackLandmarks top = back();
+  top.c7_at_neck = false;  // the back's top taken for the neck's base
+  const cect::LayoutCheck c = cect::checkLayout(top, model(), kScale);
+  EXPECT_FALSE(c.trusted);
+  EXPECT_NE(c.reason().find("C7 not measured: no neck's base in view, the back's top taken for it; give C7"),
+            std::string::npos)
+      << c.reason();
+  cect::BackLandmarks shoulders = top;
+  shoulders.c7_measured = false;
+  EXPECT_NE(
+      cect::checkLayout(shoulders, model(), kScale).reason().find("C7 not measured: taken from the shoulder line"),
+      std::string::npos);
+  top.c7_given = true;  // a therapist's C7
+  EXPECT_TRUE(cect::checkLayout(top, model(), kScale).trusted);
+  EXPECT_TRUE(cect::checkLayout(shoulders, model(), kScale, false).trusted);
+}
+
+TEST(LayoutCheck, WithC7AndL4GivenTheShoulderLineIsNotChecked) {
+  // Arms raised beside the head: the "shoulder line" 0.6 m wide and far below C7; with both landmarks given the
+  // cun comes from C7 -> L4 and the shoulder line is not used.
+  cect::BackLandmarks l = back();
+  l.shoulder_width = 300;
+  l.shoulder_row = 230;
+  EXPECT_FALSE(cect::checkLayout(l, model(), kScale).trusted);
+  l.c7_given = l.l4_given = true;
+  const cect::LayoutCheck c = cect::checkLayout(l, model(), kScale);
+  EXPECT_TRUE(c.trusted) << c.reason();
+  // ... but the length still is.
+  l.l4 = cv::Point2f(320.0f, 180.0f);
+  EXPECT_NE(cect::checkLayout(l, model(), kScale).reason().find("C7 -> L4 0.160 m"), std::string::npos);
+}
+
+TEST(LayoutCheck, TheShoulderLineFarBelowC7IsNotTrusted) {
+  cect::BackLandmarks l = back();
+  l.shoulder_row = 220;  // 0.6 of C7 -> L4 below C7: the "shoulders" are the waist's widening or the arms
+  const cect::LayoutCheck c = cect::checkLayout(l, model(), kScale);
+  EXPECT_FALSE(c.trusted);
+  EXPECT_NE(c.reason().find("the shoulder line below C7 (of C7 -> L4) 0.60 is outside -0.10..0.45"), std::string::npos)
+      << c.reason();
+}
+
+TEST(LayoutCheck, AChildSizedOrGiantBackIsNotTrusted) {
+  const cect::PixelScale small = [](const cv::Point2f&) { return 0.001; },
+                         big = [](const cv::Point2f&) { return 0.004; };
+  EXPECT_NE(cect::checkLayout(back(), model(), small).reason().find("C7 -> L4 0.200 m is outside 0.280..0.650 m"),
+            std::string::npos);
+  EXPECT_NE(
+      cect::checkLayout(back(), model(), big).reason().find("the shoulder width 0.720 m is outside 0.280..0.650 m"),
+      std::string::npos);
+  cect::BackLandmarks none;
+  none.reason = "mask is empty";
+  EXPECT_EQ(cect::checkLayout(none, model(), kScale).reason(), "layout not trusted: no landmarks: mask is empty");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
