@@ -39,6 +39,7 @@ CectNodelet::CectNodelet() : log_throttle_(kLogPeriod) {}
 
 CectNodelet::~CectNodelet() {
   if (input_) input_->stop();  // before the state its worker uses goes
+  landmarks_.reset();          // its callbacks read the tracker's model and the latest pair
 }
 
 void CectNodelet::onInit() {
@@ -88,10 +89,13 @@ void CectNodelet::init() {
   tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);  // its own thread and queue
   localize_service_ = pnh.advertiseService("localize_pixels", &CectNodelet::localizePixels, this);
   acupoint_service_ = pnh.advertiseService("get_acupoint", &CectNodelet::getAcupoint, this);
-  set_landmark_service_ = pnh.advertiseService("set_landmark", &CectNodelet::setLandmark, this);
-  clear_landmarks_service_ = pnh.advertiseService("clear_landmarks", &CectNodelet::clearLandmarks, this);
-  clicked_point_sub_ = nh.subscribe("/clicked_point", 5, &CectNodelet::onClickedPoint, this);
-  debug_click_sub_ = pnh.subscribe("debug_image_mouse_left", 5, &CectNodelet::onDebugImageClick, this);
+  landmarks_ = std::make_unique<LandmarkInput>(
+      nh, pnh, *tf_buffer_, tracker_->model(),
+      [this] {
+        std::lock_guard<std::mutex> lock(latest_mutex_);
+        return LandmarkInput::View{latest_.frame, latest_.header.frame_id, latest_.decimation, latest_.landmarks};
+      },
+      kDebugWidth, getName());
 
   // Inputs, subscribed from the start (tf frames and services have no
   // subscriber count).
@@ -232,10 +236,7 @@ cect::TrackerUpdate CectNodelet::track(const cect::CectFrame& frame, const std_m
   options.correct_parallax = config.correct_parallax;
   options.levels_in_3d = config.levels_in_3d;
   options.require_c7_at_neck = config.require_c7_at_neck;
-  {
-    std::lock_guard<std::mutex> lock(given_mutex_);
-    options.given = given_.forPair(frame.geometry(), decimation);
-  }
+  options.given = landmarks_->forPair(frame.geometry(), decimation);
   const cect::LocatedAcupoints located = cect::locateAcupoints(frame, tracker_->model(), options);
   *landmarks = located.landmarks;
   std::lock_guard<std::mutex> lock(tracker_mutex_);
@@ -331,109 +332,6 @@ bool CectNodelet::getAcupoint(massage_cell::GetAcupoint::Request& request,
   std::string message;
   response.success = transformPoint(*tf_buffer_, point, target, kTfWait, &response.point, &message);
   response.message = response.success ? message : "cannot express " + request.name + " in '" + target + "': " + message;
-  return true;
-}
-
-bool CectNodelet::setLandmark(massage_cell::SetLandmark::Request& request,
-                              massage_cell::SetLandmark::Response& response) {
-  if (const std::string problem = cect::checkGivenLandmarkName(request.name); !problem.empty()) {
-    response.success = false;
-    response.message = problem;
-    return true;
-  }
-  if (!request.point.header.frame_id.empty()) {
-    response.success = giveLandmark(request.name, &request.point, nullptr, "service", &response.message);
-    return true;
-  }
-  // A raw left pixel of the camera: into the latest pair's rectified pixels.
-  cv::Point2f rect;
-  {
-    std::lock_guard<std::mutex> lock(latest_mutex_);
-    if (latest_.frame) {
-      const cv::Point2f raw(static_cast<float>(request.u), static_cast<float>(request.v));
-      rect = latest_.frame->geometry().toRectified(latest_.decimation.toDecimated(raw));
-    }
-  }
-  response.success = giveLandmark(request.name, nullptr, &rect, "service", &response.message);
-  return true;
-}
-
-bool CectNodelet::clearLandmarks(std_srvs::Trigger::Request& /*request*/, std_srvs::Trigger::Response& response) {
-  std::lock_guard<std::mutex> lock(given_mutex_);
-  response.message = "cleared the given landmarks (" + given_.describe() + ")";
-  given_.clear();
-  response.success = true;
-  NODELET_INFO_STREAM(response.message);
-  return true;
-}
-
-void CectNodelet::onClickedPoint(const geometry_msgs::PointStamped::ConstPtr& point) {
-  std::string message;
-  if (giveLandmark("", point.get(), nullptr, "clicked", &message))
-    NODELET_INFO_STREAM(message);
-  else
-    NODELET_WARN_STREAM("ignored the clicked point: " << message);
-}
-
-void CectNodelet::onDebugImageClick(const geometry_msgs::PointStamped::ConstPtr& pixel) {
-  cv::Point2f rect(std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::quiet_NaN());
-  {
-    std::lock_guard<std::mutex> lock(latest_mutex_);
-    if (latest_.frame) {  // the debug image is the rectified view scaled up by an integer factor
-      const double k = cect::debugImageScale(latest_.frame->geometry().size().width, kDebugWidth);
-      rect = cv::Point2f(static_cast<float>((pixel->point.x + 0.5) / k - 0.5),
-                         static_cast<float>((pixel->point.y + 0.5) / k - 0.5));
-    }
-  }
-  std::string message;
-  if (giveLandmark("", nullptr, &rect, "clicked", &message))
-    NODELET_INFO_STREAM(message);
-  else
-    NODELET_WARN_STREAM("ignored the click on the debug image: " << message);
-}
-
-bool CectNodelet::giveLandmark(const std::string& requested, const geometry_msgs::PointStamped* point,
-                               const cv::Point2f* rect, const std::string& source, std::string* message) {
-  Analysed latest;
-  {
-    std::lock_guard<std::mutex> lock(latest_mutex_);
-    latest = latest_;
-  }
-  if (!latest.frame) {
-    *message = "no stereo pair analysed yet: a landmark needs the camera's view";
-    return false;
-  }
-  const camera::StereoModel& geometry = latest.frame->geometry();
-  cv::Point2f pixel = rect ? *rect : cv::Point2f();
-  if (point) {  // into the left camera, then its rectified pixel
-    geometry_msgs::PointStamped in_camera;
-    std::string tf_message;
-    if (!transformPoint(*tf_buffer_, *point, latest.header.frame_id, kTfWait, &in_camera, &tf_message)) {
-      *message = "cannot express the point in '" + latest.header.frame_id + "': " + tf_message;
-      return false;
-    }
-    const Eigen::Vector3d p(in_camera.point.x, in_camera.point.y, in_camera.point.z);
-    if (!(p.z() > 0.0)) {
-      *message = "the point lies behind the camera";
-      return false;
-    }
-    const Eigen::Vector3d q = geometry.project(p);
-    pixel = cv::Point2f(static_cast<float>(q.x()), static_cast<float>(q.y()));
-  }
-  const std::string name =
-      requested.empty() ? cect::nearestGivenLandmark(latest.landmarks, tracker_->model(), pixel) : requested;
-  if (name.empty()) {
-    *message = "the latest pair has no layout to tell C7 from L4 by: name the landmark with ~set_landmark";
-    return false;
-  }
-  const cv::Point2f raw = cect::cameraPixel(pixel, geometry, latest.decimation);
-  std::lock_guard<std::mutex> lock(given_mutex_);
-  const std::string problem = given_.set(name, raw, source, latest.decimation.fullSize());
-  if (!problem.empty()) {
-    *message = problem;
-    return false;
-  }
-  *message = "landmark given: " + given_.describe();
   return true;
 }
 

@@ -10,7 +10,7 @@
 // `~localize_pixels` (any raw left pixel of the latest pair to 3D) and
 // `~get_acupoint` (one filtered acupoint, in any tf frame).
 //
-// A therapist's landmarks (given_landmarks.h): `~set_landmark` (C7 or L4, a
+// A therapist's landmarks (landmark_input.h): `~set_landmark` (C7 or L4, a
 // point in any tf frame or a raw left pixel), `~clear_landmarks`, and clicks
 // - rviz's Publish Point on `/clicked_point`, rqt_image_view's on
 // `~debug_image_mouse_left` - each taken as the landmark of the latest layout
@@ -42,14 +42,12 @@
 
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
-#include <geometry_msgs/PointStamped.h>
 #include <image_transport/image_transport.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <std_msgs/Header.h>
-#include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
@@ -57,15 +55,14 @@
 #include <boost/thread/recursive_mutex.hpp>
 
 #include "cect_status.h"
+#include "landmark_input.h"
 #include "massage_cell/CECTConfig.h"
 #include "massage_cell/GetAcupoint.h"
 #include "massage_cell/LocalizePixels.h"
-#include "massage_cell/SetLandmark.h"
 #include "massage_cell/camera/calibration.h"
 #include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
-#include "massage_cell/cect/given_landmarks.h"
 #include "massage_cell/cect/tracker.h"
 #include "stereo_pair_input.h"
 #include "wall_diagnostics.h"
@@ -105,14 +102,6 @@ class CectNodelet : public nodelet::Nodelet {
   void badPair(const std::string& problem);
   bool localizePixels(massage_cell::LocalizePixels::Request& request, massage_cell::LocalizePixels::Response& response);
   bool getAcupoint(massage_cell::GetAcupoint::Request& request, massage_cell::GetAcupoint::Response& response);
-  bool setLandmark(massage_cell::SetLandmark::Request& request, massage_cell::SetLandmark::Response& response);
-  bool clearLandmarks(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
-  void onClickedPoint(const geometry_msgs::PointStamped::ConstPtr& point);     // rviz's Publish Point
-  void onDebugImageClick(const geometry_msgs::PointStamped::ConstPtr& pixel);  // rqt_image_view on ~debug_image
-  /// Gives `name` (empty: the latest layout's nearest landmark) at a 3D point in any frame (`point`) or at a rectified
-  /// pixel of the latest pair (`rect`). False with `message` saying why; else `message` says what was set.
-  bool giveLandmark(const std::string& name, const geometry_msgs::PointStamped* point, const cv::Point2f* rect,
-                    const std::string& source, std::string* message);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
 
   // Inputs and the worker thread (stopped first in the destructor).
@@ -124,10 +113,8 @@ class CectNodelet : public nodelet::Nodelet {
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
-  ros::ServiceServer localize_service_, acupoint_service_, set_landmark_service_, clear_landmarks_service_;
-  ros::Subscriber clicked_point_sub_, debug_click_sub_;
-  std::mutex given_mutex_;
-  cect::GivenLandmarkSet given_;  ///< a therapist's landmarks, guarded by given_mutex_
+  ros::ServiceServer localize_service_, acupoint_service_;
+  std::unique_ptr<LandmarkInput> landmarks_;  ///< a therapist's landmarks (its services and clicks)
   std::string frame_prefix_ = "acupoint/";
 
   // The acupoint model (read once at start-up) and the acupoints tracked over the pairs: written by the worker,
