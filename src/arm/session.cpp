@@ -148,6 +148,7 @@ std::string SessionReport::summary(double tolerance) const {
     out << "  fix   " << f.acupoint << ": " << format("%.1f mm from the ground truth", 1e3 * f.error)
         << format(" (x %+.1f, y %+.1f, z %+.1f mm)", 1e3 * f.offset.x(), 1e3 * f.offset.y(), 1e3 * f.offset.z())
         << "\n";
+  if (!landmarks.empty()) out << "  layout: " << landmarks << "\n";
   for (const PressRecord& p : presses) {
     out << "  press " << p.acupoint << ": " << (p.success ? "done" : "FAILED") << format(" in %.1f s", p.seconds);
     if (p.measured) out << format(", tool at depth %.1f mm from the ground truth", 1e3 * p.error());
@@ -241,11 +242,20 @@ cv::Mat bgr(const cv::Mat& image) {
 }  // namespace
 
 cv::Mat drawAcupoints(const cv::Mat& image, const std::vector<MarkedPixel>& estimates,
-                      const std::vector<MarkedPixel>& truth) {
+                      const std::vector<MarkedPixel>& truth, const std::vector<MarkedPixel>& landmarks) {
   cv::Mat out = bgr(image);
   const int r = std::max(2, out.cols / 160);
   for (const MarkedPixel& t : truth) cv::drawMarker(out, t.pixel, {0, 200, 0}, cv::MARKER_CROSS, 3 * r, 1);
+  for (const MarkedPixel& l : landmarks) {
+    cv::drawMarker(out, l.pixel, {255, 255, 0}, cv::MARKER_DIAMOND, 4 * r, 1, cv::LINE_AA);
+    cv::putText(out, l.label, l.pixel + cv::Point2d(-4.0 * r - 2, -2.0 * r), cv::FONT_HERSHEY_SIMPLEX,
+                0.3 * r / 2.0 + 0.2, {255, 255, 0}, 1, cv::LINE_AA);
+  }
   for (const MarkedPixel& e : estimates) {
+    if (!e.labelled) {
+      cv::circle(out, e.pixel, std::max(1, r / 2), {0, 0, 160}, cv::FILLED, cv::LINE_AA);
+      continue;
+    }
     cv::circle(out, e.pixel, r, {0, 0, 255}, cv::FILLED, cv::LINE_AA);
     cv::putText(out, e.label, e.pixel + cv::Point2d(r + 2, -r), cv::FONT_HERSHEY_SIMPLEX, 0.3 * r / 2.0 + 0.2,
                 {0, 255, 255}, 1, cv::LINE_AA);

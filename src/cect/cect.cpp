@@ -134,11 +134,14 @@ void CectFrameBuilder::run(const cv::Mat& left, const cv::Mat& right) {
   f_.background_ = farBackground(f_.left_rect_, f_.right_rect_, f_.geometry_, f_.disparity_range_, given.background);
   // The two views are independent until matching: one core each.
   cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& views) {
-    for (int v = views.start; v < views.end; ++v)
-      (v == 0 ? f_.left_seg_ : f_.right_seg_) =
-          segmentBack(v == 0 ? f_.left_rect_ : f_.right_rect_, f_.params_.segmentation,
-                      v == 0 ? f_.background_.left_far : f_.background_.right_far,
-                      v == 0 ? f_.background_.left_depth : f_.background_.right_depth);
+    for (int v = views.start; v < views.end; ++v) {
+      const cv::Mat& rect = v == 0 ? f_.left_rect_ : f_.right_rect_;
+      (v == 0 ? f_.left_marks_ : f_.right_marks_) =
+          given.skin_markers ? skinMarkerPixels(rect, *given.skin_markers) : cv::Mat();
+      (v == 0 ? f_.left_seg_ : f_.right_seg_) = segmentBack(
+          rect, f_.params_.segmentation, v == 0 ? f_.background_.left_far : f_.background_.right_far,
+          v == 0 ? f_.background_.left_depth : f_.background_.right_depth, v == 0 ? f_.left_marks_ : f_.right_marks_);
+    }
   });
   retryWithoutTheTable(given.background.table_margin);
   f_.timings_.segment_ms = msSince(t);
@@ -215,8 +218,9 @@ void CectFrameBuilder::retryWithoutTheTable(double margin) {
     const cv::Mat& far = v == 0 ? g.left_far : g.right_far;
     const cv::Mat table = tablePixels(depth, far, f_.geometry_, margin);
     if (table.empty()) continue;
-    Segmentation retry = segmentBack(v == 0 ? f_.left_rect_ : f_.right_rect_, f_.params_.segmentation,
-                                     far.empty() ? table : (far | table), depth);
+    Segmentation retry =
+        segmentBack(v == 0 ? f_.left_rect_ : f_.right_rect_, f_.params_.segmentation,
+                    far.empty() ? table : (far | table), depth, v == 0 ? f_.left_marks_ : f_.right_marks_);
     if (!retry.valid) continue;
     seg = std::move(retry);
     (v == 0 ? g.left_table : g.right_table) = table;

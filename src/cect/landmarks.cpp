@@ -57,6 +57,7 @@ struct ImageEdge {
   bool cut_at_top = false;                                 ///< the back reaches the image's first row
   int rows = 0;                                            ///< image rows
   cv::Matx23d to_head_up = cv::Matx23d(1, 0, 0, 0, 1, 0);  ///< body frame -> head-up image
+  bool l4_given = false;  ///< L4 will be given (findLandmarks): an inferred one beyond the back's bottom is no failure
 };
 
 /// The neck's base (row index into the smoothed widths `w`): a neck in view
@@ -287,7 +288,7 @@ BackLandmarks findLandmarksHeadUp(const Segmentation& seg, const AcupointModel& 
   const double length = lv.length;
   const cv::Point2f bottom_point(static_cast<float>(mid.x(bottom)), static_cast<float>(bottom));
   const bool cut_by_image = apply(edge.to_head_up, bottom_point).y >= static_cast<double>(edge.rows) - 1.0;
-  if (!(lv.l4_row < bottom) && !(cut_by_image && lv.l4_row < bottom + kMaxOutOfView * length)) {
+  if (!edge.l4_given && !(lv.l4_row < bottom) && !(cut_by_image && lv.l4_row < bottom + kMaxOutOfView * length)) {
     return invalid("the iliac-crest line (row " + num(lv.l4_row) + ") is below the back's bottom (row " + num(bottom) +
                    ")");
   }
@@ -368,7 +369,7 @@ double momentsTilt(const cv::Mat& mask) {
 
 }  // namespace
 
-BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model) {
+BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model, bool l4_given) {
   if (!left.valid) return invalid("segmentation not valid: " + left.reason);
   if (left.mask.empty()) return invalid("mask is empty");
   if (left.mask.type() != CV_8UC1) return invalid("mask is not CV_8UC1");
@@ -379,6 +380,7 @@ BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model
       model.head_up ? cv::Matx23d(1, 0, 0, 0, 1, 0) : halfTurn(left.mask.cols, left.mask.rows);
   const Segmentation up = model.head_up ? left : turnedBy(left, image_from_up, left.mask.size());
   ImageEdge edge;
+  edge.l4_given = l4_given;
   edge.rows = up.mask.rows;
   edge.cut_at_bottom = cv::countNonZero(up.mask.row(up.mask.rows - 1)) > 0;
   edge.cut_at_top = cv::countNonZero(up.mask.row(0)) > 0;

@@ -6,7 +6,8 @@
 // is checked when L4 hangs on the waist or was given (not when L4 was
 // inferred from that very width), the shoulder line's place below C7 when C7
 // was not taken from the shoulder line. A C7 not measured at a neck's base is
-// not trusted at all (require_c7_at_neck, on by default); with C7 and L4 both given, the
+// not trusted at all (TrustRules::c7_at_neck, on by default), nor is an L4 inferred from C7 and the shoulder width
+// (TrustRules::l4_measured); with C7 and L4 both given, the
 // shoulder line is no longer used (the cun comes from C7 -> L4), so neither
 // are its checks.
 #include "massage_cell/cect/layout_check.h"
@@ -75,7 +76,7 @@ std::string LayoutCheck::reason() const {
 }
 
 LayoutCheck checkLayout(const BackLandmarks& l, const AcupointModel& model, const PixelScale& scale,
-                        bool require_c7_at_neck) {
+                        const TrustRules& rules) {
   LayoutCheck c;
   c.length_m = c.shoulder_width_m = c.length_per_shoulder_width = c.shoulder_below_c7 = kNaN;
   if (!l.valid || l.midline.empty()) {
@@ -90,11 +91,15 @@ LayoutCheck checkLayout(const BackLandmarks& l, const AcupointModel& model, cons
     c.problems.push_back("L4 is not below C7");
     return c;
   }
-  if (require_c7_at_neck && !l.c7_given && !l.c7_at_neck)
+  if (rules.c7_at_neck && !l.c7_given && !l.c7_at_neck)
     c.problems.push_back(
         std::string("C7 not measured: ") +
         (l.c7_measured ? "no neck's base in view, the back's top taken for it" : "taken from the shoulder line") +
-        "; give C7 (a palpated landmark: a click, ~set_landmark, --landmark)");
+        "; give C7 (a palpated landmark: a click, ~set_landmark, --landmark, a skin marker)");
+  if (rules.l4_measured && !l.l4_given && !l.waist_measured)
+    c.problems.push_back(
+        "L4 not measured: no waist in view, only inferred from C7 and the shoulder width; give L4 (the iliac crests' "
+        "line: a click, ~set_landmark, --landmark, a skin marker)");
   const bool both_given = l.c7_given && l.l4_given;
   // Sizes, where the back's 3D gives a scale.
   const double mpp = midlineMetresPerPixel(l, scale);

@@ -50,10 +50,32 @@ const AcupointPixel* placementOf(const std::vector<AcupointPixel>& placed, const
   return it == placed.end() ? nullptr : &*it;
 }
 
+/// The skin markers of the frame's kit in its rectified pair, searched on its segmented back.
+SkinMarkers findSkinMarkers(const CectFrame& frame) {
+  const std::optional<SkinMarkerOptions>& kit = frame.params().skin_markers;
+  if (!kit || !frame.valid()) return {};
+  return detectSkinMarkers(frame.leftRectified(), frame.rightRectified(), frame.left().mask, frame.disparityRange(),
+                           *kit, frameScale(frame));
+}
+
+/// Whether `given` holds `name`.
+bool gives(const std::vector<GivenLandmark>& given, const std::string& name) {
+  return std::any_of(given.begin(), given.end(), [&](const GivenLandmark& g) { return g.name == name; });
+}
+
+/// The given landmarks: `options.given`, then each marker found whose landmark it does not have.
+std::vector<GivenLandmark> givenWithMarkers(const LocateOptions& options, const SkinMarkers& markers) {
+  std::vector<GivenLandmark> given = options.given;
+  for (const SkinMarkerDetection& m : markers.found) {
+    if (!gives(given, m.landmark)) given.push_back({m.landmark, m.left, "marker"});
+  }
+  return given;
+}
+
 /// The given landmarks put into `landmarks`; false, with `refused` naming the problem, when they cannot be.
-bool putGiven(BackLandmarks* landmarks, const AcupointModel& model, const LocateOptions& options,
+bool putGiven(BackLandmarks* landmarks, const AcupointModel& model, const std::vector<GivenLandmark>& given,
               LocatedAcupoints* refused) {
-  const std::string problem = applyGivenLandmarks(landmarks, options.given);
+  const std::string problem = applyGivenLandmarks(landmarks, given);
   if (problem.empty()) return true;
   *refused = unplaced(model, "given landmarks not usable: " + problem);
   refused->landmarks = std::move(*landmarks);
@@ -63,7 +85,7 @@ bool putGiven(BackLandmarks* landmarks, const AcupointModel& model, const Locate
 /// The layout's plausibility into `out` (refused when it fails and the options check it), and its landmarks.
 void checkAndKeep(LocatedAcupoints* out, BackLandmarks&& landmarks, const AcupointModel& model, const PixelScale& scale,
                   const LocateOptions& options) {
-  out->check = checkLayout(landmarks, model, scale, options.require_c7_at_neck);
+  out->check = checkLayout(landmarks, model, scale, options.trust);
   if (options.check_layout && !out->check.trusted) refuse(out, out->check.reason());
   out->landmarks = std::move(landmarks);
 }
@@ -72,13 +94,22 @@ void checkAndKeep(LocatedAcupoints* out, BackLandmarks&& landmarks, const Acupoi
 
 LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& model, const LocateOptions& options) {
   if (!frame.valid()) return unplaced(model, "no usable view of the back: " + frame.reason());
-  BackLandmarks landmarks = findLandmarks(frame.left(), model);
-  if (!landmarks.valid) return unplaced(model, "no landmarks of the back: " + landmarks.reason);
+  SkinMarkers markers = findSkinMarkers(frame);
+  const std::vector<GivenLandmark> given = givenWithMarkers(options, markers);
+  BackLandmarks landmarks = findLandmarks(frame.left(), model, gives(given, "L4"));
+  if (!landmarks.valid) {
+    LocatedAcupoints none = unplaced(model, "no landmarks of the back: " + landmarks.reason);
+    none.markers = std::move(markers);
+    return none;
+  }
 
   const PointLookup points = framePoints(frame);
   if (options.correct_parallax) correctMidlineParallax(&landmarks, frame.left(), points);
   if (options.levels_in_3d) correctWaistParallax(&landmarks, model, frame.left(), points);
-  if (LocatedAcupoints refused; !putGiven(&landmarks, model, options, &refused)) return refused;
+  if (LocatedAcupoints refused; !putGiven(&landmarks, model, given, &refused)) {
+    refused.markers = std::move(markers);
+    return refused;
+  }
   if (options.levels_in_3d) measureLevelsIn3D(&landmarks, points);
   const PixelScale scale = frameScale(frame);
   const std::vector<AcupointPixel> placed = placeAcupoints(landmarks, model, scale);
@@ -114,13 +145,14 @@ LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& mo
     p.reason = p.valid ? std::string() : "not localised: " + p.point.reason;
   }
   checkAndKeep(&out, std::move(landmarks), model, scale, options);
+  out.markers = std::move(markers);
   return out;
 }
 
 LocatedAcupoints locateLayout(const Segmentation& view, const AcupointModel& model, const LocateOptions& options) {
-  BackLandmarks landmarks = findLandmarks(view, model);
+  BackLandmarks landmarks = findLandmarks(view, model, gives(options.given, "L4"));
   if (!landmarks.valid) return unplaced(model, "no landmarks of the back: " + landmarks.reason);
-  if (LocatedAcupoints refused; !putGiven(&landmarks, model, options, &refused)) return refused;
+  if (LocatedAcupoints refused; !putGiven(&landmarks, model, options.given, &refused)) return refused;
   // One scale for the whole image: placeAcupoints takes the cun as cun_per_shoulder_width x shoulder width (px) x
   // scale and converts it back to pixels with the same scale, so any constant gives lateral offsets of
   // lateral_cun x cun_per_shoulder_width x shoulder width pixels.

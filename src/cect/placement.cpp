@@ -113,6 +113,38 @@ std::string describeLandmarks(const BackLandmarks& landmarks) {
          (landmarks.given.empty() ? std::string() : "; given: " + join(landmarks.given));
 }
 
+namespace {
+
+/// How a given landmark was given ("marker", "clicked"): the "(...)" of its entry in `given`.
+std::string givenHow(const BackLandmarks& landmarks, const std::string& name) {
+  for (const std::string& g : landmarks.given) {
+    if (g.rfind(name + " (", 0) == 0 && g.back() == ')') return g.substr(name.size() + 2, g.size() - name.size() - 3);
+  }
+  return "given";
+}
+
+}  // namespace
+
+std::vector<LayoutLandmark> layoutLandmarks(const BackLandmarks& l) {
+  if (!l.valid) return {};
+  LayoutLandmark c7{"C7", toImage(l, l.c7), "", ""}, l4{"L4", toImage(l, l.l4), "", ""};
+  if (l.c7_given) {
+    c7.source = "given", c7.detail = givenHow(l, "C7");
+  } else if (l.c7_measured) {
+    c7.source = "measured", c7.detail = l.c7_at_neck ? "the neck's base" : "the back's top";
+  } else {
+    c7.source = "inferred", c7.detail = "the shoulder line";
+  }
+  if (l.l4_given) {
+    l4.source = "given", l4.detail = givenHow(l, "L4");
+  } else if (l.waist_measured) {
+    l4.source = "measured", l4.detail = "the waist";
+  } else {
+    l4.source = "inferred", l4.detail = "C7 and the shoulder width";
+  }
+  return {c7, l4};
+}
+
 cv::Point2f toImage(const BackLandmarks& landmarks, const cv::Point2f& body_pixel) {
   return apply(landmarks.to_image, body_pixel);
 }

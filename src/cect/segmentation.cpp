@@ -650,13 +650,15 @@ void traceContour(const std::vector<cv::Point>& border, const SegmentationParams
 }  // namespace
 
 Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, const cv::Mat& background,
-                         const cv::Mat& depth) {
+                         const cv::Mat& depth, const cv::Mat& marks) {
   if (bgr.empty()) throw std::invalid_argument("segmentBack: empty image");
   if (bgr.type() != CV_8UC3) throw std::invalid_argument("segmentBack: expected a CV_8UC3 (BGR) image");
   if (!background.empty() && (background.type() != CV_8UC1 || background.size() != bgr.size()))
     throw std::invalid_argument("segmentBack: the background mask must be CV_8U of the image's size");
   if (!depth.empty() && (depth.type() != CV_32FC1 || depth.size() != bgr.size()))
     throw std::invalid_argument("segmentBack: the depth map must be CV_32F of the image's size");
+  if (!marks.empty() && (marks.type() != CV_8UC1 || marks.size() != bgr.size()))
+    throw std::invalid_argument("segmentBack: the marks must be CV_8U of the image's size");
   const cv::Size size = bgr.size();
   LogTable log_table;
   for (int i = 0; i < 256; ++i) log_table[static_cast<std::size_t>(i)] = static_cast<float>(std::log(i + kLogOffset));
@@ -674,6 +676,7 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
   cv::Mat m = (seg.score > 0) & (seg.score < kMaxScore);
   if (std::isfinite(model.ring_depth)) fillRaisedSkin(seg.score, depth, model.ring_depth, &m);
   if (!background.empty()) m.setTo(0, background);
+  if (!marks.empty()) m.setTo(255, marks);
   morphology(&m, cv::MORPH_OPEN, params.open_radius);
   morphology(&m, cv::MORPH_CLOSE, params.close_radius);
   seg.trunk = cutToTrunk(bgr, &m, params.trunk);

@@ -65,6 +65,23 @@ massage_cell::Acupoint acupointMsg(const cect::TrackedAcupoint& p) {
   return a;
 }
 
+std::vector<massage_cell::BackLandmark> landmarkMsgs(const cect::BackLandmarks& landmarks,
+                                                     const camera::StereoModel& geometry,
+                                                     const camera::Decimation& decimation) {
+  std::vector<massage_cell::BackLandmark> out;
+  for (const cect::LayoutLandmark& l : cect::layoutLandmarks(landmarks)) {
+    massage_cell::BackLandmark m;
+    m.name = l.name;
+    m.source = l.source;
+    m.detail = l.detail;
+    const cv::Point2f raw = cect::cameraPixel(l.pixel, geometry, decimation);
+    m.u = raw.x;
+    m.v = raw.y;
+    out.push_back(m);
+  }
+  return out;
+}
+
 geometry_msgs::TransformStamped acupointTransform(const std_msgs::Header& header, const std::string& prefix,
                                                   const cect::TrackedAcupoint& p) {
   geometry_msgs::TransformStamped t;

@@ -3,13 +3,16 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <geometry_msgs/TransformStamped.h>
 #include <std_msgs/Header.h>
 #include <visualization_msgs/MarkerArray.h>
 
 #include "massage_cell/Acupoint.h"
+#include "massage_cell/BackLandmark.h"
 #include "massage_cell/LocalizePixels.h"
+#include "massage_cell/cect/given_landmarks.h"
 #include "massage_cell/cect/tracker.h"
 
 namespace massage_cell::nodes {
@@ -19,6 +22,11 @@ void toRowMajor(const Eigen::Matrix3d& m, double* out);
 
 /// The acupoint's message: its pixel (NaN when not placed), position and covariance when valid, else the reason.
 massage_cell::Acupoint acupointMsg(const cect::TrackedAcupoint& point);
+
+/// The layout's landmarks (cect::layoutLandmarks) with their raw left pixels of the camera (full resolution).
+std::vector<massage_cell::BackLandmark> landmarkMsgs(const cect::BackLandmarks& landmarks,
+                                                     const camera::StereoModel& geometry,
+                                                     const camera::Decimation& decimation);
 
 /// The frame `prefix`<name> at the (valid) acupoint's position, axes parallel to `header`'s frame.
 geometry_msgs::TransformStamped acupointTransform(const std_msgs::Header& header, const std::string& prefix,

@@ -52,6 +52,7 @@ void CectNodelet::init() {
 
   // The acupoint model: a configuration error ends the node (logged FATAL, rethrown).
   loadModel();
+  loadSkinMarkers();
   readParam(pnh, "frame_prefix", &frame_prefix_);
   readParam(pnh, "max_width", &max_width_);
   if (max_width_ < 0) {
@@ -122,6 +123,25 @@ void CectNodelet::loadModel() {
   } catch (const std::exception& e) {
     NODELET_FATAL_STREAM("acupoint model " << model_path_ << ": " << e.what());
     throw;
+  }
+}
+
+cect::CectParams CectNodelet::pairParams(const Config& config) const {
+  cect::CectParams params = cectParams(config);
+  params.skin_markers = skin_markers_;
+  return params;
+}
+
+void CectNodelet::loadSkinMarkers() {
+  const std::string path = typedParam<std::string>(getPrivateNodeHandle(), "skin_markers_file", "");
+  if (path.empty()) return;
+  try {
+    skin_markers_ = cect::loadSkinMarkerOptions(path);
+    NODELET_INFO_STREAM("skin markers: " << skin_markers_->markers.size() << " from " << path);
+  } catch (const std::exception& e) {
+    NODELET_ERROR_STREAM(
+        "skin markers " << path << ": " << e.what()
+                        << "; going on without them (landmarks from the image, clicks, ~set_landmark)");
   }
 }
 
@@ -207,7 +227,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
 
   // 2. CECT on the pair (throws std::invalid_argument for images that do not fit the geometry: a bad pair).
   const auto frame =
-      std::make_shared<const cect::CectFrame>(cect::CectFrame::analyse(left, right, geometry, cectParams(config)));
+      std::make_shared<const cect::CectFrame>(cect::CectFrame::analyse(left, right, geometry, pairParams(config)));
   {
     std::lock_guard<std::mutex> lock(latest_mutex_);
     latest_ = Analysed{frame, header, decimation, {}};  // the layout comes after the tracking
@@ -218,14 +238,14 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
   const cect::TrackerUpdate update = track(*frame, header, decimation, config, &landmarks);
   {
     std::lock_guard<std::mutex> lock(latest_mutex_);
-    latest_.landmarks = std::move(landmarks);
+    latest_.landmarks = landmarks;
   }
   if (update.reset) NODELET_INFO("the stamps went back (a replay started over?): acupoint estimates reset");
   if (!update.problem.empty() && log_throttle_.due(update.problem))
     NODELET_WARN_STREAM("no acupoints in this pair: " << update.problem);
 
   // 4. Outputs, then the status.
-  publish(header, *frame, update, config);
+  publish(header, *frame, update, landmarkMsgs(landmarks, frame->geometry(), decimation), config);
   recordStatus(*frame, update, msSince(start), waited_ms);
 }
 
@@ -235,10 +255,17 @@ cect::TrackerUpdate CectNodelet::track(const cect::CectFrame& frame, const std_m
   cect::LocateOptions options;
   options.correct_parallax = config.correct_parallax;
   options.levels_in_3d = config.levels_in_3d;
-  options.require_c7_at_neck = config.require_c7_at_neck;
+  options.trust.c7_at_neck = config.require_c7_at_neck;
+  options.trust.l4_measured = config.require_l4_measured;
   options.given = landmarks_->forPair(frame.geometry(), decimation);
   const cect::LocatedAcupoints located = cect::locateAcupoints(frame, tracker_->model(), options);
   *landmarks = located.landmarks;
+  if (skin_markers_) {
+    if (!located.markers.problems.empty() && log_throttle_.due("skin markers"))
+      NODELET_WARN_STREAM("skin markers: " << located.markers.describe());
+    std::lock_guard<std::mutex> lock(status_mutex_);
+    status_.setMarkers(located.markers.describe());
+  }
   std::lock_guard<std::mutex> lock(tracker_mutex_);
   try {
     tracker_->setParams(filterParams(config));
@@ -266,9 +293,11 @@ void CectNodelet::recordStatus(const cect::CectFrame& frame, const cect::Tracker
 }
 
 void CectNodelet::publish(const std_msgs::Header& header, const cect::CectFrame& frame,
-                          const cect::TrackerUpdate& update, const Config& config) {
+                          const cect::TrackerUpdate& update, std::vector<massage_cell::BackLandmark>&& landmarks,
+                          const Config& config) {
   auto array = boost::make_shared<massage_cell::AcupointArray>();
   array->header = header;
+  array->landmarks = std::move(landmarks);
   std::vector<geometry_msgs::TransformStamped> transforms;
   visualization_msgs::MarkerArray markers;
   for (std::size_t i = 0; i < update.points.size(); ++i) {

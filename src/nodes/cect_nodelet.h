@@ -15,6 +15,9 @@
 // - rviz's Publish Point on `/clicked_point`, rqt_image_view's on
 // `~debug_image_mouse_left` - each taken as the landmark of the latest layout
 // nearest to it. They replace the found ones in every pair until cleared.
+// Skin markers (~skin_markers_file, a kit: cect/skin_markers.h): coloured
+// dots at C7 / L4 found in both views of every pair are given landmarks too,
+// followed as the subject breathes; a click overrides a marker.
 //
 // Validity: an acupoint is published valid while the temporal filter holds
 // an estimate refreshed within max_age (so a point this pair could not
@@ -37,6 +40,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -56,6 +60,7 @@
 
 #include "cect_status.h"
 #include "landmark_input.h"
+#include "massage_cell/BackLandmark.h"
 #include "massage_cell/CECTConfig.h"
 #include "massage_cell/GetAcupoint.h"
 #include "massage_cell/LocalizePixels.h"
@@ -89,6 +94,9 @@ class CectNodelet : public nodelet::Nodelet {
   void onInit() override;  ///< init(); a parameter of the wrong type: FATAL, the node exits 1
   void init();
   void loadModel();
+  void loadSkinMarkers();
+  /// The pair's CECT parameters: the configuration's, with the skin-marker kit.
+  cect::CectParams pairParams(const Config& config) const;
   void configCb(Config& config, uint32_t level);
   void onPair(const StereoPair& pair);  // the input's worker thread
   void process(const StereoPair& pair, const Config& config);
@@ -96,7 +104,7 @@ class CectNodelet : public nodelet::Nodelet {
   cect::TrackerUpdate track(const cect::CectFrame& frame, const std_msgs::Header& header,
                             const camera::Decimation& decimation, const Config& config, cect::BackLandmarks* landmarks);
   void publish(const std_msgs::Header& header, const cect::CectFrame& frame, const cect::TrackerUpdate& update,
-               const Config& config);
+               std::vector<massage_cell::BackLandmark>&& landmarks, const Config& config);
   void recordStatus(const cect::CectFrame& frame, const cect::TrackerUpdate& update, double elapsed_ms,
                     double waited_ms);
   void badPair(const std::string& problem);
@@ -116,6 +124,7 @@ class CectNodelet : public nodelet::Nodelet {
   ros::ServiceServer localize_service_, acupoint_service_;
   std::unique_ptr<LandmarkInput> landmarks_;  ///< a therapist's landmarks (its services and clicks)
   std::string frame_prefix_ = "acupoint/";
+  std::optional<cect::SkinMarkerOptions> skin_markers_;  ///< the kit of ~skin_markers_file (read once at start-up)
 
   // The acupoint model (read once at start-up) and the acupoints tracked over the pairs: written by the worker,
   // read by ~get_acupoint (guarded by tracker_mutex_).

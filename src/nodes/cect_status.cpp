@@ -52,6 +52,7 @@ void CectStatus::report(diagnostic_updater::DiagnosticStatusWrapper& status, con
   status.add("landmarks (measured; inferred)", last_landmarks_);
   status.add("trunk (what the segmentation cut away)", last_trunk_);
   status.add("background (far behind the table, by depth)", last_background_);
+  if (!last_markers_.empty()) status.add("skin markers", last_markers_);
   status.add("last reason", last_problem_);
   status.add("last error", stats.lastError());
 }

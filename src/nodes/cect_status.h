@@ -20,6 +20,8 @@ class CectStatus {
   void record(const cect::CectFrame& frame, const cect::TrackerUpdate& update, int rejected);
   /// Size, rectification, focal length and baseline of the current calibration.
   void setInput(const std::string& summary) { input_ = summary; }
+  /// What the last pair's skin markers gave (SkinMarkers::describe), with a kit.
+  void setMarkers(const std::string& summary) { last_markers_ = summary; }
 
   /// The summary and values of the status, with the pairs' `stats` and `input` counts; `total`: the model's
   /// acupoints.
@@ -39,6 +41,7 @@ class CectStatus {
   std::string last_landmarks_;    ///< which landmarks the last pair measured and which it inferred
   std::string last_trunk_;        ///< what the last pair's segmentation cut away (arms, cloth)
   std::string last_background_;   ///< what the last pair's depth gate called far background
+  std::string last_markers_;      ///< what the last pair's skin markers gave (empty: no kit)
 };
 
 }  // namespace massage_cell::nodes

@@ -20,6 +20,8 @@
 // Exit status: 0 every press done (and, with ground truth, within
 //   ~max_error); 1 a press failed or missed, no stable fix, or the arm was
 //   not there; 2 a bad session file.
+#include <algorithm>
+
 #include <cv_bridge/cv_bridge.h>
 #include <geometry_msgs/PointStamped.h>
 #include <ros/ros.h>
@@ -126,6 +128,12 @@ class Session {
       const Eigen::Vector3d estimate = fix_.mean(name, latest_stamp_);
       report_.fix.push_back({name, (estimate - t->second).norm(), estimate - t->second});
     }
+    report_.landmarks.clear();
+    if (!latest_acupoints_) return;
+    for (const auto& l : latest_acupoints_->landmarks) {
+      report_.landmarks += (report_.landmarks.empty() ? "" : ", ") + l.name + " " + l.source +
+                           (l.detail.empty() ? std::string() : " (" + l.detail + ")");
+    }
   }
 
   bool homeArm() {
@@ -203,15 +211,27 @@ class Session {
       const cv::Mat left = leftImageOf(latest_acupoints_ ? latest_acupoints_->header.stamp : ros::Time());
       if (!left.empty() && latest_acupoints_) {
         std::vector<arm::MarkedPixel> estimates, truth;
+        const auto inRoutine = [this](const std::string& name) {
+          return std::find(config_.acupoints.begin(), config_.acupoints.end(), name) != config_.acupoints.end();
+        };
         for (const auto& a : latest_acupoints_->acupoints) {
-          if (a.valid && std::isfinite(a.u) && std::isfinite(a.v)) estimates.push_back({a.name, {a.u, a.v}});
+          if (a.valid && std::isfinite(a.u) && std::isfinite(a.v))
+            estimates.push_back({a.name, {a.u, a.v}, inRoutine(a.name)});
         }
         for (const auto& [name, X] : truth_) {
           cv::Point2d p;
-          if (projectCamera(X, &p)) truth.push_back({name, p});
+          if (inRoutine(name) && projectCamera(X, &p)) truth.push_back({name, p});
         }
-        write("acupoints.png", arm::drawAcupoints(left, estimates, truth),
-              "the left image with the acupoints as CECT placed them (red) and their ground truth (green crosses)");
+        std::vector<arm::MarkedPixel> landmarks;
+        for (const auto& l : latest_acupoints_->landmarks) {
+          if (std::isfinite(l.u) && std::isfinite(l.v))
+            landmarks.push_back({l.name + " " + (l.source == "given" ? l.detail : l.source), {l.u, l.v}});
+        }
+        write("acupoints.png", arm::drawAcupoints(left, estimates, truth, landmarks),
+              "the left image with the routine's acupoints as CECT placed them (red, named) and their ground truth "
+              "(green crosses); the model's other acupoints as small dots; the layout's landmarks (cyan diamonds: "
+              "measured, "
+              "inferred or how they were given)");
         std::vector<cv::Point2d> path;
         for (const Eigen::Vector3d& X : trajectory_) {
           cv::Point2d p;

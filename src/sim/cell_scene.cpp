@@ -44,6 +44,35 @@ void checkCloth(const char* what, const std::optional<Cloth>& cloth) {
   }
 }
 
+void checkStickers(const std::vector<SkinSticker>& stickers, const BackModel& back) {
+  const auto landmarks = back.landmarks();
+  for (const SkinSticker& s : stickers) {
+    if (!landmarks.count(s.landmark)) {
+      throw std::invalid_argument("Dressing: a sticker on '" + s.landmark + "', which is not a landmark of the back");
+    }
+    if (!(s.diameter >= 0.005 && s.diameter <= 0.06)) {
+      throw std::invalid_argument("Dressing: the sticker on " + s.landmark + " has diameter " + num(s.diameter) +
+                                  " m, not in 0.005 .. 0.06 m");
+    }
+    if (!(s.albedo.allFinite() && s.albedo.minCoeff() >= 0.0f && s.albedo.maxCoeff() <= 1.0f)) {
+      throw std::invalid_argument("Dressing: the sticker on " + s.landmark + " has an albedo outside [0, 1]");
+    }
+  }
+}
+
+/// The stickers as spots of the back's skin (its uv is the world's x, y), centred on their landmarks.
+void addStickers(const std::vector<SkinSticker>& stickers, const BackModel& back, Material* back_skin) {
+  const auto landmarks = back.landmarks();
+  for (const SkinSticker& s : stickers) {
+    const Eigen::Vector3d& at = landmarks.at(s.landmark);
+    Spot spot;
+    spot.centre = at.head<2>().cast<float>();
+    spot.radius = static_cast<float>(0.5 * s.diameter);
+    spot.albedo = s.albedo;
+    back_skin->spots.push_back(spot);
+  }
+}
+
 void shortenTable(Scene& scene, double head_x) {
   Mesh& table = scene.meshes[kTableMesh];
   table = makeBox("table", {kTableFootX, -kTableHalfWidth, -kTableThickness},
@@ -98,6 +127,7 @@ void Dressing::validate(const BackModel& back) const {
   checkCloth("cradle_cover", cradle_cover);
   checkCloth("towel", towel);
   checkCloth("sheet", sheet);
+  checkStickers(stickers, back);
   if (!towel) return;
   const double lowest = (lower_body ? LowerBody(back).xEnd() : back.extent()[0]) + 0.1;
   const double highest = back.levelX("T1");
@@ -115,6 +145,7 @@ Scene makeCellScene(const BackModel& back, std::uint32_t seed, const Dressing& d
   Scene scene = makeBackScene(back, seed);
   if (d.sheet) scene.meshes[kTableMesh].material = clothMaterial(*d.sheet, seed ^ 0x5eedu);
   const Material skin = plainSkin(scene.meshes[kBackMesh].material);
+  addStickers(d.stickers, back, &scene.meshes[kBackMesh].material);
   std::optional<LowerBody> lower;
   if (d.lower_body) {
     lower.emplace(back);
@@ -161,6 +192,18 @@ Material clothMaterial(const Cloth& cloth, std::uint32_t seed) {
   }
   return m;
 }
+
+const std::vector<std::pair<std::string, Eigen::Vector3f>>& stickerColours() {
+  // Saturated matte vinyl: far from skin's hue (10..40 degrees) at every skin tone.
+  static const std::vector<std::pair<std::string, Eigen::Vector3f>> colours = {{"green", {0.03f, 0.40f, 0.08f}},
+                                                                               {"blue", {0.02f, 0.12f, 0.55f}},
+                                                                               {"orange", {0.80f, 0.20f, 0.01f}},
+                                                                               {"magenta", {0.55f, 0.03f, 0.35f}},
+                                                                               {"yellow", {0.75f, 0.65f, 0.02f}}};
+  return colours;
+}
+
+Eigen::Vector3f stickerColour(const std::string& name) { return fromName("sticker colour", name, stickerColours()); }
 
 const std::vector<std::pair<std::string, Eigen::Vector3f>>& clothColours() {
   static const std::vector<std::pair<std::string, Eigen::Vector3f>> colours = {

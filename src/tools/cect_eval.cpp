@@ -11,6 +11,7 @@
 #include <iostream>
 #include <limits>
 #include <map>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <string>
@@ -49,6 +50,7 @@ const char* kUsage = R"(Usage: cect_eval [--experiments ideal,lighting,shift] [-
                  [--param NAME=VALUE,...] [--csv] [--per-point] [--no-parallax-correction]
                  [--no-3d-levels] [--pictures DIR] [--by-border] [--given-landmarks MM]
                  [--first-subject N] [--no-layout-check] [--trust-c7-at-top]
+                 [--trust-inferred-l4]
 
 Renders prone subjects with the scene simulator and localises points on their
 backs with CECT (segmentation -> contour correspondences -> barycentric
@@ -101,12 +103,18 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
                chain as a palpating therapist would click them, each up to MM mm
                (uniform over a disc on the skin, seeded per subject) from the
                simulator's true C7 and iliac-crest line (cect/given_landmarks.h)
+  --skin-markers  the kit's coloured skin markers (config/skin_markers.yaml, or
+               --marker-kit FILE) stuck on each subject's landmarks, rendered, and
+               found by the chain in both views (cect/skin_markers.h)
+  --marker-kit FILE  the skin-marker kit for --skin-markers
   --no-layout-check  publish every layout the chain finds (the default refuses
                one that fails the plausibility checks: cect/layout_check.h)
   --trust-c7-at-top  trust a C7 taken from the back's top where no neck is in
                view (the default refuses it: the thesis's armless torso, the
                ideal / lighting / shift experiments, has no neck, its back ends
                at the neck's base)
+  --trust-inferred-l4  trust an L4 inferred from C7 and the shoulder width where
+               no waist is seen (the default refuses it)
   --first-subject N  the realistic conditions' subjects start at N (default 1;
                the figures of docs/ were tuned on 1..28: 29.. are unseen)
   --per-point  also print, per condition, every acupoint's CECT figures over the
@@ -131,13 +139,16 @@ struct Options {
   bool raw = false;
   bool csv = false;
   bool per_point = false;
-  bool by_border = false;        ///< --by-border
-  double given_mm = -1.0;        ///< --given-landmarks: C7 and L4 clicked within this many mm (< 0: none given)
-  int first_subject = 1;         ///< --first-subject (the realistic conditions)
-  bool layout_check = true;      ///< --no-layout-check: false
-  bool trust_c7_at_top = false;  ///< --trust-c7-at-top
-  bool parallax = true;          ///< the model's midline corrected for the silhouette's parallax (3D)
-  bool levels_3d = true;         ///< the levels spaced along the body's axis in 3D
+  bool by_border = false;          ///< --by-border
+  double given_mm = -1.0;          ///< --given-landmarks: C7 and L4 clicked within this many mm (< 0: none given)
+  int first_subject = 1;           ///< --first-subject (the realistic conditions)
+  bool layout_check = true;        ///< --no-layout-check: false
+  bool trust_c7_at_top = false;    ///< --trust-c7-at-top
+  bool trust_inferred_l4 = false;  ///< --trust-inferred-l4
+  std::string marker_kit;          ///< --marker-kit (empty: the package's config/skin_markers.yaml)
+  std::optional<cect::SkinMarkerOptions> markers;  ///< --skin-markers: the kit, rendered and looked for
+  bool parallax = true;                            ///< the model's midline corrected for the silhouette's parallax (3D)
+  bool levels_3d = true;                           ///< the levels spaced along the body's axis in 3D
   std::string acupoints;
   std::string pictures;  ///< --pictures: a folder for every pair's picture
   int seed_step = -1;
@@ -329,7 +340,11 @@ struct RenderedPair {
 
 RenderedPair renderPair(const Options& o, const Condition& c, int subject) {
   RenderedPair r;
-  const tools::Scenario sc = scenarioFor(o, c, subject);
+  tools::Scenario sc = scenarioFor(o, c, subject);
+  if (o.markers) {
+    for (const cect::SkinMarkerSpec& m : o.markers->markers)
+      sc.dressing.stickers.push_back({m.landmark, sim::stickerColour(m.colour), m.diameter_m});
+  }
   r.back = std::make_unique<sim::BackModel>(sc.body);
   sim::Scene scene = sim::makeCellScene(*r.back, 1, sc.dressing);
   // The subject turned on the table: the back's mesh and its anatomical
@@ -556,7 +571,7 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   lo.correct_parallax = o.parallax;
   lo.levels_in_3d = o.levels_3d;
   lo.check_layout = o.layout_check;
-  lo.require_c7_at_neck = !o.trust_c7_at_top;
+  lo.trust = {!o.trust_c7_at_top, !o.trust_inferred_l4};
   if (o.given_mm >= 0.0) lo.given = clickedLandmarks(r, geometry, o.given_mm, subject);
   const cect::LocatedAcupoints result = cect::locateAcupoints(f, model, lo);
   if (!result.valid) res.failure = result.reason;
@@ -856,6 +871,19 @@ void printPerPoint(const std::map<std::string, Stats>& per_point, const cect::Ac
   }
 }
 
+/// --skin-markers: the kit, every sticker in a colour the simulator has.
+cect::SkinMarkerOptions loadKit(const std::string& path) {
+  const std::string file = path.empty() ? tools::packageFile("config/skin_markers.yaml") : path;
+  cect::SkinMarkerOptions kit;
+  try {
+    kit = cect::loadSkinMarkerOptions(file);
+    for (const cect::SkinMarkerSpec& m : kit.markers) (void)sim::stickerColour(m.colour);
+  } catch (const std::exception& e) {
+    tools::require(false, std::string("--skin-markers: ") + e.what());
+  }
+  return kit;
+}
+
 void run(const Options& o) {
   stereo::retainFreedMemory();  // page faults would otherwise dominate the per-pair timings
   const cect::AcupointModel model =
@@ -864,6 +892,7 @@ void run(const Options& o) {
   if (o.seed_step >= 0) params.seed_step = o.seed_step;
   if (o.query_search >= 0) params.query_search = o.query_search;
   tools::applyParams(params, o.params);
+  params.skin_markers = o.markers;
 
   if (o.csv)
     std::cout << "condition,subject,method,points,mean_mm,max_mm,acc_rate\n";
@@ -962,6 +991,10 @@ int main(int argc, char** argv) {
         t.flags["--raw"] = [&] { o.raw = true; };
         t.flags["--no-layout-check"] = [&] { o.layout_check = false; };
         t.flags["--trust-c7-at-top"] = [&] { o.trust_c7_at_top = true; };
+        t.flags["--trust-inferred-l4"] = [&] { o.trust_inferred_l4 = true; };
+        bool skin_markers = false;
+        t.flags["--skin-markers"] = [&] { skin_markers = true; };
+        t.values["--marker-kit"] = [&](const std::string&, const std::string& v) { o.marker_kit = v; };
         t.flags["--csv"] = [&] { o.csv = true; };
         t.flags["--per-point"] = [&] { o.per_point = true; };
         t.flags["--by-border"] = [&] { o.by_border = true; };
@@ -978,6 +1011,8 @@ int main(int argc, char** argv) {
         tools::require(o.width >= 64 && o.height >= 48, "--width/--height too small");
         tools::require(o.fx > 0 && o.baseline > 0 && o.camera_height > 0.3,
                        "--fx, --baseline must be > 0 and --camera-height > 0.3 m");
+        tools::require(skin_markers || o.marker_kit.empty(), "--marker-kit needs --skin-markers");
+        if (skin_markers) o.markers = loadKit(o.marker_kit);
         return true;
       },
       [&] { run(o); });

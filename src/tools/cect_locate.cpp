@@ -44,9 +44,10 @@ const char* const kUsage =
                    [--acupoints FILE] [--format yaml|csv] [--output FILE] [--overlay OUT.png]
                    [--min-depth M] [--max-depth M] [--param NAME=VALUE,...]
                    [--no-parallax-correction] [--no-3d-levels] [--landmark NAME=U,V ...]
-                   [--trust-c7-at-top]
+                   [--trust-c7-at-top] [--trust-inferred-l4]
        cect_locate --layout-only IMAGE.png [--acupoints FILE] [--format yaml|csv]
                    [--output FILE] [--overlay OUT.png] [--landmark NAME=U,V ...] [--trust-c7-at-top]
+                   [--trust-inferred-l4]
 
 Finds the acupoints of the acupoint model on a subject lying prone (head toward
 the image top unless the model says `head_up: false`).
@@ -75,6 +76,8 @@ Options:
   --trust-c7-at-top        trust a C7 taken from the back's top where no neck is in
                            view (by default such a layout is "not trusted": give C7);
                            for backs rendered without a neck
+  --trust-inferred-l4      trust an L4 inferred from C7 and the shoulder width where no
+                           waist is seen (by default such a layout is "not trusted": give L4)
   --format yaml|csv        output format (default yaml)
   --output FILE            write the output there (default: standard output)
   --overlay OUT.png        picture: the (raw) left image with the back's contour
@@ -145,6 +148,7 @@ struct Options {
   bool levels_3d = true;
   std::vector<cect::GivenLandmark> landmarks;  ///< --landmark, raw left pixels
   bool trust_c7_at_top = false;                ///< --trust-c7-at-top
+  bool trust_inferred_l4 = false;              ///< --trust-inferred-l4
   bool stereo() const { return layout_only.empty(); }
 };
 
@@ -336,7 +340,7 @@ Report locateStereo(const Options& o, const cect::AcupointModel& model) {
   cect::LocateOptions lo;
   lo.correct_parallax = o.parallax;
   lo.levels_in_3d = o.levels_3d;
-  lo.require_c7_at_neck = !o.trust_c7_at_top;
+  lo.trust = {!o.trust_c7_at_top, !o.trust_inferred_l4};
   for (const cect::GivenLandmark& g : o.landmarks)
     lo.given.push_back({g.name, in.geometry.toRectified(g.pixel), g.source});
   const auto t0 = std::chrono::steady_clock::now();
@@ -367,7 +371,7 @@ Report locateLayout(const Options& o, const cect::AcupointModel& model) {
   const cect::Segmentation seg = cect::segmentBack(image, segmentationFor(image.cols));
   cect::LocateOptions lo;
   lo.given = o.landmarks;
-  lo.require_c7_at_neck = !o.trust_c7_at_top;
+  lo.trust = {!o.trust_c7_at_top, !o.trust_inferred_l4};
   const cect::LocatedAcupoints located = cect::locateLayout(seg, model, lo);
 
   Report r;
@@ -651,6 +655,7 @@ tools::OptionTable optionTable(Options& o) {
   t.flags["--no-parallax-correction"] = [&o] { o.parallax = false; };
   t.flags["--no-3d-levels"] = [&o] { o.levels_3d = false; };
   t.flags["--trust-c7-at-top"] = [&o] { o.trust_c7_at_top = true; };
+  t.flags["--trust-inferred-l4"] = [&o] { o.trust_inferred_l4 = true; };
   t.values["--landmark"] = [&o](const std::string& opt, const std::string& v) {
     const auto eq = v.find('=');
     require(eq != std::string::npos, opt + ": expected NAME=U,V, got '" + v + "'");

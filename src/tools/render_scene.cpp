@@ -73,6 +73,10 @@ Dressing of the back preset (default: none of it, the bare back):
   --towel-tilt DEG         turn of the towel's edge about the vertical (default 0)
   --sheet COLOUR           the table's sheet colour (default: the standard blue-grey sheet)
   --sheet-weave W          fine | terry | waffle (default fine)
+  --sticker LANDMARK=C     a coloured skin marker on a landmark of the back (C7, T1..L5,
+                           scapula_inferior_angle_L, iliac_crest_R, ...), repeatable; C: green,
+                           blue, orange, magenta, yellow; e.g. --sticker C7=green --sticker L4=blue
+  --sticker-size M         the stickers' diameter, metres (default 0.025)
   Colours: white, light_blue, green, grey, beige, peach, pink, dark_blue, black, default_sheet.
   POS: a world x in metres (x toward the head, 0 at C7), or a vertebral level with an
   optional offset in metres toward the head (+) or feet (-), e.g. C7+0.05, L4-0.18.
@@ -157,6 +161,8 @@ struct Options {
   std::string towel, towel_weave = "terry", towel_edge = "L4-0.03";
   double towel_tilt = 0.0;
   std::string sheet, sheet_weave = "fine";
+  std::vector<std::string> stickers;  ///< --sticker LANDMARK=COLOUR
+  double sticker_size = 0.025;
   // Rig.
   double toe_in = 0.0;
   std::string frame_top, frame_bottom;
@@ -200,7 +206,7 @@ void checkCellOptions(const Options& o) {
   require(o.toe_in == 0.0 || o.raw, "--toe-in needs --raw (a toe-in pair is not rectified)");
   require(o.frame_top.empty() == o.frame_bottom.empty(), "--frame-top and --frame-bottom go together");
   const bool cell = o.arms != "none" || o.head || o.lower_body || !o.towel.empty() || !o.sheet.empty() ||
-                    o.varied > 0 || !o.build.empty() || o.skin_type > 0 || !o.frame_top.empty();
+                    !o.stickers.empty() || o.varied > 0 || !o.build.empty() || o.skin_type > 0 || !o.frame_top.empty();
   require(!cell || o.preset == "back", "subject, dressing and framing options are for the back preset");
 }
 
@@ -258,6 +264,8 @@ bool parseOptions(int argc, char** argv, Options& o) {
               {"--towel-tilt", number(o.towel_tilt)},
               {"--sheet", text(o.sheet)},
               {"--sheet-weave", text(o.sheet_weave)},
+              {"--sticker", [&o](const std::string&, const std::string& v) { o.stickers.push_back(v); }},
+              {"--sticker-size", number(o.sticker_size)},
               {"--toe-in", number(o.toe_in)},
               {"--frame-top", text(o.frame_top)},
               {"--frame-bottom", text(o.frame_bottom)}};
@@ -519,6 +527,22 @@ sim::Cloth cloth(const std::string& colour, const std::string& weave) {
   return {sim::clothColour(colour), sim::weaveFromName(weave)};
 }
 
+/// --sticker LANDMARK=COLOUR (the landmark is checked with the dressing).
+sim::SkinSticker sticker(const std::string& value, double diameter) {
+  const std::size_t eq = value.find('=');
+  require(eq != std::string::npos && eq > 0 && eq + 1 < value.size(),
+          "--sticker expects LANDMARK=COLOUR (e.g. C7=green), got '" + value + "'");
+  sim::SkinSticker s;
+  s.landmark = value.substr(0, eq);
+  try {
+    s.albedo = sim::stickerColour(value.substr(eq + 1));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--sticker: ") + e.what());
+  }
+  s.diameter = diameter;
+  return s;
+}
+
 sim::Dressing dressing(const Options& o, const sim::BackModel& back) {
   sim::Dressing d;
   d.arms = sim::armPoseFromName(o.arms);
@@ -535,6 +559,7 @@ sim::Dressing dressing(const Options& o, const sim::BackModel& back) {
     d.towel_edge_tilt = o.towel_tilt * kDegree;
   }
   if (!o.sheet.empty()) d.sheet = cloth(o.sheet, o.sheet_weave);
+  for (const std::string& s : o.stickers) d.stickers.push_back(sticker(s, o.sticker_size));
   try {
     d.validate(back);
   } catch (const std::invalid_argument& e) {
@@ -674,6 +699,10 @@ void emitDressing(YAML::Emitter& m, const Options& o, const sim::Dressing& d) {
     m << YAML::Key << "towel_edge_x" << YAML::Value << d.towel_edge_x;
   }
   m << YAML::Key << "sheet" << YAML::Value << (o.sheet.empty() ? "default_sheet" : o.sheet);
+  if (!o.stickers.empty()) {
+    m << YAML::Key << "stickers" << YAML::Value << YAML::Flow << o.stickers;
+    m << YAML::Key << "sticker_diameter" << YAML::Value << o.sticker_size;
+  }
   m << YAML::Key << "toe_in_degrees" << YAML::Value << o.toe_in;
   if (!o.frame_top.empty()) {
     m << YAML::Key << "frame_top" << YAML::Value << o.frame_top << YAML::Key << "frame_bottom" << YAML::Value

@@ -7,11 +7,19 @@
 #include <iterator>
 #include <string>
 
+#include <opencv2/imgproc.hpp>
+
 #include "massage_cell/arm/session.h"
 
 namespace arm = massage_cell::arm;
 
 namespace {
+
+cv::Mat grey3(const cv::Mat& grey) {
+  cv::Mat bgr;
+  cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+  return bgr;
+}
 
 std::string writeFile(const std::string& name, const std::string& text) {
   const std::string path = ::testing::TempDir() + "/" + name;
@@ -83,8 +91,11 @@ TEST(SessionReport, CountsPressesWithinTheTolerance) {
   c.message = "'acupoint/GV14' is stale";
   r.presses = {a, b, c};
   r.fix = {{"BL18_L", 0.005, Eigen::Vector3d(0.0, 0.004, -0.003)}};
+  EXPECT_EQ(r.summary(0.005).find("layout:"), std::string::npos) << "no landmarks known: no line";
+  r.landmarks = "C7 given (marker), L4 measured (the waist)";
   EXPECT_EQ(r.within(0.005), 1);
   const std::string s = r.summary(0.005);
+  EXPECT_NE(s.find("  layout: C7 given (marker), L4 measured (the waist)\n"), std::string::npos) << s;
   EXPECT_NE(s.find("press BL23_L: done"), std::string::npos) << s;
   EXPECT_NE(s.find("3.0 mm from the ground truth (1.0 mm from CECT's acupoint)"), std::string::npos) << s;
   EXPECT_NE(s.find("press GV14: FAILED"), std::string::npos) << s;
@@ -126,6 +137,18 @@ TEST(SessionPictures, MarksLandWhereTheyAreSaid) {
   EXPECT_EQ(a.at<cv::Vec3b>(40, 30), cv::Vec3b(0, 0, 255)) << "the estimate, red";
   EXPECT_EQ(a.at<cv::Vec3b>(60, 80), cv::Vec3b(0, 200, 0)) << "the truth, a green cross";
   EXPECT_EQ(a.at<cv::Vec3b>(5, 5), cv::Vec3b(128, 128, 128));
+  // Not the routine's: a small dark dot, no name beside it.
+  const cv::Mat named = arm::drawAcupoints(grey, {{"BL23_L", {30, 40}, true}}, {});
+  const cv::Mat dot = arm::drawAcupoints(grey, {{"BL23_L", {30, 40}, false}}, {});
+  EXPECT_EQ(dot.at<cv::Vec3b>(40, 30), cv::Vec3b(0, 0, 160));
+  const cv::Mat l = arm::drawAcupoints(grey, {}, {}, {{"C7 marker", {60, 50}}});
+  const cv::Vec3b tip = l.at<cv::Vec3b>(50, 60 + 2 * std::max(2, 120 / 160));  // the diamond's right tip
+  EXPECT_TRUE(tip[0] > 200 && tip[1] > 200 && tip[2] < 60) << "a landmark's cyan diamond: " << tip;
+  EXPECT_EQ(l.at<cv::Vec3b>(50, 60), cv::Vec3b(128, 128, 128)) << "hollow";
+  EXPECT_GT(cv::norm(named(cv::Rect(33, 25, 60, 15)), grey3(grey)(cv::Rect(33, 25, 60, 15)), cv::NORM_L1), 0.0)
+      << "the routine's point is named";
+  EXPECT_EQ(cv::norm(dot(cv::Rect(33, 25, 60, 15)), grey3(grey)(cv::Rect(33, 25, 60, 15)), cv::NORM_L1), 0.0)
+      << "the others are not";
   const cv::Mat t = arm::drawTrajectory(grey, {{10, 50}, {110, 50}});
   EXPECT_NE(t.at<cv::Vec3b>(50, 60), cv::Vec3b(128, 128, 128)) << "the path is drawn";
   cv::Mat d(10, 10, CV_32F, cv::Scalar(0.0f));

@@ -171,13 +171,14 @@ TEST(LayoutCheck, ProportionsTheModelImposedAreNotCheckedAgainstThemselves) {
   l.c7_measured = false;
   l.c7_at_neck = false;
   const cect::AcupointModel m = model();
-  const cect::LayoutCheck c = cect::checkLayout(l, m, cect::PixelScale(), false);  // the proportions alone here
+  const cect::LayoutCheck c =
+      cect::checkLayout(l, m, cect::PixelScale(), {false, false});  // the proportions alone here
   EXPECT_TRUE(c.trusted) << c.reason();
   EXPECT_TRUE(std::isnan(c.length_per_shoulder_width));
   EXPECT_TRUE(std::isnan(c.shoulder_below_c7));
   // ... but a given L4 is the therapist's, and the proportion is checked again.
   l.l4_given = true;
-  EXPECT_FALSE(cect::checkLayout(l, m, cect::PixelScale(), false).trusted);
+  EXPECT_FALSE(cect::checkLayout(l, m, cect::PixelScale(), {false, false}).trusted);
 }
 
 TEST(LayoutCheck, AC7NotMeasuredAtANecksBaseIsNotTrustedUnlessGiven) {
@@ -195,7 +196,20 @@ TEST(LayoutCheck, AC7NotMeasuredAtANecksBaseIsNotTrustedUnlessGiven) {
       std::string::npos);
   top.c7_given = true;  // a therapist's C7
   EXPECT_TRUE(cect::checkLayout(top, model(), kScale).trusted);
-  EXPECT_TRUE(cect::checkLayout(shoulders, model(), kScale, false).trusted);
+  EXPECT_TRUE(cect::checkLayout(shoulders, model(), kScale, {false, true}).trusted);
+}
+
+TEST(LayoutCheck, AnL4InferredFromTheShoulderWidthIsNotTrustedUnlessGiven) {
+  cect::BackLandmarks l = back();
+  l.waist_measured = false;  // arms along the flanks: no waist, L4 from C7 and the shoulder width
+  const cect::LayoutCheck c = cect::checkLayout(l, model(), kScale);
+  EXPECT_FALSE(c.trusted);
+  EXPECT_NE(c.reason().find("L4 not measured: no waist in view, only inferred from C7 and the shoulder width; give L4"),
+            std::string::npos)
+      << c.reason();
+  EXPECT_TRUE(cect::checkLayout(l, model(), kScale, {true, false}).trusted) << "the rule off";
+  l.l4_given = true;  // a therapist's L4, or a skin marker
+  EXPECT_TRUE(cect::checkLayout(l, model(), kScale).trusted) << cect::checkLayout(l, model(), kScale).reason();
 }
 
 TEST(LayoutCheck, WithC7AndL4GivenTheShoulderLineIsNotChecked) {

@@ -37,7 +37,8 @@ struct Rendered {
 /// (abduction in radians), head in the cradle, buttocks; the view from above
 /// the neck to below L4.
 Rendered render(int index, double abduction, sim::ArmPose arms = sim::ArmPose::kAlongTrunk,
-                sim::HairColour hair = sim::HairColour::kBrown, const std::string& sheet = "") {
+                sim::HairColour hair = sim::HairColour::kBrown, const std::string& sheet = "",
+                const std::vector<sim::SkinSticker>& stickers = {}) {
   const sim::BodyParameters body = sim::BodyParameters::varied(index);
   sim::BackModel back(body);
   sim::Dressing d;
@@ -48,6 +49,7 @@ Rendered render(int index, double abduction, sim::ArmPose arms = sim::ArmPose::k
   d.hair_colour = hair;
   if (!sheet.empty()) d.sheet = sim::Cloth{sim::clothColour(sheet), sim::Weave::kFine};
   d.lower_body = true;
+  d.stickers = stickers;
   const sim::Scene scene = sim::makeCellScene(back, 1, d);
   const sim::Renderer renderer(scene);
   const sim::RigParameters rig = sim::frameRig(sim::RigParameters{}, 0.12, back.levelX("L4") - 0.12, 0.17);
@@ -81,7 +83,14 @@ TEST(RealBacks, ArmsTouchingTheTrunkAreCutAtTheirCreasesAndC7AndL4Found) {
     const cv::Mat back = (r.frame.left.labels == sim::kLabelBack) & f.left().mask;
     EXPECT_LT(cv::countNonZero(arm), 0.08 * cv::countNonZero(back));
 
-    const cect::LocatedAcupoints a = cect::locateAcupoints(f, model());
+    // The creased flanks hide the waist: L4 is only inferred, and the default does not trust that layout.
+    const cect::LocatedAcupoints refused = cect::locateAcupoints(f, model());
+    EXPECT_FALSE(refused.valid);
+    EXPECT_NE(refused.reason.find("L4 not measured"), std::string::npos) << refused.reason;
+    EXPECT_EQ(refused.validCount(), 0);
+    cect::LocateOptions inferred_l4;
+    inferred_l4.trust.l4_measured = false;
+    const cect::LocatedAcupoints a = cect::locateAcupoints(f, model(), inferred_l4);
     ASSERT_TRUE(a.valid) << a.reason;
     const cect::BackLandmarks& l = a.landmarks;
     const double c7 = cect::toImage(l, l.c7).y, l4 = cect::toImage(l, l.l4).y;
@@ -107,6 +116,51 @@ TEST(RealBacks, ArmsTouchingTheTrunkAreCutAtTheirCreasesAndC7AndL4Found) {
     EXPECT_GT(at_c7, 0.005);
     EXPECT_GT(at_l4, 2.0 * at_c7);
   }
+}
+
+TEST(RealBacks, SkinMarkersGiveC7AndL4AndTheirDotsAreTheBack) {
+  const cect::SkinMarkerOptions kit =
+      cect::loadSkinMarkerOptions(std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/skin_markers.yaml");
+  std::vector<sim::SkinSticker> stickers;
+  for (const cect::SkinMarkerSpec& m : kit.markers)
+    stickers.push_back({m.landmark, sim::stickerColour(m.colour), m.diameter_m});
+  for (int index : {1, 6}) {
+    SCOPED_TRACE("varied subject " + std::to_string(index));
+    const Rendered r = render(index, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kBrown, "", stickers);
+    const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
+    cect::CectParams params;
+    params.skin_markers = kit;
+    const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, params);
+    ASSERT_TRUE(f.valid()) << f.reason();
+    const cect::LocatedAcupoints a = cect::locateAcupoints(f, model());
+    ASSERT_TRUE(a.valid) << a.reason;
+    ASSERT_EQ(a.markers.found.size(), 2u) << a.markers.describe();
+    const cect::BackLandmarks& l = a.landmarks;
+    EXPECT_TRUE(l.c7_given && l.l4_given) << cect::describeLandmarks(l);
+    EXPECT_NE(cect::describeLandmarks(l).find("C7 (marker)"), std::string::npos) << cect::describeLandmarks(l);
+    const double c7_gt = gtRow(r, g, "C7"), l4_gt = gtRow(r, g, "L4");
+    const double length = l4_gt - c7_gt;
+    EXPECT_NEAR(cect::toImage(l, l.c7).y, c7_gt, 0.01 * length);  // automatic: 3 % and 6 % (above)
+    EXPECT_NEAR(cect::toImage(l, l.l4).y, l4_gt, 0.01 * length);
+    // The dots are not skin's colour but are on the back: the points at them are measured.
+    for (const cect::SkinMarkerDetection& m : a.markers.found)
+      EXPECT_EQ(f.left().mask.at<std::uint8_t>(cvRound(m.left.y), cvRound(m.left.x)), 255) << m.landmark;
+    const auto truth = sim::toCameraFrame(r.back.acupoints(), r.pair.left);
+    for (const char* name : {"GV14", "GV3"}) {
+      const auto p = std::find_if(a.points.begin(), a.points.end(), [&](const auto& q) { return q.name == name; });
+      ASSERT_TRUE(p != a.points.end() && p->valid) << name << ": " << (p == a.points.end() ? "" : p->reason);
+      EXPECT_LT((p->point.position - truth.at(name)).norm(), 0.012) << name;
+    }
+    EXPECT_GE(a.validCount(), 100);
+  }
+  // Without the kit the same pair's dots stay out of the skin (their colour is no skin's).
+  const Rendered r = render(1, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kBrown, "", stickers);
+  const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
+  const cect::CectFrame plain = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {});
+  ASSERT_TRUE(plain.valid()) << plain.reason();
+  const cect::LocatedAcupoints none = cect::locateAcupoints(plain, model());
+  EXPECT_TRUE(none.markers.found.empty() && none.markers.problems.empty()) << "no kit, no markers";
+  EXPECT_FALSE(none.landmarks.c7_given || none.landmarks.l4_given);
 }
 
 TEST(RealBacks, ArmsHeldAwayLeaveTheTrunksWaist) {
@@ -184,11 +238,12 @@ TEST(RealBacks, TheFloorBeyondTheTableStaysOutOfThePalestBack) {
   }
 }
 
-/// The chain's options for the scenes that test the segmentation: their hair hides the neck's base, so the default
-/// would not trust a C7 taken from the back's top (layout_check.h); here the layout only shows the back was found.
+/// The chain's options for the scenes that test the segmentation: their hair hides the neck's base and their arms
+/// the waist, so the default would not trust a C7 taken from the back's top nor an inferred L4 (layout_check.h); here
+/// the layout only shows the back was found.
 cect::LocateOptions segmentationCheck() {
   cect::LocateOptions o;
-  o.require_c7_at_neck = false;
+  o.trust = {false, false};
   return o;
 }
 

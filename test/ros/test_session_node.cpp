@@ -3,7 +3,9 @@
 // live camera. A two-acupoint routine completes at 1x: both presses done
 // within 2 cm of the recording's ground truth, the report printed and written
 // (index.html, the pictures); a routine naming an unknown acupoint fails with
-// a line that names it; a bad routine file exits 2 naming the field.
+// a line that names it; a bad routine file exits 2 naming the field. With
+// --markers (test/ros/markers_session.test: the skin-marker recording) the
+// report must say that C7 and L4 came from the markers.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -15,6 +17,7 @@
 namespace {
 
 namespace fs = std::filesystem;
+bool g_markers = false;  ///< --markers: the layout's C7 and L4 must be given by skin markers
 using massage_cell::test::runCommand;
 using massage_cell::test::TempDir;
 
@@ -42,6 +45,10 @@ TEST(SessionNode, AShortRoutineCompletesAtOneTimesWithItsReport) {
   EXPECT_TRUE(contains(run.output, "tool at depth")) << "the presses are measured against the truth\n" << run.output;
   EXPECT_TRUE(contains(run.output, "latency camera stamp -> acupoint tf: p50")) << run.output;
   EXPECT_TRUE(contains(run.output, "the session went well")) << run.output;
+  EXPECT_TRUE(contains(run.output, "  layout: C7 ")) << "the report names the layout's landmarks\n" << run.output;
+  if (g_markers) {
+    EXPECT_TRUE(contains(run.output, "layout: C7 given (marker), L4 given (marker)")) << run.output;
+  }
   for (const char* file : {"index.html", "acupoints.png", "trajectory.png"}) {
     EXPECT_TRUE(fs::exists(dir.path() / "report" / file)) << file << "\n" << run.output;
   }
@@ -70,5 +77,6 @@ TEST(SessionNode, ABadRoutineFileExitsTwoNamingTheField) {
 
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
+  for (int i = 1; i < argc; ++i) g_markers = g_markers || std::string(argv[i]) == "--markers";
   return RUN_ALL_TESTS();
 }

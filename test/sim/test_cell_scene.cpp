@@ -363,6 +363,36 @@ TEST(CellScene, HairColoursAndClothNames) {
   EXPECT_GT(red.x(), 2.5f * red.y());
 }
 
+TEST(CellScene, StickersSitOnTheirLandmarksInBothViews) {
+  const BackModel back(BodyParameters::mean());
+  const sim::StereoPairModel pair = framedPair(back, 0.06, back.levelX("L4") - 0.2);
+  Dressing d;
+  d.stickers = {{"C7", sim::stickerColour("green"), 0.025}, {"L4", sim::stickerColour("blue"), 0.025}};
+  const sim::StereoFrame bare = render(back, Dressing{}, pair);
+  const sim::StereoFrame marked = render(back, d, pair);
+  const auto landmarks = back.landmarks();
+  for (const auto& [name, channel] : {std::pair<std::string, int>{"C7", 1}, {"L4", 0}}) {  // BGR: green 1, blue 0
+    for (const auto* view : {&pair.left, &pair.right}) {
+      Eigen::Vector2d q;
+      ASSERT_TRUE(view->project(landmarks.at(name), &q)) << name;
+      const cv::Point px(static_cast<int>(std::lround(q.x())), static_cast<int>(std::lround(q.y())));
+      const cv::Mat& image = view == &pair.left ? marked.left.image : marked.right.image;
+      const cv::Mat& plain = view == &pair.left ? bare.left.image : bare.right.image;
+      const cv::Vec3b c = image.at<cv::Vec3b>(px), skin = plain.at<cv::Vec3b>(px);
+      EXPECT_GT(c[channel], c[2] + 40) << name << ": the sticker's colour over red at its landmark";
+      EXPECT_GT(skin[2], skin[channel]) << name << ": skin without it is red-dominant";
+      EXPECT_EQ((view == &pair.left ? marked.left.labels : marked.right.labels).at<std::uint8_t>(px),
+                sim::kLabelBack);  // a sticker is part of the skin for the labels
+    }
+  }
+  // 4 cm off the landmark the skin is as it was.
+  Eigen::Vector2d q;
+  ASSERT_TRUE(pair.left.project(landmarks.at("C7") + Eigen::Vector3d(-0.04, 0.0, 0.0), &q));
+  const cv::Point away(static_cast<int>(std::lround(q.x())), static_cast<int>(std::lround(q.y())));
+  EXPECT_EQ(marked.left.image.at<cv::Vec3b>(away), bare.left.image.at<cv::Vec3b>(away));
+  EXPECT_THROW(sim::stickerColour("teal"), std::invalid_argument);
+}
+
 TEST(CellScene, DressingValidation) {
   const BackModel back(BodyParameters::mean());
   auto expectThrowNaming = [&](const Dressing& d, const std::string& name) {
@@ -391,6 +421,11 @@ TEST(CellScene, DressingValidation) {
   d = Dressing{};
   d.sheet = sim::Cloth{Eigen::Vector3f(1.2f, 0.5f, 0.5f), sim::Weave::kFine};
   expectThrowNaming(d, "sheet");
+  d = Dressing{};
+  d.stickers = {{"T3x", sim::stickerColour("green"), 0.025}};
+  expectThrowNaming(d, "T3x");
+  d.stickers = {{"C7", sim::stickerColour("green"), 0.2}};
+  expectThrowNaming(d, "diameter");
 }
 
 // ---------------------------------------------------------------------------

@@ -111,9 +111,13 @@ TEST(RenderSceneTool, DressedBackWritesWhichAcupointsAreInView) {
   const YAML::Node m = renderOk(
       "--preset back --varied 3 --arms along --arm-angle 10 --head --hair nape --hair-colour blond"
       " --towel light_blue --towel-weave waffle --towel-edge L4-0.02 --sheet peach --raw --toe-in 2"
-      " --baseline 0.08 --frame-top C7+0.03 --frame-bottom L4-0.15 --width 320 --height 240 --fx 250 --supersample 1",
+      " --sticker C7=green --sticker L4=blue --sticker-size 0.03 --baseline 0.08 --frame-top C7+0.03 --frame-bottom "
+      "L4-0.15 --width 320 --height 240 --fx 250 --supersample 1",
       dir);
   EXPECT_EQ(m["dressing"]["arms"].as<std::string>(), "along");
+  ASSERT_EQ(m["dressing"]["stickers"].size(), 2u);
+  EXPECT_EQ(m["dressing"]["stickers"][1].as<std::string>(), "L4=blue");
+  EXPECT_DOUBLE_EQ(m["dressing"]["sticker_diameter"].as<double>(), 0.03);
   EXPECT_EQ(m["subject"]["varied"].as<int>(), 3);
   EXPECT_FALSE(m["rectified"].as<bool>());
   const YAML::Node truth = YAML::LoadFile((dir.path() / "acupoints_truth.yaml").string());
@@ -158,6 +162,10 @@ TEST(RenderSceneTool, BadInputFailsWithAMessage) {
   expectFailure("--preset back --skin-type 7" + out, 2, "--skin-type must be in 1..6");
   expectFailure("--preset back --arm-angle 30" + out, 2, "--arm-angle must be in 0..20");
   expectFailure("--preset boxes --head" + out, 2, "for the back preset");
+  expectFailure("--preset back --sticker C7" + out, 2, "--sticker expects LANDMARK=COLOUR");
+  expectFailure("--preset back --sticker C7=teal" + out, 2, "unknown sticker colour 'teal'");
+  expectFailure("--preset back --sticker Q9=green" + out, 2, "'Q9', which is not a landmark");
+  expectFailure("--preset back --sticker C7=green --sticker-size 0.5" + out, 2, "diameter");
 }
 
 }  // namespace

@@ -94,6 +94,8 @@ struct SessionReport {
   int pairs = 0;                ///< stereo pairs the CECT node reported on
   double seconds_to_fix = 0.0;  ///< from start to a stable fix
   std::vector<FixRecord> fix;
+  /// The layout's landmarks at the fix, e.g. "C7 given (marker), L4 measured (the waist)" (empty: not known).
+  std::string landmarks;
   std::vector<PressRecord> presses;
   std::vector<std::string> faults;  ///< what went wrong (empty: nothing)
   std::vector<LatencyRecord> latencies;
@@ -108,15 +110,19 @@ struct SessionReport {
                  const std::vector<std::pair<std::string, std::string>>& pictures) const;
 };
 
-/// Pictures of the report. A marked pixel: its label and where it is.
+/// Pictures of the report. A marked pixel: its label, where it is, and
+/// whether the label is written (the routine's points; the others are dots).
 struct MarkedPixel {
   std::string label;
   cv::Point2d pixel;
+  bool labelled = true;
 };
-/// The image (BGR or grey) with the estimates as filled circles and their
-/// names, and the true positions as crosses.
+/// The image (BGR or grey) with the estimates as filled circles, named when
+/// labelled (small unnamed dots otherwise: 108 names overprint each other at
+/// 320x240), and the true positions as crosses.
+/// `landmarks` (the layout's C7 / L4, labelled e.g. "C7 marker") as cyan diamonds.
 cv::Mat drawAcupoints(const cv::Mat& image, const std::vector<MarkedPixel>& estimates,
-                      const std::vector<MarkedPixel>& truth);
+                      const std::vector<MarkedPixel>& truth, const std::vector<MarkedPixel>& landmarks = {});
 /// The image with the tool's path (pixels in order) as a line, darker at its start.
 cv::Mat drawTrajectory(const cv::Mat& image, const std::vector<cv::Point2d>& path);
 /// A float disparity image in colour (invalid: black), scaled over its valid range.

@@ -141,6 +141,17 @@ struct BackLandmarks {
 /// then those given, when any ("; given: C7 (clicked)").
 std::string describeLandmarks(const BackLandmarks& landmarks);
 
+/// One of the layout's two landmarks as a rectified left pixel, and what fixed it.
+struct LayoutLandmark {
+  std::string name;    ///< "C7", "L4"
+  cv::Point2f pixel;   ///< rectified left image
+  std::string source;  ///< "measured", "inferred" or "given"
+  std::string detail;  ///< from what: "the neck's base", "C7 and the shoulder width", "marker", "clicked", ...
+};
+
+/// C7 and L4 of `landmarks` (empty when they are not valid).
+std::vector<LayoutLandmark> layoutLandmarks(const BackLandmarks& landmarks);
+
 /// A point of the body's frame (BackLandmarks) in the rectified left image.
 cv::Point2f toImage(const BackLandmarks& landmarks, const cv::Point2f& body_pixel);
 
@@ -149,7 +160,9 @@ cv::Point2f toImage(const BackLandmarks& landmarks, const cv::Point2f& body_pixe
 /// onto the columns and the landmarks found again, until it stays within
 /// 0.1 degree (at most a few turns; a body turned by more than 45 degrees is
 /// refused). Never throws for image content (valid = false with a reason).
-BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model);
+/// `l4_given`: L4 will be given (a click, a skin marker; applyGivenLandmarks), so an L4 inferred below the back's
+/// bottom (a towel over the hips, a short trunk) does not fail the search.
+BackLandmarks findLandmarks(const Segmentation& left, const AcupointModel& model, bool l4_given = false);
 
 /// Metres per pixel at a rectified left pixel (depth / fx), NaN if unknown.
 using PixelScale = std::function<double(const cv::Point2f& rect_pixel)>;

@@ -21,6 +21,7 @@
 //     covariance from the candidates' spread and the matching precision.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,7 @@
 #include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/cect/depth_gate.h"
 #include "massage_cell/cect/segmentation.h"
+#include "massage_cell/cect/skin_markers.h"
 
 namespace massage_cell::cect {
 
@@ -46,6 +48,9 @@ struct CectParams {
   /// The floor and room far behind the table are not the back, whatever
   /// their colour (depth_gate.h); gap 0: colour alone decides.
   DepthGateParams background;
+  /// Coloured skin markers on the back (a kit: skin_markers.h); unset: none. Their dots count as skin in the
+  /// segmentation, and locateAcupoints takes C7 / L4 from those found in both views.
+  std::optional<SkinMarkerOptions> skin_markers;
   /// Scale the pixel parameters to the view (see scaledParams): with a
   /// camera of another resolution or focal length, or farther from the
   /// back, the parameters below still mean the same on the skin. false:
@@ -334,6 +339,7 @@ class CectFrame {
   DepthGate background_;
   Segmentation left_seg_, right_seg_;
   cv::Mat left_rect_, right_rect_;    ///< BGR
+  cv::Mat left_marks_, right_marks_;  ///< CV_8U: the skin markers' dots (skinMarkerPixels; empty without a kit)
   cv::Mat left_grey_, right_grey_;    ///< CV_32F
   cv::Mat left_inner_, right_inner_;  ///< the masks 3 px in from the border (direct matches)
   cv::Mat seed_region_;               ///< left pixels at least seed_margin inside the border

@@ -13,6 +13,7 @@
 #include "massage_cell/cect/cect.h"
 #include "massage_cell/cect/given_landmarks.h"
 #include "massage_cell/cect/layout_check.h"
+#include "massage_cell/cect/skin_markers.h"
 
 namespace massage_cell::cect {
 
@@ -28,8 +29,8 @@ struct LocateOptions {
   /// Refuse a layout that fails the plausibility checks (checkLayout): the pair is then not valid, its reason
   /// "layout not trusted: ...", and its points placed but not valid. Off only to measure what the checks do.
   bool check_layout = true;
-  /// ... among them: trust only a C7 measured at a neck's base in view, or given (checkLayout).
-  bool require_c7_at_neck = true;
+  /// ... among them: which landmarks must have been measured or given (checkLayout).
+  TrustRules trust;
 };
 
 /// One acupoint of the model in one pair.
@@ -54,7 +55,10 @@ struct LocatedAcupoints {
   bool valid = false;
   std::string reason;
   BackLandmarks landmarks;
-  LayoutCheck check;                    ///< the layout's plausibility (when landmarks were found)
+  LayoutCheck check;  ///< the layout's plausibility (when landmarks were found)
+  /// What the frame's skin markers gave (with CectParams::skin_markers): each found in both views is a given
+  /// landmark (source "marker") unless LocateOptions::given has one of its name (a click overrides a sticker).
+  SkinMarkers markers;
   std::vector<LocatedAcupoint> points;  ///< in the model's order
   int validCount() const;
 };

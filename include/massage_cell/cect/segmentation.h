@@ -85,8 +85,10 @@ struct Segmentation {
 /// throws for image content; throws std::invalid_argument for an empty or
 /// non-CV_8UC3 image or a background mask of another size or type.
 /// Thread-safe (no shared state). ~3 ms for 640 x 480 (Release, 2 cores).
+/// `marks` (optional, CV_8U): pixels that are skin whatever their colour (skin markers' dots: skinMarkerPixels).
 Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params = {},
-                         const cv::Mat& background = cv::Mat(), const cv::Mat& depth = cv::Mat());
+                         const cv::Mat& background = cv::Mat(), const cv::Mat& depth = cv::Mat(),
+                         const cv::Mat& marks = cv::Mat());
 
 /// Sub-pixel x positions where `score` changes sign along row y (y may be
 /// fractional: the score is interpolated bilinearly between rows), in

@@ -50,6 +50,14 @@ struct Cloth {
   Weave weave = Weave::kFine;
 };
 
+/// A coloured adhesive dot a therapist sticks on the skin over a landmark
+/// (a skin marker): flat colour on the back's skin, centred on the landmark.
+struct SkinSticker {
+  std::string landmark;  ///< a name of BackModel::landmarks(): "C7", "L4", ...
+  Eigen::Vector3f albedo{0.03f, 0.40f, 0.08f};
+  double diameter = 0.025;  ///< metres, 0.005 .. 0.06
+};
+
 struct Dressing {
   ArmPose arms = ArmPose::kNone;
   /// Along the trunk: abduction of each arm about its shoulder, radians in
@@ -80,6 +88,9 @@ struct Dressing {
 
   /// The table's sheet; unset: the default sheet of makeBackScene.
   std::optional<Cloth> sheet;
+
+  /// Skin markers on the back (none by default).
+  std::vector<SkinSticker> stickers;
 
   /// Throws std::invalid_argument naming the first bad value (towel edge off
   /// the body, abduction out of range, ...).
@@ -116,6 +127,10 @@ double tubeTopAt(const std::vector<TubeRing>& rings, double x, double y);
 const std::vector<std::pair<std::string, Eigen::Vector3f>>& clothColours();
 /// Colour by name; throws std::invalid_argument listing the names.
 Eigen::Vector3f clothColour(const std::string& name);
+/// Sticker colours by name (linear RGB of printed matte vinyl dots): "green", "blue", "orange", "magenta", "yellow".
+const std::vector<std::pair<std::string, Eigen::Vector3f>>& stickerColours();
+/// Colour by name; throws std::invalid_argument listing the names.
+Eigen::Vector3f stickerColour(const std::string& name);
 /// "fine", "terry", "waffle"; throws std::invalid_argument.
 Weave weaveFromName(const std::string& name);
 /// "none", "along", "raised"; throws std::invalid_argument.
