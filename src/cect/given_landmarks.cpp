@@ -91,28 +91,27 @@ std::string applyGivenLandmarks(BackLandmarks* landmarks, const std::vector<Give
   if (!(l4_row > c7_row)) return "landmark L4 is not below C7 (toward the feet)";
   for (const auto& [name, p] : body) extendMidline(&l, p.y);
 
-  // The midline through the given pixels: shift(y) = a + b y, fitted exactly to one or two points.
-  std::vector<std::pair<double, double>> anchors;  // (row, x shift)
-  for (const auto& [name, p] : body) anchors.emplace_back(p.y, p.x - midlineX(l, p.y));
-  double a = anchors[0].second, b = 0.0;
-  double y_lo = anchors[0].first, y_hi = anchors[0].first;
-  if (anchors.size() == 2) {
-    const auto& [y0, s0] = anchors[0];
-    const auto& [y1, s1] = anchors[1];
-    b = (s1 - s0) / (y1 - y0);
-    a = s0 - b * y0;
-    y_lo = std::min(y0, y1);
-    y_hi = std::max(y0, y1);
-  }
+  // One given: the midline shifted across to pass through it. Two: the straight line through both between them (two
+  // spinous processes fix the spine line; the outline's centre between them leans with the arms, hands and towels),
+  // the silhouette's midline beyond them shifted to join it.
+  const cv::Point2f top = c7 != body.end() ? c7->second : l4->second;     // the given pixel nearest the head ...
+  const cv::Point2f bottom = l4 != body.end() ? l4->second : c7->second;  // ... and the feet (the same when one)
+  const float top_shift = top.x - static_cast<float>(midlineX(l, top.y));
+  const float bottom_shift = bottom.x - static_cast<float>(midlineX(l, bottom.y));
+  const double lean = bottom.y > top.y ? (bottom.x - top.x) / (bottom.y - top.y) : 0.0;  // px across per row
   for (std::size_t i = 0; i < l.midline.size(); ++i) {
     cv::Point2f& m = l.midline[i];
-    const double y = std::clamp(static_cast<double>(m.y), y_lo, y_hi);
-    m.x = static_cast<float>(m.x + a + b * y);
-    if (m.y > y_lo && m.y < y_hi && i < l.lateral.size()) {
-      // The caudal tangent (s, 1) leans by the correction's slope b; the lateral direction turns with it.
-      cv::Point2f& lat = l.lateral[i];
-      const double s = (lat.x != 0.0f ? -lat.y / lat.x : 0.0) + b, norm = std::hypot(1.0, s);
-      lat = cv::Point2f(static_cast<float>(-1.0 / norm), static_cast<float>(s / norm));
+    if (m.y <= top.y) {
+      m.x += top_shift;
+    } else if (m.y >= bottom.y) {
+      m.x += bottom_shift;
+    } else {
+      m.x = static_cast<float>(top.x + lean * (m.y - top.y));
+      if (i < l.lateral.size()) {
+        // Perpendicular to the chord: the caudal tangent (lean, 1) turned toward the subject's left.
+        const double norm = std::hypot(1.0, lean);
+        l.lateral[i] = cv::Point2f(static_cast<float>(-1.0 / norm), static_cast<float>(lean / norm));
+      }
     }
   }
   auto onMidline = [&](float row) { return cv::Point2f(static_cast<float>(midlineX(l, row)), row); };

@@ -679,11 +679,12 @@ void printSummary(const std::vector<SummaryRow>& rows) {
 void printLandmarkSummary(const std::vector<SummaryRow>& rows) {
   std::cout
       << "\nLandmarks against the anatomy (published pairs; mean / p95 mm along the body; spine line mean mm across;\n"
-         "refused = pairs not published; wrong = published with a level more than "
+         "layout = their acupoints against the anatomical ones, mean / p95 mm; refused = pairs not published;\n"
+         "wrong = published with a level more than "
       << fmt(cect::PairScore::kWrongLevelMm, 0) << " mm off)\n"
       << std::left << std::setw(18) << "condition" << std::right << std::setw(14) << "C7" << std::setw(14) << "T7"
-      << std::setw(14) << "L4" << std::setw(8) << "spine" << std::setw(10) << "refused" << std::setw(8) << "wrong"
-      << std::setw(9) << "placed%"
+      << std::setw(14) << "L4" << std::setw(8) << "spine" << std::setw(14) << "layout" << std::setw(10) << "refused"
+      << std::setw(8) << "wrong" << std::setw(9) << "placed%"
       << "\n";
   for (const SummaryRow& r : rows) {
     const cect::ScoreSummary& l = r.landmarks;
@@ -693,7 +694,8 @@ void printLandmarkSummary(const std::vector<SummaryRow>& rows) {
     };
     std::cout << std::left << std::setw(18) << r.condition << std::right << std::setw(14) << level("C7")
               << std::setw(14) << level("T7") << std::setw(14) << level("L4") << std::setw(8)
-              << fmt(l.midline_across.mean, 1) << std::setw(10)
+              << fmt(l.midline_across.mean, 1) << std::setw(14)
+              << (fmt(l.layout.mean, 1) + " / " + fmt(l.layout.p95, 1)) << std::setw(10)
               << (std::to_string(l.refused) + "/" + std::to_string(l.pairs)) << std::setw(8) << l.wrongly_trusted
               << std::setw(9) << fmt(100.0 * l.placedShare(), 1) << "\n";
   }

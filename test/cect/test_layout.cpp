@@ -1,5 +1,6 @@
 // The layout's given landmarks (given_landmarks.h) and plausibility checks (layout_check.h) on hand-made landmarks:
 // a straight back along the image's columns, C7 at row 100 and L4 at row 300 of the body's frame.
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -68,6 +69,33 @@ TEST(GivenLandmarks, TheLevelsAndTheMidlinePassThroughTheGivenPixels) {
   for (const cv::Point2f& v : l.lateral) EXPECT_NEAR(std::hypot(v.x, v.y), 1.0, 1e-5);
   EXPECT_NE(cect::describeLandmarks(l).find("given: C7 (clicked), L4 (service)"), std::string::npos)
       << cect::describeLandmarks(l);
+}
+
+TEST(GivenLandmarks, BothGivenMakeTheSpineLineStraightBetweenThem) {
+  // The outline's centre bowed 15 px toward the subject's right between C7 and L4 (an arm's crease, a hand):
+  // the palpated spinous processes fix the line between them, the outline's shape is kept beyond them.
+  cect::BackLandmarks l = back();
+  for (cv::Point2f& m : l.midline) {
+    const double u = (m.y - 200.0) / 100.0;
+    if (std::abs(u) < 1.0) m.x += static_cast<float>(15.0 * (1.0 - u * u));
+  }
+  const float above = l.midline.front().x, below = l.midline.back().x;  // rows 40 and 420: outside the bow
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", {326.0f, 100.0f}, "marker"}, {"L4", {314.0f, 300.0f}, "marker"}}),
+            "");
+  double worst = 0.0;
+  for (std::size_t i = 0; i < l.midline.size(); ++i) {
+    const cv::Point2f& m = l.midline[i];
+    if (m.y <= 100.0f || m.y >= 300.0f) continue;
+    worst = std::max(worst, std::abs(m.x - (326.0 - 0.06 * (m.y - 100.0))));
+    // Across the chord: perpendicular to (-12, 200), toward the subject's left (the image's left, head up).
+    EXPECT_NEAR(l.lateral[i].x * -12.0 + l.lateral[i].y * 200.0, 0.0, 1e-3);
+    EXPECT_LT(l.lateral[i].x, 0.0f);
+  }
+  EXPECT_LT(worst, 1e-3);
+  EXPECT_NEAR(l.midline.front().x, above + 6.0, 1e-3);  // shifted to join the line at C7 ...
+  EXPECT_NEAR(l.midline.back().x, below - 6.0, 1e-3);   // ... and at L4
+  const cv::Point2f t7 = cect::levelPixel(l, model(), "T7");
+  EXPECT_NEAR(t7.x, 326.0 - 0.06 * (t7.y - 100.0), 0.05);
 }
 
 TEST(GivenLandmarks, OneGivenShiftsTheMidlineAndKeepsTheOther) {

@@ -30,8 +30,9 @@ const std::vector<std::string>& givenLandmarkNames();
 std::string checkGivenLandmarkName(const std::string& name);
 
 /// Puts `given` into `landmarks` (as findLandmarks and the parallax corrections left them): each level at its
-/// pixel's row of the body's frame, the midline moved across to pass through the given pixels (a constant shift
-/// with one, linear between two, constant beyond), `c7_given` / `l4_given` set and the description's "given" list
+/// pixel's row of the body's frame, the midline moved across to pass through the given pixels (with one, shifted by
+/// a constant; with both, the straight line through them between them, the lateral directions perpendicular to it,
+/// and beyond them the midline shifted to join it), `c7_given` / `l4_given` set and the description's "given" list
 /// filled. Clears `along` (measured from the old C7: call measureLevelsIn3D again). Returns an empty string when
 /// applied; else the problem (an unknown name, a name twice, a pixel not finite or not on the back's rows, L4 not
 /// below C7), leaving the landmarks as they were.
