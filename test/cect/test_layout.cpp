@@ -175,7 +175,7 @@ TEST(LayoutCheck, ASqueezedLayoutIsNotTrustedAndSaysWhy) {
   const cect::LayoutCheck c = cect::checkLayout(back(200.0), model(), kScale);
   EXPECT_FALSE(c.trusted);
   ASSERT_EQ(c.problems.size(), 2u) << c.reason();
-  EXPECT_EQ(c.problems[0], "C7 -> L4 0.200 m is outside 0.280..0.650 m");
+  EXPECT_EQ(c.problems[0], "C7 -> L4 0.200 m is outside 0.280..0.580 m");
   EXPECT_EQ(c.problems[1], "C7 -> L4 over the shoulder width 0.56 is outside 0.79..1.65");
 }
 
@@ -267,11 +267,15 @@ TEST(LayoutCheck, TheShoulderLineFarBelowC7IsNotTrusted) {
 TEST(LayoutCheck, AChildSizedOrGiantBackIsNotTrusted) {
   const cect::PixelScale small = [](const cv::Point2f&) { return 0.001; },
                          big = [](const cv::Point2f&) { return 0.004; };
-  EXPECT_NE(cect::checkLayout(back(), model(), small).reason().find("C7 -> L4 0.200 m is outside 0.280..0.650 m"),
+  EXPECT_NE(cect::checkLayout(back(), model(), small).reason().find("C7 -> L4 0.200 m is outside 0.280..0.580 m"),
             std::string::npos);
   EXPECT_NE(
       cect::checkLayout(back(), model(), big).reason().find("the shoulder width 0.720 m is outside 0.280..0.650 m"),
       std::string::npos);
+  // An L4 misread 10 cm toward the feet on an adult back: 0.60 m is longer than a 2.10 m client's C7 -> L4.
+  EXPECT_NE(cect::checkLayout(back(400.0), model(), kScale).reason().find("C7 -> L4 0.600 m is outside 0.280..0.580 m"),
+            std::string::npos)
+      << cect::checkLayout(back(400.0), model(), kScale).reason();
   cect::BackLandmarks none;
   none.reason = "mask is empty";
   EXPECT_EQ(cect::checkLayout(none, model(), kScale).reason(), "layout not trusted: no landmarks: mask is empty");

@@ -70,7 +70,7 @@ struct AcupointModel {
   /// Bounds of a believable layout (layout_check.h; optional in the YAML as `plausibility`): adult sizes with a
   /// margin, and how far the proportions may stray from this model's. Sources: config/acupoints.yaml, docs/cect.md.
   struct Plausibility {
-    double min_length_m = 0.28, max_length_m = 0.65;                  ///< C7 -> L4 along the body
+    double min_length_m = 0.28, max_length_m = 0.58;                  ///< C7 -> L4 along the body
     double min_shoulder_width_m = 0.28, max_shoulder_width_m = 0.65;  ///< the upper back's widest row
     /// C7 -> L4 over the shoulder width may differ from length_per_shoulder_width by this fraction of it.
     double proportion_tolerance = 0.35;
