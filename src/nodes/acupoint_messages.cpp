@@ -1,5 +1,7 @@
 #include "acupoint_messages.h"
 
+#include "tf_lookup.h"
+
 #include <limits>
 
 #include <std_msgs/ColorRGBA.h>
@@ -92,6 +94,29 @@ geometry_msgs::TransformStamped acupointTransform(const std_msgs::Header& header
   t.transform.translation.z = p.position.z();
   t.transform.rotation.w = 1.0;
   return t;
+}
+
+void fillResponse(const std::string& name, const cect::TrackedAcupoint& estimate, const std_msgs::Header& header,
+                  const std::string& target, const tf2_ros::Buffer& tf, double wall_wait,
+                  massage_cell::GetAcupoint::Response* response) {
+  response->success = false;
+  if (!estimate.valid) {
+    response->message = estimate.reason;
+    return;
+  }
+  toRowMajor(estimate.covariance, response->covariance.data());
+  geometry_msgs::PointStamped point;
+  point.header = header;
+  point.point = toPoint(estimate.position);
+  if (target.empty() || target == header.frame_id) {
+    response->point = point;
+    response->success = true;
+    response->message = "in " + header.frame_id;
+    return;
+  }
+  std::string message;
+  response->success = transformPoint(tf, point, target, wall_wait, &response->point, &message);
+  response->message = response->success ? message : "cannot express " + name + " in '" + target + "': " + message;
 }
 
 void fillResponse(const std_msgs::Header& header, const cect::PixelPoints& located,

@@ -9,8 +9,11 @@
 #include <std_msgs/Header.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <tf2_ros/buffer.h>
+
 #include "massage_cell/Acupoint.h"
 #include "massage_cell/BackLandmark.h"
+#include "massage_cell/GetAcupoint.h"
 #include "massage_cell/LocalizePixels.h"
 #include "massage_cell/cect/given_landmarks.h"
 #include "massage_cell/cect/tracker.h"
@@ -35,6 +38,12 @@ geometry_msgs::TransformStamped acupointTransform(const std_msgs::Header& header
 /// ~localize_pixels' response of the library's answer, in `header`'s frame.
 void fillResponse(const std_msgs::Header& header, const cect::PixelPoints& located,
                   massage_cell::LocalizePixels::Response* response);
+
+/// ~get_acupoint's response of the tracker's estimate `estimate` of `name` (stamped with `header`: the pair it was
+/// published with) as a point in `target` (empty: `header`'s frame) through `tf`, waiting up to `wall_wait` s.
+void fillResponse(const std::string& name, const cect::TrackedAcupoint& estimate, const std_msgs::Header& header,
+                  const std::string& target, const tf2_ros::Buffer& tf, double wall_wait,
+                  massage_cell::GetAcupoint::Response* response);
 
 /// A sphere and the name of acupoint number `index` at `position` (DELETE both when it has no estimate); measured
 /// points in their region's colour, held ones grey.

@@ -1,5 +1,5 @@
 // The cect node's dynamic_reconfigure configuration (cfg/CECT.cfg) as the library's parameters: the one place the
-// cfg's names meet cect::CectParams and cect::TemporalFilterParams.
+// cfg's names meet cect::CectParams, cect::LocateOptions and cect::TemporalFilterParams.
 #pragma once
 
 #include <sstream>
@@ -7,6 +7,7 @@
 
 #include "massage_cell/CECTConfig.h"
 #include "massage_cell/cect/cect.h"
+#include "massage_cell/cect/locate.h"
 #include "massage_cell/cect/temporal_filter.h"
 
 namespace massage_cell::nodes {
@@ -50,6 +51,16 @@ inline cect::CectParams cectParams(const CECTConfig& c) {
   p.border_sigma_reach = c.border_sigma_reach;
   p.slope_sigma = c.slope_sigma;
   return p;
+}
+
+/// The acupoint chain's options of the configuration (the given landmarks come from the node's set of them).
+inline cect::LocateOptions locateOptions(const CECTConfig& c) {
+  cect::LocateOptions o;
+  o.correct_parallax = c.correct_parallax;
+  o.levels_in_3d = c.levels_in_3d;
+  o.trust.c7_at_neck = c.require_c7_at_neck;
+  o.trust.l4_measured = c.require_l4_measured;
+  return o;
 }
 
 inline cect::TemporalFilterParams filterParams(const CECTConfig& c) {

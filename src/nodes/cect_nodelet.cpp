@@ -1,8 +1,5 @@
 #include "cect_nodelet.h"
 
-#include <algorithm>
-#include <cmath>
-#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -11,7 +8,6 @@
 #include <ros/package.h>
 #include <sensor_msgs/image_encodings.h>
 #include <visualization_msgs/MarkerArray.h>
-#include <opencv2/imgproc.hpp>
 #include <pluginlib/class_list_macros.hpp>
 
 #include "acupoint_messages.h"
@@ -20,7 +16,6 @@
 #include "massage_cell/AcupointArray.h"
 #include "massage_cell/cect/locate.h"
 #include "start_parameters.h"
-#include "tf_lookup.h"
 #include "typed_param.h"
 
 namespace massage_cell::nodes {
@@ -252,11 +247,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
 cect::TrackerUpdate CectNodelet::track(const cect::CectFrame& frame, const std_msgs::Header& header,
                                        const camera::Decimation& decimation, const Config& config,
                                        cect::BackLandmarks* landmarks) {
-  cect::LocateOptions options;
-  options.correct_parallax = config.correct_parallax;
-  options.levels_in_3d = config.levels_in_3d;
-  options.trust.c7_at_neck = config.require_c7_at_neck;
-  options.trust.l4_measured = config.require_l4_measured;
+  cect::LocateOptions options = locateOptions(config);
   options.given = landmarks_->forPair(frame.geometry(), decimation);
   const cect::LocatedAcupoints located = cect::locateAcupoints(frame, tracker_->model(), options);
   *landmarks = located.landmarks;
@@ -335,32 +326,14 @@ bool CectNodelet::localizePixels(massage_cell::LocalizePixels::Request& request,
 
 bool CectNodelet::getAcupoint(massage_cell::GetAcupoint::Request& request,
                               massage_cell::GetAcupoint::Response& response) {
-  response.success = false;
-  cect::TrackedAcupoint e;
-  geometry_msgs::PointStamped point;
+  cect::TrackedAcupoint estimate;
+  std_msgs::Header header;
   {
     std::lock_guard<std::mutex> lock(tracker_mutex_);
-    e = tracker_->estimate(request.name, ros::Time::now().toSec());
-    point.header = tracker_header_;  // the pair the estimates were published with
+    estimate = tracker_->estimate(request.name, ros::Time::now().toSec());
+    header = tracker_header_;  // the pair the estimates were published with
   }
-  if (!e.valid) {
-    response.message = e.reason;
-    return true;
-  }
-  toRowMajor(e.covariance, response.covariance.data());
-  point.point.x = e.position.x();
-  point.point.y = e.position.y();
-  point.point.z = e.position.z();
-  const std::string& target = request.target_frame;
-  if (target.empty() || target == point.header.frame_id) {
-    response.point = point;
-    response.success = true;
-    response.message = "in " + point.header.frame_id;
-    return true;
-  }
-  std::string message;
-  response.success = transformPoint(*tf_buffer_, point, target, kTfWait, &response.point, &message);
-  response.message = response.success ? message : "cannot express " + request.name + " in '" + target + "': " + message;
+  fillResponse(request.name, estimate, header, request.target_frame, *tf_buffer_, kTfWait, &response);
   return true;
 }
 
