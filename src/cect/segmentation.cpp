@@ -39,8 +39,10 @@
 //   not be: for pale skin the mid-value between skin and sheet is a warm
 //   grey, the floor's colour).
 //
-// * Mask: score > 0, opened and closed (elliptical kernels); of the
-//   resulting regions (outer contours, drawn filled: holes filled) the one
+// * Mask: score > 0, opened and closed (elliptical kernels); pieces of the
+//   back that a thin band across it split (a strap, a seam, a row of paper
+//   tags: gap_join.h) joined again once the arms are cut off (trunk.h); of
+//   the resulting regions (outer contours, drawn filled: holes filled) the one
 //   holding most of the detection. The score is then made to agree with the
 //   mask in sign (see segmentation.h), so zero crossings are exactly the
 //   back's border.
@@ -65,6 +67,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "gap_join.h"
 #include "stats_detail.h"
 
 namespace massage_cell::cect {
@@ -106,6 +109,10 @@ constexpr float kFillMinScore = -0.3f;
 constexpr double kFillInset = 1.0 / 60.0;
 /// Score given to pixels whose sign had to be forced to agree with the mask.
 constexpr float kForcedScore = 0.5f;
+// The smallest piece of skin that may be joined to another across a thin band
+// (gap_join.h), as a share of the image: the neck and shoulders above a strap
+// at T1 in a view down to the buttocks are ~2 %.
+constexpr double kMinPieceShare = 0.01;
 
 // The skin model's medians are the upper middle sample of an even count (its thresholds were tuned with that).
 using detail::median;  // stats_detail.h
@@ -680,6 +687,7 @@ Segmentation segmentBack(const cv::Mat& bgr, const SegmentationParams& params, c
   morphology(&m, cv::MORPH_OPEN, params.open_radius);
   morphology(&m, cv::MORPH_CLOSE, params.close_radius);
   seg.trunk = cutToTrunk(bgr, &m, params.trunk);
+  seg.joined_pieces = detail::joinAcrossThinBands(&m, kMinPieceShare * size.area()).joined;
   const Back back = chooseBack(m, detection, params);
   if (!back.problem.empty()) return invalid(size, back.problem);
   seg.mask = back.mask;

@@ -38,9 +38,33 @@ T fromName(const std::string& what, const std::string& name, const std::vector<s
   throw std::invalid_argument("unknown " + what + " '" + name + "' (expected " + names + ")");
 }
 
+bool inUnitRange(const Eigen::Vector3f& albedo) {
+  return albedo.allFinite() && albedo.minCoeff() >= 0.0f && albedo.maxCoeff() <= 1.0f;
+}
+
 void checkCloth(const char* what, const std::optional<Cloth>& cloth) {
-  if (cloth && !(cloth->albedo.allFinite() && cloth->albedo.minCoeff() >= 0.0f && cloth->albedo.maxCoeff() <= 1.0f)) {
+  if (cloth && !(inUnitRange(cloth->albedo) && inUnitRange(cloth->albedo2))) {
     throw std::invalid_argument(std::string("Dressing: ") + what + " albedo must lie in [0, 1]");
+  }
+  if (cloth && !(cloth->period >= 0.005 && cloth->period <= 0.5)) {
+    throw std::invalid_argument(std::string("Dressing: ") + what + " pattern period " + num(cloth->period) +
+                                " m is not in 0.005 .. 0.5 m");
+  }
+}
+
+void checkSkinMarks(const std::vector<Patch>& patches, const std::vector<Spot>& spots) {
+  for (const Patch& p : patches) {
+    if (!(p.centre.allFinite() && std::isfinite(p.angle) && p.half_size.minCoeff() > 0.0f &&
+          p.half_size.maxCoeff() <= 1.0f && inUnitRange(p.albedo))) {
+      throw std::invalid_argument("Dressing: a skin patch at (" + num(p.centre.x()) + ", " + num(p.centre.y()) +
+                                  ") needs a finite centre and angle, half sides in (0, 1] m and an albedo in [0, 1]");
+    }
+  }
+  for (const Spot& s : spots) {
+    if (!(s.centre.allFinite() && s.radius > 0.0f && s.radius <= 0.05f && inUnitRange(s.albedo))) {
+      throw std::invalid_argument("Dressing: a skin spot at (" + num(s.centre.x()) + ", " + num(s.centre.y()) +
+                                  ") needs a finite centre, a radius in (0, 0.05] m and an albedo in [0, 1]");
+    }
   }
 }
 
@@ -128,6 +152,7 @@ void Dressing::validate(const BackModel& back) const {
   checkCloth("towel", towel);
   checkCloth("sheet", sheet);
   checkStickers(stickers, back);
+  checkSkinMarks(skin_patches, skin_spots);
   if (!towel) return;
   const double lowest = (lower_body ? LowerBody(back).xEnd() : back.extent()[0]) + 0.1;
   const double highest = back.levelX("T1");
@@ -145,7 +170,10 @@ Scene makeCellScene(const BackModel& back, std::uint32_t seed, const Dressing& d
   Scene scene = makeBackScene(back, seed);
   if (d.sheet) scene.meshes[kTableMesh].material = clothMaterial(*d.sheet, seed ^ 0x5eedu);
   const Material skin = plainSkin(scene.meshes[kBackMesh].material);
-  addStickers(d.stickers, back, &scene.meshes[kBackMesh].material);
+  Material& back_skin = scene.meshes[kBackMesh].material;
+  back_skin.spots.insert(back_skin.spots.end(), d.skin_spots.begin(), d.skin_spots.end());
+  back_skin.patches = d.skin_patches;
+  addStickers(d.stickers, back, &back_skin);
   std::optional<LowerBody> lower;
   if (d.lower_body) {
     lower.emplace(back);
@@ -164,6 +192,7 @@ Scene makeCellScene(const BackModel& back, std::uint32_t seed, const Dressing& d
 Material plainSkin(const Material& back_skin) {
   Material m = back_skin;
   m.spots.clear();
+  m.patches.clear();
   return m;
 }
 
@@ -188,6 +217,12 @@ Material clothMaterial(const Cloth& cloth, std::uint32_t seed) {
       m.pattern = Material::Pattern::kWaffle;
       m.feature_size = 0.0065f;
       m.contrast = 0.2f;
+      break;
+    case Weave::kStripes:
+    case Weave::kChecks:
+      m.pattern = cloth.weave == Weave::kStripes ? Material::Pattern::kStripes : Material::Pattern::kChecks;
+      m.albedo2 = cloth.albedo2;
+      m.feature_size = static_cast<float>(cloth.period);
       break;
   }
   return m;
@@ -217,7 +252,12 @@ const std::vector<std::pair<std::string, Eigen::Vector3f>>& clothColours() {
 Eigen::Vector3f clothColour(const std::string& name) { return fromName("cloth colour", name, clothColours()); }
 
 Weave weaveFromName(const std::string& name) {
-  return fromName<Weave>("weave", name, {{"fine", Weave::kFine}, {"terry", Weave::kTerry}, {"waffle", Weave::kWaffle}});
+  return fromName<Weave>("weave", name,
+                         {{"fine", Weave::kFine},
+                          {"terry", Weave::kTerry},
+                          {"waffle", Weave::kWaffle},
+                          {"stripes", Weave::kStripes},
+                          {"checks", Weave::kChecks}});
 }
 
 ArmPose armPoseFromName(const std::string& name) {

@@ -45,6 +45,8 @@ double thickness(Weave w) {
     case Weave::kWaffle:
       return 0.003;
     case Weave::kFine:
+    case Weave::kStripes:
+    case Weave::kChecks:
       return 0.0015;
   }
   return 0.002;

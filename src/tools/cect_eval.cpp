@@ -49,7 +49,7 @@ const char* kUsage = R"(Usage: cect_eval [--experiments ideal,lighting,shift] [-
                  [--yaw DEG] [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX]
                  [--param NAME=VALUE,...] [--csv] [--per-point] [--no-parallax-correction]
                  [--no-3d-levels] [--pictures DIR] [--by-border] [--given-landmarks MM]
-                 [--first-subject N] [--no-layout-check] [--trust-c7-at-top]
+                 [--conditions LIST] [--first-subject N] [--no-layout-check] [--trust-c7-at-top]
                  [--trust-inferred-l4]
 
 Renders prone subjects with the scene simulator and localises points on their
@@ -69,8 +69,10 @@ Experiments (the thesis's Sec. 3.3):
              neck_cut (the image's top edge 1-5 cm above C7), hips_cut (the view
              ending between L2 and mid-buttocks), towel (over the buttocks, many
              colours and weaves), dark_skin (Fitzpatrick V-VI), toe_in (raw
-             toe-in rigs, 1-4 degrees, baselines 6-12 cm) and mixed (all drawn
-             at random; src/tools/cect_scenes.cpp)
+             toe-in rigs, 1-4 degrees, baselines 6-12 cm), mixed (all drawn
+             at random), skin_marks (paper tags on acupoints, a strap or a seam
+             across the back, tattoos, moles; printed sheets) and photo (colour
+             casts, vignetting, motion blur, JPEG; src/tools/cect_scenes.cpp)
 Point sets: `acupoints` (every point of the acupoint model, placed by the model
 from the left view) and `random` (N random back pixels seen by both cameras,
 at least 8 px inside the back's border; default 100 per pair).
@@ -115,6 +117,8 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
                at the neck's base)
   --trust-inferred-l4  trust an L4 inferred from C7 and the shoulder width where
                no waist is seen (the default refuses it)
+  --conditions LIST  the realistic conditions to run, comma-separated (default:
+               all of them, in the order above)
   --first-subject N  the realistic conditions' subjects start at N (default 1;
                the figures of docs/ were tuned on 1..28: 29.. are unseen)
   --per-point  also print, per condition, every acupoint's CECT figures over the
@@ -130,6 +134,7 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
 
 struct Options {
   std::vector<std::string> experiments{"ideal", "lighting", "shift"};
+  std::vector<std::string> conditions;  ///< --conditions: the realistic ones to run (empty: all)
   int subjects = 28;
   int condition_subjects = 8;
   int random_points = 100;
@@ -368,6 +373,10 @@ RenderedPair renderPair(const Options& o, const Condition& c, int subject) {
   sim::RenderOptions ro;
   ro.noise_seed = static_cast<std::uint32_t>(subject);
   r.frame = sim::renderStereoFrame(renderer, r.pair, sim::Lighting::preset(sc.light), ro);
+  if (sc.photo.any()) {
+    r.frame.left.image = sim::applyPhotoArtefacts(r.frame.left.image, sc.photo);
+    r.frame.right.image = sim::applyPhotoArtefacts(r.frame.right.image, sc.photo);
+  }
   return r;
 }
 
@@ -717,7 +726,7 @@ std::vector<Condition> conditionsOf(const Options& o) {
       conditions.push_back({"light_top_centre", sim::LightPreset::kTopCentre, 0.0, range(o.condition_subjects)});
       conditions.push_back({"light_top_right", sim::LightPreset::kTopRight, 0.0, range(o.condition_subjects)});
     } else if (e == "real") {
-      for (const std::string& name : tools::realConditions())
+      for (const std::string& name : o.conditions.empty() ? tools::realConditions() : o.conditions)
         conditions.push_back(
             {name, sim::LightPreset::kTopCentre, 0.0, range(o.condition_subjects, o.first_subject), true});
     } else if (e == "shift") {
@@ -936,6 +945,14 @@ int main(int argc, char** argv) {
           for (const auto& e : o.experiments)
             tools::require(e == "ideal" || e == "lighting" || e == "shift" || e == "real",
                            opt + ": unknown experiment '" + e + "' (ideal, lighting, shift, real)");
+        };
+        t.values["--conditions"] = [&](const std::string& opt, const std::string& v) {
+          o.conditions = tools::splitList(v);
+          const auto& known = tools::realConditions();
+          for (const auto& c : o.conditions)
+            tools::require(std::find(known.begin(), known.end(), c) != known.end(),
+                           opt + ": unknown realistic condition '" + c + "'");
+          tools::require(!o.conditions.empty(), opt + ": empty list");
         };
         t.values["--subjects"] = [&](const std::string& opt, const std::string& v) {
           o.subjects = tools::parseInt(opt, v);

@@ -11,6 +11,7 @@
 #include "massage_cell/sim/body_model.h"
 #include "massage_cell/sim/camera_model.h"
 #include "massage_cell/sim/cell_scene.h"
+#include "massage_cell/sim/photo_artefacts.h"
 #include "massage_cell/sim/renderer.h"
 
 namespace massage_cell::tools {
@@ -22,11 +23,16 @@ struct Scenario {
   sim::RigParameters rig;
   sim::LightPreset light = sim::LightPreset::kTopCentre;
   double yaw_deg = 0.0;  ///< the subject turned on the table
-  std::string summary;   ///< one line: what this pair shows
+  /// What the camera or the photo does to both rendered views (none by default).
+  sim::PhotoArtefacts photo;
+  std::string summary;  ///< one line: what this pair shows
 };
 
 /// The realistic conditions, in order: arms_touching, arms_apart,
-/// arms_raised, neck_cut, hips_cut, towel, dark_skin, toe_in, mixed.
+/// arms_raised, neck_cut, hips_cut, towel, dark_skin, toe_in, mixed,
+/// skin_marks (paper tags on acupoints, a strap or a seam across the back,
+/// tattoos, moles; printed sheets), photo (colour casts, vignetting, motion
+/// blur, JPEG).
 const std::vector<std::string>& realConditions();
 
 /// Subject `subject` (>= 1; BodyParameters::varied) of realistic condition

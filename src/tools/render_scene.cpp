@@ -68,11 +68,11 @@ Dressing of the back preset (default: none of it, the bare back):
   --cradle-cover COLOUR    a cloth cover on the cradle's pad (default: dark vinyl)
   --lower-body             the buttocks down to the gluteal fold and the upper thighs
   --towel COLOUR           a towel over the buttocks / lower back (implies --lower-body)
-  --towel-weave W          fine | terry | waffle (default terry)
+  --towel-weave W          fine | terry | waffle | stripes | checks (default terry)
   --towel-edge POS         the towel's cranial edge (default L4-0.03)
   --towel-tilt DEG         turn of the towel's edge about the vertical (default 0)
   --sheet COLOUR           the table's sheet colour (default: the standard blue-grey sheet)
-  --sheet-weave W          fine | terry | waffle (default fine)
+  --sheet-weave W          fine | terry | waffle | stripes | checks (default fine)
   --sticker LANDMARK=C     a coloured skin marker on a landmark of the back (C7, T1..L5,
                            scapula_inferior_angle_L, iliac_crest_R, ...), repeatable; C: green,
                            blue, orange, magenta, yellow; e.g. --sticker C7=green --sticker L4=blue

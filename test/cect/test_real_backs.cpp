@@ -38,7 +38,7 @@ struct Rendered {
 /// the neck to below L4.
 Rendered render(int index, double abduction, sim::ArmPose arms = sim::ArmPose::kAlongTrunk,
                 sim::HairColour hair = sim::HairColour::kBrown, const std::string& sheet = "",
-                const std::vector<sim::SkinSticker>& stickers = {}) {
+                const std::vector<sim::SkinSticker>& stickers = {}, const std::vector<sim::Patch>& patches = {}) {
   const sim::BodyParameters body = sim::BodyParameters::varied(index);
   sim::BackModel back(body);
   sim::Dressing d;
@@ -50,6 +50,7 @@ Rendered render(int index, double abduction, sim::ArmPose arms = sim::ArmPose::k
   if (!sheet.empty()) d.sheet = sim::Cloth{sim::clothColour(sheet), sim::Weave::kFine};
   d.lower_body = true;
   d.stickers = stickers;
+  d.skin_patches = patches;
   const sim::Scene scene = sim::makeCellScene(back, 1, d);
   const sim::Renderer renderer(scene);
   const sim::RigParameters rig = sim::frameRig(sim::RigParameters{}, 0.12, back.levelX("L4") - 0.12, 0.17);
@@ -175,6 +176,33 @@ TEST(RealBacks, ArmsHeldAwayLeaveTheTrunksWaist) {
   EXPECT_TRUE(l.waist_measured) << cect::describeLandmarks(l);
   const double c7_gt = gtRow(r, g, "C7"), l4_gt = gtRow(r, g, "L4");
   EXPECT_NEAR(cect::toImage(l, l.l4).y, l4_gt, 0.06 * (l4_gt - c7_gt)) << cect::describeLandmarks(l);
+}
+
+TEST(RealBacks, AStrapAcrossTheBackLeavesItWholeAndItsLayoutAsWithout) {
+  // Arms held away: nothing but the strap's band joins the upper back to the lower.
+  const sim::BackModel back(sim::BodyParameters::varied(7));
+  sim::Patch strap;
+  strap.centre = {static_cast<float>(back.levelX("T8")), 0.0f};
+  strap.half_size = {0.0125f, 0.5f};  // 25 mm wide, black
+  strap.albedo = {0.02f, 0.02f, 0.02f};
+  const Rendered plain = render(7, 0.3),
+                 strapped = render(7, 0.3, sim::ArmPose::kAlongTrunk, sim::HairColour::kBrown, "", {}, {strap});
+  const camera::StereoModel g(plain.pair.left_info, plain.pair.right_info);
+  const cect::CectFrame f0 = cect::CectFrame::analyse(plain.frame.left.image, plain.frame.right.image, g, {});
+  const cect::CectFrame f = cect::CectFrame::analyse(strapped.frame.left.image, strapped.frame.right.image, g, {});
+  ASSERT_TRUE(f0.valid() && f.valid()) << f0.reason() << " / " << f.reason();
+  EXPECT_EQ(f0.left().joined_pieces, 0);
+  for (const cect::Segmentation* view : {&f.left(), &f.right()}) EXPECT_GE(view->joined_pieces, 1);
+  const int area0 = cv::countNonZero(f0.left().mask);
+  EXPECT_GT(cv::countNonZero(f.left().mask & f0.left().mask), 0.97 * area0);
+  EXPECT_LT(cv::countNonZero(f.left().mask & ~f0.left().mask), 0.03 * area0);
+  const cect::LocatedAcupoints a0 = cect::locateAcupoints(f0, model()), a = cect::locateAcupoints(f, model());
+  ASSERT_TRUE(a0.valid && a.valid) << a0.reason << " / " << a.reason;
+  const double c7_gt = gtRow(plain, g, "C7"), l4_gt = gtRow(plain, g, "L4");
+  EXPECT_NEAR(cect::toImage(a.landmarks, a.landmarks.c7).y, cect::toImage(a0.landmarks, a0.landmarks.c7).y,
+              0.02 * (l4_gt - c7_gt));
+  EXPECT_NEAR(cect::toImage(a.landmarks, a.landmarks.l4).y, cect::toImage(a0.landmarks, a0.landmarks.l4).y,
+              0.02 * (l4_gt - c7_gt));
 }
 
 TEST(RealBacks, TheTrunksFlankBesideAnArmFollowsTheRimProfile) {

@@ -16,6 +16,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -388,6 +389,62 @@ TEST(SegmentBack, NoSubjectIsNotValid) {
     EXPECT_EQ(cv::countNonZero(seg.mask), 0) << name;
     EXPECT_EQ(cv::countNonZero(seg.score >= 0), 0) << name;
   }
+}
+
+/// A flat skin-coloured "back" (an ellipse) on a grey sheet, with noise.
+cv::Mat flatBack(cv::Size size = {320, 240}) {
+  cv::Mat img(size, CV_8UC3, cv::Scalar(200, 200, 196));
+  cv::ellipse(img, cv::Point(size.width / 2, size.height / 2), cv::Size(size.width / 5, size.height * 9 / 20), 0, 0,
+              360, cv::Scalar(150, 170, 225), cv::FILLED);
+  cv::Mat noise(size, CV_16SC3);
+  cv::randn(noise, cv::Scalar::all(0), cv::Scalar::all(3));
+  cv::Mat out;
+  img.convertTo(out, CV_16SC3);
+  out += noise;
+  out.convertTo(img, CV_8UC3);
+  return img;
+}
+
+TEST(SegmentBack, AThinBandAcrossTheBackDoesNotSplitIt) {
+  const cv::Mat back = flatBack();
+  const cect::Segmentation whole = cect::segmentBack(back);
+  ASSERT_TRUE(whole.valid) << whole.reason;
+  EXPECT_EQ(whole.joined_pieces, 0);
+  const int area = cv::countNonZero(whole.mask);
+  // A black strap (12 px, ~3 cm on this back) and a pale seam-like band, across its middle and a little tilted.
+  for (const auto& [name, colour, width] :
+       {std::tuple<const char*, cv::Scalar, int>{"strap", {20, 20, 20}, 12}, {"paper band", {215, 220, 220}, 10}}) {
+    SCOPED_TRACE(name);
+    cv::Mat cut = back.clone();
+    cv::line(cut, cv::Point(60, 112), cv::Point(260, 128), colour, width);
+    const cect::Segmentation seg = cect::segmentBack(cut);
+    ASSERT_TRUE(seg.valid) << seg.reason;
+    EXPECT_EQ(seg.joined_pieces, 1);
+    // Both halves and the band between them: the whole back.
+    EXPECT_GT(cv::countNonZero(seg.mask & whole.mask), 0.97 * area);
+    EXPECT_LT(cv::countNonZero(seg.mask & ~whole.mask), 0.02 * area);
+  }
+}
+
+TEST(SegmentBack, ABandWiderThanAStrapOrBesideTheBackJoinsNothing) {
+  const cv::Mat back = flatBack();
+  const cect::Segmentation whole = cect::segmentBack(back);
+  ASSERT_TRUE(whole.valid) << whole.reason;
+  const int area = cv::countNonZero(whole.mask);
+  // A towel-wide band (40 px, ~10 cm): the larger piece alone.
+  cv::Mat towel = back.clone();
+  cv::rectangle(towel, cv::Rect(0, 130, 320, 40), cv::Scalar(120, 140, 60), cv::FILLED);
+  const cect::Segmentation cut = cect::segmentBack(towel);
+  ASSERT_TRUE(cut.valid) << cut.reason;
+  EXPECT_EQ(cut.joined_pieces, 0);
+  EXPECT_LT(cv::countNonZero(cut.mask), 0.8 * area);
+  // An "arm": a skin-coloured bar 12-16 px beside the flank over a third of the back's length, not joined.
+  cv::Mat arm = back.clone();
+  cv::rectangle(arm, cv::Rect(236, 85, 30, 70), cv::Scalar(150, 170, 225), cv::FILLED);
+  const cect::Segmentation beside = cect::segmentBack(arm);
+  ASSERT_TRUE(beside.valid) << beside.reason;
+  EXPECT_EQ(beside.joined_pieces, 0);
+  EXPECT_LT(cv::countNonZero(beside.mask & ~whole.mask), 0.02 * area);
 }
 
 TEST(SegmentBack, InvalidImagesThrow) {

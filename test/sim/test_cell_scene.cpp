@@ -17,6 +17,7 @@
 #include "massage_cell/sim/body_model.h"
 #include "massage_cell/sim/cell_scene.h"
 #include "massage_cell/sim/ground_truth.h"
+#include "massage_cell/sim/photo_artefacts.h"
 #include "massage_cell/sim/renderer.h"
 #include "massage_cell/sim/scene_builder.h"
 #include "massage_cell/sim/stereo_frame.h"
@@ -393,6 +394,42 @@ TEST(CellScene, StickersSitOnTheirLandmarksInBothViews) {
   EXPECT_THROW(sim::stickerColour("teal"), std::invalid_argument);
 }
 
+TEST(CellScene, SkinPatchesAndPrintedSheetsRenderWhereTheyAre) {
+  const BackModel back(BodyParameters::mean());
+  const sim::StereoPairModel pair = framedPair(back, 0.06, back.levelX("L4") - 0.2);
+  Dressing d;
+  sim::Patch strap;  // a black strap 2 cm wide across the back at T7
+  strap.centre = {static_cast<float>(back.levelX("T7")), 0.0f};
+  strap.half_size = {0.01f, 0.5f};
+  strap.albedo = {0.02f, 0.02f, 0.02f};
+  d.skin_patches = {strap};
+  d.sheet = sim::Cloth{sim::clothColour("white"), sim::Weave::kStripes, sim::clothColour("dark_blue"), 0.06};
+  const sim::StereoFrame bare = render(back, Dressing{}, pair);
+  const sim::StereoFrame marked = render(back, d, pair);
+  auto pixel = [&](const Eigen::Vector3d& p) {
+    Eigen::Vector2d q;
+    EXPECT_TRUE(pair.left.project(p, &q));
+    return cv::Point(static_cast<int>(std::lround(q.x())), static_cast<int>(std::lround(q.y())));
+  };
+  const cv::Point on = pixel(back.surfacePoint("T7", 2.0)), off = pixel(back.surfacePoint("T3", 2.0));
+  EXPECT_LT(marked.left.image.at<cv::Vec3b>(on)[2], bare.left.image.at<cv::Vec3b>(on)[2] / 3) << "the strap is dark";
+  EXPECT_EQ(marked.left.image.at<cv::Vec3b>(off), bare.left.image.at<cv::Vec3b>(off)) << "the skin beside it is not";
+  EXPECT_EQ(marked.left.labels.at<std::uint8_t>(on), sim::kLabelBack);
+  // The sheet beside the body: both colours, 3 cm bands along the table.
+  const cv::Mat table = marked.left.labels == sim::kLabelTable;
+  cv::Mat blue_over_red = cv::Mat::zeros(table.size(), CV_8U);
+  for (int y = 0; y < table.rows; ++y) {
+    for (int x = 0; x < table.cols; ++x) {
+      const cv::Vec3b c = marked.left.image.at<cv::Vec3b>(y, x);
+      if (table.at<std::uint8_t>(y, x) && c[0] > c[2] + 30) blue_over_red.at<std::uint8_t>(y, x) = 255;
+    }
+  }
+  const double dark_blue = double(cv::countNonZero(blue_over_red)) / cv::countNonZero(table);
+  EXPECT_GT(dark_blue, 0.3);
+  EXPECT_LT(dark_blue, 0.7);
+  EXPECT_EQ(sim::weaveFromName("checks"), sim::Weave::kChecks);
+}
+
 TEST(CellScene, DressingValidation) {
   const BackModel back(BodyParameters::mean());
   auto expectThrowNaming = [&](const Dressing& d, const std::string& name) {
@@ -426,6 +463,57 @@ TEST(CellScene, DressingValidation) {
   expectThrowNaming(d, "T3x");
   d.stickers = {{"C7", sim::stickerColour("green"), 0.2}};
   expectThrowNaming(d, "diameter");
+  d = Dressing{};
+  d.skin_patches = {sim::Patch{}};
+  d.skin_patches[0].half_size.x() = 0.0f;
+  expectThrowNaming(d, "skin patch");
+  d = Dressing{};
+  d.skin_spots = {sim::Spot{}};
+  d.skin_spots[0].radius = 0.2f;
+  expectThrowNaming(d, "skin spot");
+  d = Dressing{};
+  d.sheet = sim::Cloth{};
+  d.sheet->period = 0.001;
+  expectThrowNaming(d, "period");
+}
+
+TEST(PhotoArtefacts, EachChangesTheImageAsACameraWould) {
+  cv::Mat img(120, 160, CV_8UC3, cv::Scalar(100, 140, 180));
+  cv::rectangle(img, cv::Rect(70, 0, 20, 120), cv::Scalar(20, 20, 20), cv::FILLED);
+  sim::PhotoArtefacts none;
+  EXPECT_FALSE(none.any());
+  EXPECT_EQ(cv::norm(sim::applyPhotoArtefacts(img, none), img, cv::NORM_INF), 0.0);
+  sim::PhotoArtefacts cast;
+  cast.colour_gains = {0.8, 1.0, 1.2};
+  const cv::Vec3b c = sim::applyPhotoArtefacts(img, cast).at<cv::Vec3b>(60, 10);
+  EXPECT_EQ(c, cv::Vec3b(80, 140, 216));
+  sim::PhotoArtefacts vignette;
+  vignette.vignetting = 0.4;
+  const cv::Mat v = sim::applyPhotoArtefacts(img, vignette);
+  EXPECT_NEAR(v.at<cv::Vec3b>(60, 40)[2], 180, 25);
+  EXPECT_NEAR(v.at<cv::Vec3b>(0, 0)[2], 0.6 * 180, 6);
+  sim::PhotoArtefacts blur;
+  blur.motion_blur_px = 10.0;  // along x: the dark bar's edges spread, rows do not
+  const cv::Mat b = sim::applyPhotoArtefacts(img, blur);
+  EXPECT_GT(b.at<cv::Vec3b>(60, 67)[2], 40);
+  EXPECT_LT(b.at<cv::Vec3b>(60, 67)[2], 170);
+  EXPECT_EQ(b.at<cv::Vec3b>(60, 20), img.at<cv::Vec3b>(60, 20));
+  sim::PhotoArtefacts jpeg;
+  jpeg.jpeg_quality = 30;
+  const cv::Mat j = sim::applyPhotoArtefacts(img, jpeg);
+  EXPECT_GT(cv::norm(j, img, cv::NORM_INF), 0.0);
+  EXPECT_LT(cv::norm(j, img, cv::NORM_L1) / img.total(), 10.0);
+  EXPECT_EQ(jpeg.describe(), "JPEG 30");
+  using Change = void (*)(sim::PhotoArtefacts&);
+  for (Change bad : std::initializer_list<Change>{[](sim::PhotoArtefacts& a) { a.colour_gains[1] = 2.0; },
+                                                  [](sim::PhotoArtefacts& a) { a.vignetting = 0.9; },
+                                                  [](sim::PhotoArtefacts& a) { a.motion_blur_px = -1.0; },
+                                                  [](sim::PhotoArtefacts& a) { a.jpeg_quality = 101; }}) {
+    sim::PhotoArtefacts a;
+    bad(a);
+    EXPECT_THROW(sim::applyPhotoArtefacts(img, a), std::invalid_argument);
+  }
+  EXPECT_THROW(sim::applyPhotoArtefacts(cv::Mat(), none), std::invalid_argument);
 }
 
 // ---------------------------------------------------------------------------

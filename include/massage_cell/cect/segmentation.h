@@ -73,6 +73,9 @@ struct Segmentation {
   double border_fraction = 0.0;
   /// What was cut away from the skin-coloured region to leave the trunk.
   TrunkReport trunk;
+  /// Pieces of skin joined to another across a thin band that split the back
+  /// (a strap, a seam, a row of paper tags), after the trunk was cut out.
+  int joined_pieces = 0;
 };
 
 /// Segments the back in a BGR (CV_8UC3) image. `background` (optional,

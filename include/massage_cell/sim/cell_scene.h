@@ -39,15 +39,19 @@ enum class HairLength {
 enum class HairColour { kBlack, kBrown, kBlond, kGrey, kRed };
 
 enum class Weave {
-  kFine,   ///< plain fine weave (percale, cotton sheet)
-  kTerry,  ///< terry towelling loops
-  kWaffle  ///< waffle weave
+  kFine,     ///< plain fine weave (percale, cotton sheet)
+  kTerry,    ///< terry towelling loops
+  kWaffle,   ///< waffle weave
+  kStripes,  ///< printed stripes across the table (albedo and albedo2, period apart)
+  kChecks    ///< printed checks (albedo and albedo2)
 };
 
 /// A cloth: colour (linear RGB) and weave.
 struct Cloth {
   Eigen::Vector3f albedo{0.82f, 0.82f, 0.80f};
   Weave weave = Weave::kFine;
+  Eigen::Vector3f albedo2{0.20f, 0.25f, 0.55f};  ///< stripes' and checks' second colour
+  double period = 0.04;                          ///< stripes' and checks' period, metres (0.005 .. 0.5)
 };
 
 /// A coloured adhesive dot a therapist sticks on the skin over a landmark
@@ -91,6 +95,11 @@ struct Dressing {
 
   /// Skin markers on the back (none by default).
   std::vector<SkinSticker> stickers;
+  /// Marks on the back's skin, in world (x, y) (its surface coordinates):
+  /// paper tags, a strap or a seam across it, a tattoo's strokes (patches);
+  /// moles (spots). None by default.
+  std::vector<Patch> skin_patches;
+  std::vector<Spot> skin_spots;
 
   /// Throws std::invalid_argument naming the first bad value (towel edge off
   /// the body, abduction out of range, ...).

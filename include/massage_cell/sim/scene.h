@@ -40,6 +40,15 @@ struct Spot {
   Eigen::Vector3f albedo{0.25f, 0.15f, 0.10f};
 };
 
+/// A rectangle on the skin (a paper tag, a strap or a seam across the back, a
+/// tattoo's stroke), in surface (u, v) metres, with a soft edge of 0.5 mm.
+struct Patch {
+  Eigen::Vector2f centre{0.0f, 0.0f};
+  Eigen::Vector2f half_size{0.01f, 0.005f};  ///< half its sides along its own axes
+  float angle = 0.0f;                        ///< its first axis from u, radians
+  Eigen::Vector3f albedo{0.85f, 0.85f, 0.82f};
+};
+
 /// Surface appearance. Colours are linear RGB in [0, 1].
 struct Material {
   enum class Pattern {
@@ -50,16 +59,20 @@ struct Material {
     kTerry,    ///< terry towelling: a dense field of small loops (feature_size = loop pitch)
     kWaffle,   ///< waffle weave: raised ridges around square cells (feature_size = cell pitch)
     kHair,     ///< hair: fine strands along u (feature_size = strand width), clumps and sheen in the albedo
-    kPrint     ///< printed packaging: ink glyph rows and panels on a pale board (feature_size = glyph pitch)
+    kPrint,    ///< printed packaging: ink glyph rows and panels on a pale board (feature_size = glyph pitch)
+    kStripes,  ///< printed stripes along v, albedo and albedo2 (feature_size = period)
+    kChecks    ///< printed checks, albedo and albedo2 (feature_size = period)
   };
   Pattern pattern = Pattern::kFlat;
   Eigen::Vector3f albedo{0.5f, 0.5f, 0.5f};
-  float specular = 0.0f;       ///< Blinn-Phong specular weight (0 = matte)
-  float shininess = 20.0f;     ///< Blinn-Phong exponent
-  float feature_size = 0.01f;  ///< metres: scale of the pattern
-  float contrast = 0.0f;       ///< pattern amplitude, 0 = uniform, ~0.03 for skin, ~0.6 for textures
+  Eigen::Vector3f albedo2{0.2f, 0.2f, 0.5f};  ///< the second colour of stripes and checks
+  float specular = 0.0f;                      ///< Blinn-Phong specular weight (0 = matte)
+  float shininess = 20.0f;                    ///< Blinn-Phong exponent
+  float feature_size = 0.01f;                 ///< metres: scale of the pattern
+  float contrast = 0.0f;                      ///< pattern amplitude, 0 = uniform, ~0.03 for skin, ~0.6 for textures
   std::uint32_t seed = 0;
-  std::vector<Spot> spots;  ///< skin only
+  std::vector<Spot> spots;     ///< skin only
+  std::vector<Patch> patches;  ///< skin only
 };
 
 /// Albedo of `material` at surface coordinates `uv` (metres). Deterministic.
