@@ -23,8 +23,8 @@
 namespace massage_cell::cect::detail {
 
 struct GapJoinReport {
-  int joined = 0;       ///< pieces joined to another
-  int widest_gap = 0;   ///< the widest band bridged, pixels
+  int joined = 0;               ///< pieces joined to another
+  int widest_gap = 0;           ///< the widest band bridged, pixels
   std::string summary() const;  ///< "" when none, else e.g. "1 piece joined across a 14 px band"
 };
 

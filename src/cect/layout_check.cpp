@@ -107,6 +107,11 @@ LayoutCheck checkLayout(const BackLandmarks& l, const AcupointModel& model, cons
   const double shoulder_mpp = scale ? scale(toImage(l, midlineNear(l, l.shoulder_row))) : kNaN;
   c.shoulder_width_m = l.shoulder_width * (std::isfinite(shoulder_mpp) && shoulder_mpp > 0.0 ? shoulder_mpp : mpp);
   within(&c, c.length_m, pl.min_length_m, pl.max_length_m, "C7 -> L4", " m", 3);
+  if (std::isfinite(rules.client_length_m) && std::isfinite(c.length_m) &&
+      std::abs(c.length_m - rules.client_length_m) > rules.length_tolerance_m)
+    c.problems.push_back("C7 -> L4 " + fixed(c.length_m, 3) + " m, the client's profile says " +
+                         fixed(rules.client_length_m, 3) + " m (more than " + fixed(rules.length_tolerance_m, 3) +
+                         " m apart: a landmark palpated a vertebra off, or another client)");
   if (!both_given)
     within(&c, c.shoulder_width_m, pl.min_shoulder_width_m, pl.max_shoulder_width_m, "the shoulder width", " m", 3);
   // Proportions, where they are not the model's own.

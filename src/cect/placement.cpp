@@ -232,7 +232,7 @@ std::vector<AcupointPixel> placeAcupoints(const BackLandmarks& landmarks, const 
       continue;
     }
     // In the body's frame, then into the image.
-    const cv::Point2f p0 = midlineAt(landmarks, levelRow(landmarks, level->second));
+    const cv::Point2f p0 = midlineAt(landmarks, levelRow(landmarks, level->second + spec.level_offset));
     if (spec.lateral_cun == 0.0) {
       a.pixel = toImage(landmarks, p0);
       a.valid = true;

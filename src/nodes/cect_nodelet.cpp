@@ -113,12 +113,26 @@ void CectNodelet::loadModel() {
     }
     model_path_ = root + "/config/acupoints.yaml";
   }
+  cect::AcupointModel model;
   try {
-    tracker_ = std::make_unique<cect::AcupointTracker>(cect::loadAcupointModel(model_path_));
+    model = cect::loadAcupointModel(model_path_);
   } catch (const std::exception& e) {
     NODELET_FATAL_STREAM("acupoint model " << model_path_ << ": " << e.what());
     throw;
   }
+  const std::string profile = typedParam<std::string>(pnh, "client_profile_file", "");
+  if (!profile.empty()) {
+    try {
+      client_ = cect::loadClientProfile(profile);
+      model = cect::withCorrections(model, client_);
+      NODELET_INFO_STREAM("client profile " << profile << ": '" << client_.client << "', " << client_.corrections.size()
+                                            << " corrections");
+    } catch (const std::exception& e) {
+      client_ = {};
+      NODELET_ERROR_STREAM(e.what() << "; going on without the client's profile");
+    }
+  }
+  tracker_ = std::make_unique<cect::AcupointTracker>(model);
 }
 
 cect::CectParams CectNodelet::pairParams(const Config& config) const {
@@ -249,6 +263,8 @@ cect::TrackerUpdate CectNodelet::track(const cect::CectFrame& frame, const std_m
                                        cect::BackLandmarks* landmarks) {
   cect::LocateOptions options = locateOptions(config);
   options.given = landmarks_->forPair(frame.geometry(), decimation);
+  options.trust.client_length_m = client_.c7_to_l4_m;
+  options.trust.length_tolerance_m = client_.length_tolerance_m;
   const cect::LocatedAcupoints located = cect::locateAcupoints(frame, tracker_->model(), options);
   *landmarks = located.landmarks;
   if (skin_markers_) {

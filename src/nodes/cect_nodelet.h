@@ -17,7 +17,10 @@
 // nearest to it. They replace the found ones in every pair until cleared.
 // Skin markers (~skin_markers_file, a kit: cect/skin_markers.h): coloured
 // dots at C7 / L4 found in both views of every pair are given landmarks too,
-// followed as the subject breathes; a click overrides a marker.
+// followed as the subject breathes; a click overrides a marker. A client's
+// profile (~client_profile_file: cect/client_profile.h) moves the model's
+// points by its corrections and refuses layouts whose C7 -> L4 disagrees
+// with the client's.
 //
 // Validity: an acupoint is published valid while the temporal filter holds
 // an estimate refreshed within max_age (so a point this pair could not
@@ -68,6 +71,7 @@
 #include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
+#include "massage_cell/cect/client_profile.h"
 #include "massage_cell/cect/tracker.h"
 #include "stereo_pair_input.h"
 #include "wall_diagnostics.h"
@@ -125,6 +129,7 @@ class CectNodelet : public nodelet::Nodelet {
   std::unique_ptr<LandmarkInput> landmarks_;  ///< a therapist's landmarks (its services and clicks)
   std::string frame_prefix_ = "acupoint/";
   std::optional<cect::SkinMarkerOptions> skin_markers_;  ///< the kit of ~skin_markers_file (read once at start-up)
+  cect::ClientProfile client_;                           ///< ~client_profile_file (read once at start-up; or none)
 
   // The acupoint model (read once at start-up) and the acupoints tracked over the pairs: written by the worker,
   // read by ~get_acupoint (guarded by tracker_mutex_).

@@ -27,6 +27,7 @@
 #include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
+#include "massage_cell/cect/client_profile.h"
 #include "massage_cell/cect/locate.h"
 #include "massage_cell/cect/segmentation.h"
 #include "package_paths.h"
@@ -45,9 +46,10 @@ const char* const kUsage =
                    [--min-depth M] [--max-depth M] [--param NAME=VALUE,...]
                    [--no-parallax-correction] [--no-3d-levels] [--landmark NAME=U,V ...]
                    [--trust-c7-at-top] [--trust-inferred-l4]
+                   [--profile FILE] [--save-profile FILE [--client NAME]]
        cect_locate --layout-only IMAGE.png [--acupoints FILE] [--format yaml|csv]
                    [--output FILE] [--overlay OUT.png] [--landmark NAME=U,V ...] [--trust-c7-at-top]
-                   [--trust-inferred-l4]
+                   [--trust-inferred-l4] [--profile FILE]
 
 Finds the acupoints of the acupoint model on a subject lying prone (head toward
 the image top unless the model says `head_up: false`).
@@ -70,6 +72,13 @@ Options:
   --left-info, --right-info FILE   their camera_info YAML files
   --layout-only IMAGE      one image, pixels only (no stereo options then)
   --acupoints FILE         the acupoint model (default: the package's config/acupoints.yaml)
+  --profile FILE           a client's profile (cect/client_profile.h): its per-point
+                           corrections move the model's points; its C7 -> L4 (stereo
+                           mode) must agree with this pair's within its tolerance, or
+                           the layout is "not trusted"
+  --save-profile FILE      (stereo mode, C7 and L4 both given) write the client's profile:
+                           this pair's C7 -> L4 and the corrections of --profile
+  --client NAME            the client's id in the saved profile
   --landmark NAME=U,V      a landmark a therapist palpated, at raw left pixel (U, V): C7
                            (the vertebra prominens) or L4 (the iliac crests' line); it
                            replaces the found one (repeat the option for both)
@@ -149,6 +158,9 @@ struct Options {
   std::vector<cect::GivenLandmark> landmarks;  ///< --landmark, raw left pixels
   bool trust_c7_at_top = false;                ///< --trust-c7-at-top
   bool trust_inferred_l4 = false;              ///< --trust-inferred-l4
+  std::string profile;                         ///< --profile FILE: a client's profile applied
+  std::string save_profile;                    ///< --save-profile FILE
+  std::string client;                          ///< --client NAME (with --save-profile)
   bool stereo() const { return layout_only.empty(); }
 };
 
@@ -262,9 +274,33 @@ camera::CameraCalibration readInfo(const std::string& path, const cv::Mat& image
   return c;
 }
 
-cect::AcupointModel loadModel(const Options& o) {
+cect::AcupointModel loadModel(const Options& o, const cect::ClientProfile& profile) {
   const std::string path = o.acupoints.empty() ? tools::packageFile("config/acupoints.yaml") : o.acupoints;
-  return cect::loadAcupointModel(path);
+  return cect::withCorrections(cect::loadAcupointModel(path), profile);
+}
+
+std::string oneLine(std::string s);
+
+/// The client's profile (--profile), or an empty one.
+cect::ClientProfile loadProfile(const Options& o) {
+  cect::ClientProfile p;
+  if (!o.profile.empty()) p = cect::loadClientProfile(o.profile);
+  return p;
+}
+
+/// --save-profile: the client's C7 -> L4 from this pair (both landmarks given, the layout trusted) with the
+/// corrections of --profile carried over.
+void saveProfile(const Options& o, cect::ClientProfile profile, const cect::LocatedAcupoints& located) {
+  const cect::BackLandmarks& l = located.landmarks;
+  // What the pair gave, not the options: errors of content (exit 1).
+  if (!(l.c7_given && l.l4_given))
+    throw std::runtime_error(
+        "--save-profile: C7 and L4 must both be given (--landmark or skin markers) to measure the client's C7 -> L4");
+  if (!(located.valid && located.check.trusted && std::isfinite(located.check.length_m)))
+    throw std::runtime_error("--save-profile: no trusted C7 -> L4 on this pair: " + oneLine(located.reason));
+  if (!o.client.empty()) profile.client = o.client;
+  profile.c7_to_l4_m = located.check.length_m;
+  cect::saveClientProfile(profile, o.save_profile);
 }
 
 cect::CectParams cectParams(const Options& o) {
@@ -334,18 +370,22 @@ Report stereoReport(const Options& o, const cect::CectFrame& frame, const cect::
   return r;
 }
 
-Report locateStereo(const Options& o, const cect::AcupointModel& model) {
+Report locateStereo(const Options& o, const cect::AcupointModel& model, const cect::ClientProfile& profile) {
   const StereoInput in = readPair(o);
   const cect::CectFrame frame = cect::CectFrame::analyse(in.left, in.right, in.geometry, cectParams(o));
   cect::LocateOptions lo;
   lo.correct_parallax = o.parallax;
   lo.levels_in_3d = o.levels_3d;
-  lo.trust = {!o.trust_c7_at_top, !o.trust_inferred_l4};
+  lo.trust.c7_at_neck = !o.trust_c7_at_top;
+  lo.trust.l4_measured = !o.trust_inferred_l4;
+  lo.trust.client_length_m = profile.c7_to_l4_m;
+  lo.trust.length_tolerance_m = profile.length_tolerance_m;
   for (const cect::GivenLandmark& g : o.landmarks)
     lo.given.push_back({g.name, in.geometry.toRectified(g.pixel), g.source});
   const auto t0 = std::chrono::steady_clock::now();
   const cect::LocatedAcupoints located = cect::locateAcupoints(frame, model, lo);
   const double locate_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (!o.save_profile.empty()) saveProfile(o, profile, located);
   Report r = stereoReport(o, frame, located);
   r.locate_ms = locate_ms;
   return r;
@@ -591,8 +631,9 @@ std::string oneLine(std::string s) {
 void run(const Options& o) {
   // The tool reports its own errors, one line each.
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_ERROR);
-  const cect::AcupointModel model = loadModel(o);
-  const Report r = o.stereo() ? locateStereo(o, model) : locateLayout(o, model);
+  const cect::ClientProfile profile = loadProfile(o);
+  const cect::AcupointModel model = loadModel(o, profile);
+  const Report r = o.stereo() ? locateStereo(o, model, profile) : locateLayout(o, model);
   writeText(o, o.format == "csv" ? toCsv(r) : toYaml(r));
   if (!o.overlay.empty()) writeOverlay(o, r);
   if (!r.valid) std::cerr << "cect_locate: warning: no acupoints: " << oneLine(r.reason) << "\n";
@@ -640,6 +681,12 @@ tools::OptionTable optionTable(Options& o) {
   t.values["--right-info"] = path(&o.right_info);
   t.values["--layout-only"] = path(&o.layout_only);
   t.values["--acupoints"] = path(&o.acupoints);
+  t.values["--profile"] = path(&o.profile);
+  t.values["--save-profile"] = path(&o.save_profile);
+  t.values["--client"] = [&o](const std::string& opt, const std::string& v) {
+    require(!v.empty(), opt + ": empty name");
+    o.client = v;
+  };
   t.values["--output"] = path(&o.output);
   t.values["--overlay"] = [&o](const std::string& opt, const std::string& v) {
     require(!v.empty(), opt + ": empty file name");
@@ -675,9 +722,11 @@ tools::OptionTable optionTable(Options& o) {
 
 /// The combination of options: one of the two modes, complete.
 void checkOptions(const Options& o) {
+  require(o.client.empty() || !o.save_profile.empty(), "--client names the client in --save-profile's file: give both");
   if (!o.stereo()) {
     require(o.left.empty() && o.right.empty() && o.left_info.empty() && o.right_info.empty(),
             "--layout-only takes one image: no --left / --right / --left-info / --right-info");
+    require(o.save_profile.empty(), "--save-profile needs a stereo pair (the client's C7 -> L4 in metres)");
     require(o.params.empty() && std::isnan(o.min_depth) && std::isnan(o.max_depth) && o.parallax && o.levels_3d,
             "--param, --min-depth, --max-depth, --no-parallax-correction and --no-3d-levels need a stereo pair "
             "(not --layout-only)");

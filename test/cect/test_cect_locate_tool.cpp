@@ -492,6 +492,32 @@ TEST(CectLocateTool, AC7WithoutANeckIsNotTrustedUntilGiven) {
   }
   expectFailure(p.args(true) + " --landmark T3=10,10", 2, "unknown landmark 'T3'");
   expectFailure(p.args(true) + " --landmark C7=10", 2, "expected the pixel as U,V");
+
+  // The client's profile: saved from this session (C7 and L4 given), applied in the next.
+  const std::string profile = p.file("client.yaml");
+  runOk(p.args(true) + given + " --save-profile " + profile + " --client subject0", p.file("saved.yaml"));
+  const YAML::Node saved = YAML::LoadFile(profile);
+  EXPECT_EQ(saved["client"].as<std::string>(), "subject0");
+  const double length = saved["c7_to_l4_m"].as<double>();
+  EXPECT_GT(length, 0.3);
+  EXPECT_LT(length, 0.55);
+  const YAML::Node again = YAML::Load(runOk(p.args(true) + given + " --profile " + profile, p.file("again.yaml")));
+  EXPECT_TRUE(again["valid"].as<bool>()) << again["reason"].as<std::string>();
+  // A profile 5 cm longer (another client, or a landmark a vertebra off): refused, saying so.
+  {
+    YAML::Node other = YAML::LoadFile(profile);
+    other["c7_to_l4_m"] = length + 0.05;
+    other["corrections"]["GV14"]["along"] = 0.0;
+    std::ofstream(p.file("other.yaml")) << other << "\n";
+  }
+  const YAML::Node refused_other =
+      YAML::Load(runOk(p.args(true) + given + " --profile " + p.file("other.yaml"), p.file("other_out.yaml")));
+  EXPECT_FALSE(refused_other["valid"].as<bool>());
+  EXPECT_NE(refused_other["reason"].as<std::string>().find("the client's profile says"), std::string::npos)
+      << refused_other["reason"].as<std::string>();
+  expectFailure(p.args(true) + " --save-profile " + p.file("x.yaml"), 1, "C7 and L4 must both be given");
+  expectFailure(p.args(true) + " --client x", 2, "--client names the client");
+  expectFailure(p.args(true) + " --profile " + p.file("missing.yaml"), 1, "client profile '" + p.file("missing.yaml"));
 }
 
 }  // namespace

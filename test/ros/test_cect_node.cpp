@@ -302,7 +302,7 @@ TEST_F(CectNode, BagOutputs) {
 
   // 7. Diagnostics of the node on the bag (published once a second on the wall clock: wait for the one that has
   // counted the bag's last pair, which a loaded machine can still be processing).
-  spinUntil([&] { return status.count("pairs received") >= static_cast<long>(truth.size()); }, 3.0);
+  spinUntil([&] { return status.count("pairs received") >= static_cast<long>(truth.size()); }, 10.0);
   ASSERT_TRUE(status.seen) << "no diagnostics from stereo/cect";
   EXPECT_EQ(status.count("bad pairs"), 0) << status.text("last error");
   EXPECT_EQ(status.count("pairs received"), static_cast<long>(truth.size()));

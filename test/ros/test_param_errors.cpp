@@ -47,6 +47,17 @@ TEST(ParamErrors, ReconfigurableParametersOfTheWrongType) {
   expectStartupError(HBDS_NODE, "_downsample:=half", "parameter ~downsample must be an integer");
 }
 
+/// A client's profile that cannot be read is an error in the log, not a stop: the node goes on without it.
+TEST(ParamErrors, AnUnreadableClientProfileIsLoggedAndTheNodeGoesOn) {
+  const auto result =
+      runCommand(std::string(CECT_NODE) + " __name:=bad_profile _client_profile_file:=/nonexistent/client.yaml", 6);
+  EXPECT_EQ(result.exit_code, -1) << "the node stopped\n" << result.output;
+  EXPECT_NE(result.output.find("client profile '/nonexistent/client.yaml': cannot read the file; going on without "
+                               "the client's profile"),
+            std::string::npos)
+      << result.output;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {

@@ -27,6 +27,9 @@ struct AcupointSpec {
   std::string level;         ///< vertebral level "C7", "T1".."T12", "L1".."L5"
   double lateral_cun = 0.0;  ///< toward the subject's left (+) or right (-)
   std::string region;        ///< "upper_back", "lower_back", "midline", "shoulder": the arm's press limits key on it
+  /// Along the body from the level, a fraction of C7 -> L4 toward L4: a client's correction (client_profile.h; 0 in
+  /// the model's file).
+  double level_offset = 0.0;
 };
 
 struct AcupointModel {

@@ -6,6 +6,7 @@
 // (AcupointModel::plausibility, config/acupoints.yaml).
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,10 @@ struct TrustRules {
   /// hide the waist) it was 23 mm off on average, 88 mm at the 95th percentile, and 15 of the 21 layouts published
   /// more than 4 cm off.
   bool l4_measured = true;
+  /// A client's C7 -> L4 from an earlier session (client_profile.h; NaN: none): the layout's own, where the back's
+  /// 3D gives it, must agree within `length_tolerance_m`.
+  double client_length_m = std::numeric_limits<double>::quiet_NaN();
+  double length_tolerance_m = 0.03;
 };
 
 /// Checks the landmarks (after the corrections and any given landmarks) with `scale` (metres per pixel at a

@@ -1,0 +1,57 @@
+// A client's profile: what a therapist learnt about one subject's back,
+// saved after a session and applied again in the next one. ROS-free
+// (yaml-cpp).
+//
+// - c7_to_l4_m: C7 -> L4 along the body (metres) measured with both
+//   landmarks given (clicks or skin markers). In a later session the layout's
+//   own C7 -> L4 must agree within length_tolerance_m (TrustRules), else the
+//   layout is refused: a landmark palpated a vertebra off, or another client.
+// - corrections: per acupoint, where the therapist found it against the
+//   model's layout, in the layout's own units so that they apply again to
+//   any later layout of the same back (re-registered by its landmarks):
+//   `along` a fraction of C7 -> L4 toward L4, `across_cun` cun toward the
+//   subject's left.
+//
+// File (YAML):
+//   format: massage_cell/client_profile 1
+//   client: "A. N. Other"            # any id the therapist uses
+//   c7_to_l4_m: 0.452                # optional
+//   corrections:                     # optional
+//     BL23_L: {along: 0.012, across_cun: -0.2}
+#pragma once
+
+#include <limits>
+#include <map>
+#include <string>
+
+#include "massage_cell/cect/acupoint_model.h"
+
+namespace massage_cell::cect {
+
+struct AcupointCorrection {
+  double along = 0.0;       ///< fraction of C7 -> L4 toward L4, |along| <= 0.1
+  double across_cun = 0.0;  ///< cun toward the subject's left, |across_cun| <= 1
+};
+
+struct ClientProfile {
+  std::string client;
+  double c7_to_l4_m = std::numeric_limits<double>::quiet_NaN();  ///< NaN: not measured
+  double length_tolerance_m = 0.03;  ///< ~ a vertebra's height at L1..L4 is 3.5 cm
+  std::map<std::string, AcupointCorrection> corrections;
+};
+
+/// Reads a profile. Throws std::runtime_error naming the file and the bad
+/// field (missing or other format line, a length outside 0.2 .. 0.8 m, a
+/// correction beyond its limit).
+ClientProfile loadClientProfile(const std::string& path);
+
+/// Writes a profile (the format above). Throws std::runtime_error when the
+/// file cannot be written, std::invalid_argument for values outside the limits.
+void saveClientProfile(const ClientProfile& profile, const std::string& path);
+
+/// The model with the profile's corrections on its points. Throws
+/// std::invalid_argument naming a correction for an acupoint the model does
+/// not have.
+AcupointModel withCorrections(const AcupointModel& model, const ClientProfile& profile);
+
+}  // namespace massage_cell::cect
