@@ -1,5 +1,6 @@
 #!/bin/bash
-# Checks that every tracked C/C++ file follows .clang-format (ctest's
+# Checks that every C/C++ file git knows or would add (tracked, or untracked
+# and not ignored) follows .clang-format (ctest's
 # check_format). Usage: scripts/check_format.sh [FILE...]   (default: all of
 # them). Prints each file that does not, with clang-format's first complaint;
 # fix with `clang-format -i FILE` (or `git clang-format` on staged changes).
@@ -10,7 +11,7 @@ command -v clang-format >/dev/null || { echo "check_format.sh: clang-format is n
 if [ $# -gt 0 ]; then
   files=("$@")
 elif git rev-parse --is-inside-work-tree >/dev/null 2>&1; then
-  mapfile -t files < <(git ls-files '*.cpp' '*.h' '*.hpp')
+  mapfile -t files < <(git ls-files --cached --others --exclude-standard '*.cpp' '*.h' '*.hpp')
 else
   mapfile -t files < <(find include src test -name '*.cpp' -o -name '*.h' -o -name '*.hpp' | sort)
 fi

@@ -53,7 +53,8 @@ double number(const YAML::Node& node, const std::string& field) {
 ClientProfile parse(const YAML::Node& root) {
   if (!root.IsMap()) throw std::runtime_error("not a YAML map");
   if (!root["format"] || root["format"].as<std::string>() != kFormat)
-    throw std::runtime_error(std::string("no 'format: ") + kFormat + "' line (not a client profile, or another version)");
+    throw std::runtime_error(std::string("no 'format: ") + kFormat +
+                             "' line (not a client profile, or another version)");
   ClientProfile p;
   if (root["client"]) p.client = root["client"].as<std::string>();
   if (root["c7_to_l4_m"]) p.c7_to_l4_m = number(root["c7_to_l4_m"], "c7_to_l4_m");

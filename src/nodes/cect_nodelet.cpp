@@ -5,7 +5,6 @@
 
 #include <cv_bridge/cv_bridge.h>
 #include <geometry_msgs/TransformStamped.h>
-#include <ros/package.h>
 #include <sensor_msgs/image_encodings.h>
 #include <visualization_msgs/MarkerArray.h>
 #include <pluginlib/class_list_macros.hpp>
@@ -16,7 +15,6 @@
 #include "massage_cell/AcupointArray.h"
 #include "massage_cell/cect/locate.h"
 #include "start_parameters.h"
-#include "typed_param.h"
 
 namespace massage_cell::nodes {
 
@@ -102,56 +100,10 @@ void CectNodelet::init() {
                                     << frame_prefix_ << "<name>");
 }
 
-void CectNodelet::loadModel() {
-  ros::NodeHandle& pnh = getPrivateNodeHandle();
-  model_path_ = typedParam<std::string>(pnh, "acupoints_file", "");
-  if (model_path_.empty()) {
-    const std::string root = ros::package::getPath("massage_cell");
-    if (root.empty()) {
-      NODELET_FATAL("parameter ~acupoints_file is not set and package massage_cell is not found to take its default");
-      throw std::runtime_error("no acupoint model");
-    }
-    model_path_ = root + "/config/acupoints.yaml";
-  }
-  cect::AcupointModel model;
-  try {
-    model = cect::loadAcupointModel(model_path_);
-  } catch (const std::exception& e) {
-    NODELET_FATAL_STREAM("acupoint model " << model_path_ << ": " << e.what());
-    throw;
-  }
-  const std::string profile = typedParam<std::string>(pnh, "client_profile_file", "");
-  if (!profile.empty()) {
-    try {
-      client_ = cect::loadClientProfile(profile);
-      model = cect::withCorrections(model, client_);
-      NODELET_INFO_STREAM("client profile " << profile << ": '" << client_.client << "', " << client_.corrections.size()
-                                            << " corrections");
-    } catch (const std::exception& e) {
-      client_ = {};
-      NODELET_ERROR_STREAM(e.what() << "; going on without the client's profile");
-    }
-  }
-  tracker_ = std::make_unique<cect::AcupointTracker>(model);
-}
-
 cect::CectParams CectNodelet::pairParams(const Config& config) const {
   cect::CectParams params = cectParams(config);
   params.skin_markers = skin_markers_;
   return params;
-}
-
-void CectNodelet::loadSkinMarkers() {
-  const std::string path = typedParam<std::string>(getPrivateNodeHandle(), "skin_markers_file", "");
-  if (path.empty()) return;
-  try {
-    skin_markers_ = cect::loadSkinMarkerOptions(path);
-    NODELET_INFO_STREAM("skin markers: " << skin_markers_->markers.size() << " from " << path);
-  } catch (const std::exception& e) {
-    NODELET_ERROR_STREAM(
-        "skin markers " << path << ": " << e.what()
-                        << "; going on without them (landmarks from the image, clicks, ~set_landmark)");
-  }
 }
 
 void CectNodelet::configCb(Config& config, uint32_t /*level*/) {

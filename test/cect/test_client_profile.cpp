@@ -112,8 +112,8 @@ TEST(ClientProfile, CorrectionsMoveTheirPointInTheLayoutsUnits) {
   const cect::BackLandmarks l = straightBack();
   const cect::AcupointModel m = twoPoints();
   cect::ClientProfile p;
-  p.corrections["GV9"] = {0.05, 0.0};     // 5 % of C7 -> L4 toward L4: 10 rows here
-  p.corrections["BL17_L"] = {0.0, 0.5};   // half a cun further left
+  p.corrections["GV9"] = {0.05, 0.0};    // 5 % of C7 -> L4 toward L4: 10 rows here
+  p.corrections["BL17_L"] = {0.0, 0.5};  // half a cun further left
   const auto before = cect::placeAcupoints(l, m, kScale);
   const auto after = cect::placeAcupoints(l, cect::withCorrections(m, p), kScale);
   const cv::Point2f gv0 = pixelOf(before, "GV9"), gv1 = pixelOf(after, "GV9");

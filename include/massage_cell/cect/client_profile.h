@@ -36,7 +36,7 @@ struct AcupointCorrection {
 struct ClientProfile {
   std::string client;
   double c7_to_l4_m = std::numeric_limits<double>::quiet_NaN();  ///< NaN: not measured
-  double length_tolerance_m = 0.03;  ///< ~ a vertebra's height at L1..L4 is 3.5 cm
+  double length_tolerance_m = 0.03;                              ///< ~ a vertebra's height at L1..L4 is 3.5 cm
   std::map<std::string, AcupointCorrection> corrections;
 };
 
