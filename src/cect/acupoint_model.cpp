@@ -106,8 +106,9 @@ void AcupointModel::validate() const {
     fail("shoulder_below_c7 = " + num(shoulder_below_c7) + " is not in [0, 0.5)");
   if (!(length_per_shoulder_width > 0.3 && length_per_shoulder_width < 3.0))
     fail("length_per_shoulder_width = " + num(length_per_shoulder_width) + " is not in (0.3, 3)");
-  for (const double v : {layout_sigma.c7_measured, layout_sigma.c7_inferred, layout_sigma.l4_measured,
-                         layout_sigma.l4_inferred, layout_sigma.c7_given, layout_sigma.l4_given, layout_sigma.across})
+  for (const double v :
+       {layout_sigma.c7_measured, layout_sigma.c7_inferred, layout_sigma.l4_measured, layout_sigma.l4_inferred,
+        layout_sigma.c7_given, layout_sigma.l4_given, layout_sigma.level_given, layout_sigma.across})
     if (!(v >= 0.0 && v < 1.0)) fail("layout_sigma: " + num(v) + " is not in [0, 1)");
   const Plausibility& pl = plausibility;
   if (!(pl.min_length_m > 0.0 && pl.min_length_m < pl.max_length_m))
@@ -118,6 +119,8 @@ void AcupointModel::validate() const {
          " must be > 0 and < max_shoulder_width_m " + num(pl.max_shoulder_width_m));
   if (!(pl.proportion_tolerance > 0.0 && pl.proportion_tolerance < 1.0))
     fail("plausibility: proportion_tolerance " + num(pl.proportion_tolerance) + " is not in (0, 1)");
+  if (!(pl.given_level_tolerance > 0.0 && pl.given_level_tolerance < 0.5))
+    fail("plausibility: given_level_tolerance " + num(pl.given_level_tolerance) + " is not in (0, 0.5)");
   if (!(pl.min_shoulder_below_c7 < pl.max_shoulder_below_c7))
     fail("plausibility: min_shoulder_below_c7 must be < max_shoulder_below_c7");
   if (!(waist_fraction > 0.0 && waist_fraction < 1.5)) {
@@ -175,11 +178,14 @@ AcupointModel acupointModel(const std::string& path) {
                       : key == "l4_inferred" ? &l.l4_inferred
                       : key == "c7_given"    ? &l.c7_given
                       : key == "l4_given"    ? &l.l4_given
+                      : key == "level_given" ? &l.level_given
                       : key == "across"      ? &l.across
                                              : nullptr;
       if (!field)
-        throw std::runtime_error(at + ": unknown key '" + key +
-                                 "' (c7_measured, c7_inferred, l4_measured, l4_inferred, c7_given, l4_given, across)");
+        throw std::runtime_error(
+            at + ": unknown key '" + key +
+            "' (c7_measured, c7_inferred, l4_measured, l4_inferred, c7_given, l4_given, level_given, "
+            "across)");
       *field = get<double>(ls, key, at);
     }
   }
@@ -193,7 +199,8 @@ AcupointModel acupointModel(const std::string& path) {
                                                 {"max_shoulder_width_m", &b.max_shoulder_width_m},
                                                 {"proportion_tolerance", &b.proportion_tolerance},
                                                 {"min_shoulder_below_c7", &b.min_shoulder_below_c7},
-                                                {"max_shoulder_below_c7", &b.max_shoulder_below_c7}};
+                                                {"max_shoulder_below_c7", &b.max_shoulder_below_c7},
+                                                {"given_level_tolerance", &b.given_level_tolerance}};
     for (const auto& kv : pl) {
       const std::string key = kv.first.as<std::string>();
       const auto field = fields.find(key);

@@ -149,6 +149,12 @@ inline cv::Point2f midlineAt(const BackLandmarks& l, double y) {
   return {static_cast<float>(m[i].x + f * (m[i + 1].x - m[i].x)), static_cast<float>(y)};
 }
 
+// ---------------------------------------------------------------------------
+// The placement (placement.cpp).
+
+/// The fraction of C7 -> L4 at a row of the body frame: along the body in 3D when measured, else in rows.
+double fractionAtRow(const BackLandmarks& l, double row);
+
 }  // namespace detail
 
 using namespace detail;  // (the model's files are all in namespace cect)

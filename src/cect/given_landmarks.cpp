@@ -50,10 +50,45 @@ void extendMidline(BackLandmarks* landmarks, double y) {
   }
 }
 
+/// The midline moved across to pass through the given pixels (body frame, by name): with one, shifted by a constant;
+/// with more, the straight lines through them in order between the first and the last (spinous processes fix the
+/// spine line; the outline's centre between them leans with the arms, hands and towels), the lateral directions
+/// perpendicular to each, and beyond them the silhouette's midline shifted to join it.
+void fitMidlineThrough(BackLandmarks* landmarks, const std::map<std::string, cv::Point2f>& body) {
+  BackLandmarks& l = *landmarks;
+  std::vector<cv::Point2f> knots;
+  for (const auto& [name, p] : body) knots.push_back(p);
+  std::sort(knots.begin(), knots.end(), [](const cv::Point2f& a, const cv::Point2f& b) { return a.y < b.y; });
+  const cv::Point2f top = knots.front(), bottom = knots.back();
+  const float top_shift = top.x - static_cast<float>(midlineX(l, top.y));
+  const float bottom_shift = bottom.x - static_cast<float>(midlineX(l, bottom.y));
+  std::size_t k = 0;  // the segment knots[k] .. knots[k + 1] holding the row
+  for (std::size_t i = 0; i < l.midline.size(); ++i) {
+    cv::Point2f& m = l.midline[i];
+    if (m.y <= top.y) {
+      m.x += top_shift;
+      continue;
+    }
+    if (m.y >= bottom.y) {
+      m.x += bottom_shift;
+      continue;
+    }
+    while (k + 2 < knots.size() && m.y > knots[k + 1].y) ++k;
+    const cv::Point2f a = knots[k], b = knots[k + 1];
+    const double lean = (b.x - a.x) / (b.y - a.y);  // px across per row
+    m.x = static_cast<float>(a.x + lean * (m.y - a.y));
+    if (i < l.lateral.size()) {
+      // Perpendicular to the segment: the caudal tangent (lean, 1) turned toward the subject's left.
+      const double norm = std::hypot(1.0, lean);
+      l.lateral[i] = cv::Point2f(static_cast<float>(-1.0 / norm), static_cast<float>(lean / norm));
+    }
+  }
+}
+
 }  // namespace
 
 const std::vector<std::string>& givenLandmarkNames() {
-  static const std::vector<std::string> names{"C7", "L4"};
+  static const std::vector<std::string> names{"C7", "T7", "L4"};
   return names;
 }
 
@@ -71,7 +106,7 @@ std::string applyGivenLandmarks(BackLandmarks* landmarks, const std::vector<Give
   if (!l.valid || l.midline.size() < 2) return "no landmarks of the back to put the given ones into";
   cv::Matx23d from_image;
   cv::invertAffineTransform(l.to_image, from_image);
-  std::map<std::string, cv::Point2f> body;  // the given pixels in the body's frame, by name
+  std::map<std::string, cv::Point2f> body, image;  // the given pixels in the body's frame and the image, by name
   for (const GivenLandmark& g : given) {
     if (const std::string problem = checkGivenLandmarkName(g.name); !problem.empty()) return problem;
     if (body.count(g.name)) return "landmark " + g.name + " given twice";
@@ -84,44 +119,28 @@ std::string applyGivenLandmarks(BackLandmarks* landmarks, const std::vector<Give
       return "landmark " + g.name + " at " + pixelText(g.pixel) + " is not on the back's rows (the back spans rows " +
              pixelText(cv::Point2f(l.midline.front().y, l.midline.back().y)) + " of its frame)";
     body[g.name] = p;
+    image[g.name] = g.pixel;
   }
-  const auto c7 = body.find("C7"), l4 = body.find("L4");
+  const auto c7 = body.find("C7"), t7 = body.find("T7"), l4 = body.find("L4");
   const float c7_row = c7 != body.end() ? c7->second.y : l.c7.y;
   const float l4_row = l4 != body.end() ? l4->second.y : l.l4.y;
   if (!(l4_row > c7_row)) return "landmark L4 is not below C7 (toward the feet)";
+  if (t7 != body.end() && !(t7->second.y > c7_row && t7->second.y < l4_row))
+    return "landmark T7 at " + pixelText(image.at("T7")) +
+           " is not between C7 and L4 (toward the feet from C7, the head from L4)";
   for (const auto& [name, p] : body) extendMidline(&l, p.y);
-
-  // One given: the midline shifted across to pass through it. Two: the straight line through both between them (two
-  // spinous processes fix the spine line; the outline's centre between them leans with the arms, hands and towels),
-  // the silhouette's midline beyond them shifted to join it.
-  const cv::Point2f top = c7 != body.end() ? c7->second : l4->second;     // the given pixel nearest the head ...
-  const cv::Point2f bottom = l4 != body.end() ? l4->second : c7->second;  // ... and the feet (the same when one)
-  const float top_shift = top.x - static_cast<float>(midlineX(l, top.y));
-  const float bottom_shift = bottom.x - static_cast<float>(midlineX(l, bottom.y));
-  const double lean = bottom.y > top.y ? (bottom.x - top.x) / (bottom.y - top.y) : 0.0;  // px across per row
-  for (std::size_t i = 0; i < l.midline.size(); ++i) {
-    cv::Point2f& m = l.midline[i];
-    if (m.y <= top.y) {
-      m.x += top_shift;
-    } else if (m.y >= bottom.y) {
-      m.x += bottom_shift;
-    } else {
-      m.x = static_cast<float>(top.x + lean * (m.y - top.y));
-      if (i < l.lateral.size()) {
-        // Perpendicular to the chord: the caudal tangent (lean, 1) turned toward the subject's left.
-        const double norm = std::hypot(1.0, lean);
-        l.lateral[i] = cv::Point2f(static_cast<float>(-1.0 / norm), static_cast<float>(lean / norm));
-      }
-    }
-  }
+  fitMidlineThrough(&l, body);
   auto onMidline = [&](float row) { return cv::Point2f(static_cast<float>(midlineX(l, row)), row); };
   l.c7 = onMidline(c7_row);
   l.l4 = onMidline(l4_row);
   l.iliac_row = l4_row;
+  l.given_levels.clear();
+  if (t7 != body.end()) l.given_levels.push_back({"T7", t7->second.y});
   l.along.clear();
   l.given.clear();
   for (const GivenLandmark& g : given) {
-    (g.name == "C7" ? l.c7_given : l.l4_given) = true;
+    if (g.name == "C7") l.c7_given = true;
+    if (g.name == "L4") l.l4_given = true;
     l.given.push_back(g.name + (g.source.empty() ? std::string() : " (" + g.source + ")"));
   }
   return {};

@@ -12,6 +12,7 @@
 // are its checks.
 #include "massage_cell/cect/layout_check.h"
 
+#include "acupoint_model_detail.h"
 #include "stats_detail.h"
 
 #include <algorithm>
@@ -22,8 +23,6 @@
 namespace massage_cell::cect {
 
 namespace {
-
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 std::string fixed(double v, int precision) {
   std::ostringstream s;
@@ -120,6 +119,20 @@ LayoutCheck checkLayout(const BackLandmarks& l, const AcupointModel& model, cons
     c.length_per_shoulder_width = length_rows / l.shoulder_width;
     const double expected = model.length_per_shoulder_width, tol = pl.proportion_tolerance * expected;
     within(&c, c.length_per_shoulder_width, expected - tol, expected + tol, "C7 -> L4 over the shoulder width", "", 2);
+  }
+  // A level given between C7 and L4 where the model puts it: else C7, L4 or it is a vertebra or more off.
+  for (const BackLandmarks::GivenLevel& g : l.given_levels) {
+    const auto expected = model.level_fraction.find(g.level);
+    if (expected == model.level_fraction.end()) continue;
+    const double at = fractionAtRow(l, g.row), tol = pl.given_level_tolerance;
+    if (std::abs(at - expected->second) > tol)
+      c.problems.push_back(g.level + " (given) lies at " + fixed(at, 2) + " of C7 -> L4, the model's " +
+                           fixed(expected->second, 2) + " +- " + fixed(tol, 2) + ": C7, " + g.level +
+                           " or L4 is a vertebra or more off" +
+                           (both_given   ? std::string()
+                            : l.c7_given ? std::string(" (give L4)")
+                            : l.l4_given ? std::string(" (give C7)")
+                                         : std::string(" (give C7 and L4)")));
   }
   const bool c7_independent = (l.c7_measured || l.c7_given) && !both_given;
   if (c7_independent) {

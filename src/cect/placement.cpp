@@ -13,6 +13,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Dense>
@@ -65,9 +66,9 @@ double midlineScale(const BackLandmarks& l, double y, const PixelScale& scale) {
   return m;
 }
 
-/// The body frame's row of a level (its fraction of C7 -> L4): along the
-/// body's axis in 3D when measured (measureLevelsIn3D), else in rows.
-double levelRow(const BackLandmarks& l, double fraction) {
+/// The body frame's row at a fraction of C7 -> L4: along the body's axis in 3D when measured (measureLevelsIn3D),
+/// else in rows.
+double rowAtFraction(const BackLandmarks& l, double fraction) {
   const double by_rows = l.c7.y + fraction * (l.l4.y - l.c7.y);
   if (l.along.size() != l.midline.size()) return by_rows;
   // along[] is increasing where finite; C7 is at 0 and L4 at its length.
@@ -86,6 +87,38 @@ double levelRow(const BackLandmarks& l, double fraction) {
   return by_rows;  // beyond the measured stretch
 }
 
+/// The knots (the model's fraction, the layout's fraction) of the given levels between C7 and L4 (given_levels),
+/// with C7 (0, 0) and L4 (1, 1) at the ends; a level of the model not known is left out.
+std::vector<std::pair<double, double>> givenKnots(const BackLandmarks& l, const AcupointModel& model) {
+  std::vector<std::pair<double, double>> knots{{0.0, 0.0}};
+  for (const BackLandmarks::GivenLevel& g : l.given_levels) {
+    const auto it = model.level_fraction.find(g.level);
+    if (it != model.level_fraction.end() && it->second > 0.0 && it->second < 1.0)
+      knots.emplace_back(it->second, fractionAtRow(l, g.row));
+  }
+  knots.emplace_back(1.0, 1.0);
+  std::sort(knots.begin(), knots.end());
+  return knots;
+}
+
+/// The body frame's row of a level (its fraction of C7 -> L4 by the model): between two given landmarks (C7, a
+/// given level such as T7, L4) the model's fractions spaced between the two; beyond C7 and L4 as they are.
+double levelRow(const BackLandmarks& l, const AcupointModel& model, double fraction) {
+  double f = fraction;
+  if (!l.given_levels.empty() && fraction > 0.0 && fraction < 1.0) {
+    const std::vector<std::pair<double, double>> knots = givenKnots(l, model);
+    for (std::size_t k = 0; k + 1 < knots.size(); ++k) {
+      const auto [m0, f0] = knots[k];
+      const auto [m1, f1] = knots[k + 1];
+      if (fraction <= m1) {
+        f = f0 + (fraction - m0) / (m1 - m0) * (f1 - f0);
+        break;
+      }
+    }
+  }
+  return rowAtFraction(l, f);
+}
+
 /// A scale of image pixels as one of the body frame's pixels.
 PixelScale bodyScale(const BackLandmarks& l, const PixelScale& image_scale) {
   if (isIdentity(l.to_image) || !image_scale) return image_scale;
@@ -101,6 +134,16 @@ double c7ToL4Metres(const BackLandmarks& l, const PixelScale& body_scale) {
 }
 
 }  // namespace
+
+namespace detail {
+
+double fractionAtRow(const BackLandmarks& l, double row) {
+  const double by_rows = (row - l.c7.y) / (l.l4.y - l.c7.y);
+  const double along = interpolateAlong(l, row), l4_along = interpolateAlong(l, l.l4.y);
+  return std::isfinite(along) && l4_along > 0.0 ? along / l4_along : by_rows;
+}
+
+}  // namespace detail
 
 std::string describeLandmarks(const BackLandmarks& landmarks) {
   if (!landmarks.valid) return "none: " + landmarks.reason;
@@ -142,7 +185,11 @@ std::vector<LayoutLandmark> layoutLandmarks(const BackLandmarks& l) {
   } else {
     l4.source = "inferred", l4.detail = "C7 and the shoulder width";
   }
-  return {c7, l4};
+  std::vector<LayoutLandmark> out{c7};
+  for (const BackLandmarks::GivenLevel& g : l.given_levels)
+    out.push_back({g.level, toImage(l, midlineAt(l, g.row)), "given", givenHow(l, g.level)});
+  out.push_back(l4);
+  return out;
 }
 
 cv::Point2f toImage(const BackLandmarks& landmarks, const cv::Point2f& body_pixel) {
@@ -156,7 +203,7 @@ cv::Point2f levelPixel(const BackLandmarks& landmarks, const AcupointModel& mode
     const float nan = std::numeric_limits<float>::quiet_NaN();
     return {nan, nan};
   }
-  return toImage(landmarks, midlineAt(landmarks, levelRow(landmarks, it->second)));
+  return toImage(landmarks, midlineAt(landmarks, levelRow(landmarks, model, it->second)));
 }
 
 Eigen::Matrix3d layoutCovariance(const BackLandmarks& landmarks, const AcupointModel& model, const std::string& level,
@@ -169,10 +216,25 @@ Eigen::Matrix3d layoutCovariance(const BackLandmarks& landmarks, const AcupointM
   const AcupointModel::LayoutSigma& ls = model.layout_sigma;
   const double at_c7 = landmarks.c7_given ? ls.c7_given : landmarks.c7_measured ? ls.c7_measured : ls.c7_inferred;
   const double at_l4 = landmarks.l4_given ? ls.l4_given : landmarks.waist_measured ? ls.l4_measured : ls.l4_inferred;
-  // Linear in the level between C7 and L4 (beyond them, the nearer one's).
-  const double t = std::clamp(it->second, 0.0, 1.0);
+  // Linear in the level between two of C7, a given level and L4 (beyond C7 and L4, the nearer one's).
+  const double m = std::clamp(it->second, 0.0, 1.0);
+  std::vector<std::pair<double, double>> knots{{0.0, at_c7}};  // (the model's fraction, sigma)
+  for (const BackLandmarks::GivenLevel& g : landmarks.given_levels) {
+    const auto given = model.level_fraction.find(g.level);
+    if (given != model.level_fraction.end() && given->second > 0.0 && given->second < 1.0)
+      knots.emplace_back(given->second, ls.level_given);
+  }
+  knots.emplace_back(1.0, at_l4);
+  std::sort(knots.begin(), knots.end());
+  double sigma = at_l4;
+  for (std::size_t k = 0; k + 1 < knots.size(); ++k) {
+    if (m > knots[k + 1].first) continue;
+    const double t = (m - knots[k].first) / (knots[k + 1].first - knots[k].first);
+    sigma = (1.0 - t) * knots[k].second + t * knots[k + 1].second;
+    break;
+  }
   const double length = length_px * metres_per_pixel;
-  const double along = ((1.0 - t) * at_c7 + t * at_l4) * length, across = ls.across * length;
+  const double along = sigma * length, across = ls.across * length;
   const Eigen::Vector3d a((l4.x - c7.x) / length_px, (l4.y - c7.y) / length_px, 0.0);
   const Eigen::Vector3d c(-a.y(), a.x(), 0.0);
   return along * along * a * a.transpose() + across * across * c * c.transpose();
@@ -232,7 +294,7 @@ std::vector<AcupointPixel> placeAcupoints(const BackLandmarks& landmarks, const 
       continue;
     }
     // In the body's frame, then into the image.
-    const cv::Point2f p0 = midlineAt(landmarks, levelRow(landmarks, level->second + spec.level_offset));
+    const cv::Point2f p0 = midlineAt(landmarks, levelRow(landmarks, model, level->second + spec.level_offset));
     if (spec.lateral_cun == 0.0) {
       a.pixel = toImage(landmarks, p0);
       a.valid = true;

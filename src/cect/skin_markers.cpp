@@ -163,9 +163,14 @@ SkinMarkerSpec readSpec(const YAML::Node& node, const std::string& at) {
       s.colour = as<std::string>(kv.second, key, at);
       continue;
     }
+    if (key == "optional") {
+      s.optional = as<bool>(kv.second, key, at);
+      continue;
+    }
     const auto field = fields.find(key);
     if (field == fields.end())
-      throw std::runtime_error(at + ": unknown key '" + key + "' (" + keyList(fields, "landmark, colour") + ")");
+      throw std::runtime_error(at + ": unknown key '" + key + "' (" + keyList(fields, "landmark, colour, optional") +
+                               ")");
     *field->second = as<double>(kv.second, key, at);
     has_hue = has_hue || key == "hue_deg";
   }
@@ -370,7 +375,7 @@ std::string positions(const std::vector<Blob>& blobs) {
 
 /// The one left-view candidate on the back (and of the printed size when the scale is known); else the problem.
 std::optional<Blob> pickLeft(const SkinMarkerSpec& spec, const BlobList& blobs, const SkinMarkerOptions& o,
-                             const SkinMarkerScale& scale, std::string* problem) {
+                             const SkinMarkerScale& scale, std::string* problem, bool* none_on_back) {
   std::vector<Blob> candidates;
   int off_back = 0, wrong_size = 0;
   for (const Blob& b : blobs.kept) {
@@ -389,6 +394,7 @@ std::optional<Blob> pickLeft(const SkinMarkerSpec& spec, const BlobList& blobs, 
     candidates.push_back(b);
   }
   if (candidates.size() == 1) return candidates.front();
+  *none_on_back = candidates.empty();
   if (candidates.empty()) {
     *problem =
         "not found in the left view" + refusals({{blobs.too_small, "too small"},
@@ -455,6 +461,11 @@ std::string SkinMarkers::describe() const {
     text += (text.empty() ? "" : "; ") + s.str();
   }
   for (const std::string& p : problems) text += (text.empty() ? "" : "; ") + p;
+  if (!absent.empty()) {
+    std::string names;
+    for (const std::string& a : absent) names += (names.empty() ? "" : ", ") + a;
+    text += (text.empty() ? "" : "; ") + names + ": optional, not on the back";
+  }
   return text.empty() ? "no markers" : text;
 }
 
@@ -509,8 +520,13 @@ SkinMarkers detectSkinMarkers(const cv::Mat& left_bgr, const cv::Mat& right_bgr,
   SkinMarkers out;
   for (const SkinMarkerSpec& spec : options.markers) {
     std::string problem;
-    const std::optional<Blob> left =
-        pickLeft(spec, findBlobs(colourMask(hsv_left, spec), options, back), options, metres_per_pixel, &problem);
+    bool none_on_back = false;
+    const std::optional<Blob> left = pickLeft(spec, findBlobs(colourMask(hsv_left, spec), options, back), options,
+                                              metres_per_pixel, &problem, &none_on_back);
+    if (!left && spec.optional && none_on_back) {
+      out.absent.push_back(markerLabel(spec));  // not stuck on this back: no dot of its colour on it
+      continue;
+    }
     const std::optional<Blob> right =
         left ? pickRight(*left, findBlobs(colourMask(hsv_right, spec), options, {}), disparity_range, options, &problem)
              : std::nullopt;

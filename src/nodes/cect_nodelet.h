@@ -10,7 +10,7 @@
 // `~localize_pixels` (any raw left pixel of the latest pair to 3D) and
 // `~get_acupoint` (one filtered acupoint, in any tf frame).
 //
-// A therapist's landmarks (landmark_input.h): `~set_landmark` (C7 or L4, a
+// A therapist's landmarks (landmark_input.h): `~set_landmark` (C7, T7 or L4, a
 // point in any tf frame or a raw left pixel), `~clear_landmarks`, and clicks
 // - rviz's Publish Point on `/clicked_point`, rqt_image_view's on
 // `~debug_image_mouse_left` - each taken as the landmark of the latest layout

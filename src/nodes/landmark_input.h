@@ -1,4 +1,4 @@
-// The cect node's therapist's landmarks (cect/given_landmarks.h): the services `~set_landmark` (C7 or L4, a point
+// The cect node's therapist's landmarks (cect/given_landmarks.h): the services `~set_landmark` (C7, T7 or L4, a point
 // in any tf frame or a raw left pixel) and `~clear_landmarks`, and clicks - rviz's Publish Point on
 // `/clicked_point`, rqt_image_view's on `~debug_image_mouse_left` - each taken as the landmark of the latest layout
 // nearest to it. Each is kept as the camera's raw left pixel until cleared; forPair() gives them to a pair.

@@ -48,7 +48,7 @@ const char* kUsage = R"(Usage: cect_eval [--experiments ideal,lighting,shift] [-
                  [--random-points N] [--width W --height H --fx F --baseline B --camera-height Z]
                  [--yaw DEG] [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX]
                  [--param NAME=VALUE,...] [--csv] [--per-point] [--no-parallax-correction]
-                 [--no-3d-levels] [--pictures DIR] [--by-border] [--given-landmarks MM]
+                 [--no-3d-levels] [--pictures DIR] [--by-border] [--given-landmarks MM] [--given-levels LIST]
                  [--conditions LIST] [--first-subject N] [--no-layout-check] [--trust-c7-at-top]
                  [--trust-inferred-l4]
 
@@ -105,6 +105,8 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
                chain as a palpating therapist would click them, each up to MM mm
                (uniform over a disc on the skin, seeded per subject) from the
                simulator's true C7 and iliac-crest line (cect/given_landmarks.h)
+  --given-levels LIST  which landmarks --given-landmarks gives, of C7, T7
+               (the scapulae's inferior angles' line), L4 (default C7,L4)
   --skin-markers  the kit's coloured skin markers (config/skin_markers.yaml, or
                --marker-kit FILE) stuck on each subject's landmarks, rendered, and
                found by the chain in both views (cect/skin_markers.h)
@@ -144,16 +146,17 @@ struct Options {
   bool raw = false;
   bool csv = false;
   bool per_point = false;
-  bool by_border = false;          ///< --by-border
-  double given_mm = -1.0;          ///< --given-landmarks: C7 and L4 clicked within this many mm (< 0: none given)
-  int first_subject = 1;           ///< --first-subject (the realistic conditions)
-  bool layout_check = true;        ///< --no-layout-check: false
-  bool trust_c7_at_top = false;    ///< --trust-c7-at-top
-  bool trust_inferred_l4 = false;  ///< --trust-inferred-l4
-  std::string marker_kit;          ///< --marker-kit (empty: the package's config/skin_markers.yaml)
-  std::optional<cect::SkinMarkerOptions> markers;  ///< --skin-markers: the kit, rendered and looked for
-  bool parallax = true;                            ///< the model's midline corrected for the silhouette's parallax (3D)
-  bool levels_3d = true;                           ///< the levels spaced along the body's axis in 3D
+  bool by_border = false;  ///< --by-border
+  double given_mm = -1.0;  ///< --given-landmarks: C7 and L4 clicked within this many mm (< 0: none given)
+  std::vector<std::string> given_levels{"C7", "L4"};  ///< --given-levels: which ones are clicked
+  int first_subject = 1;                              ///< --first-subject (the realistic conditions)
+  bool layout_check = true;                           ///< --no-layout-check: false
+  bool trust_c7_at_top = false;                       ///< --trust-c7-at-top
+  bool trust_inferred_l4 = false;                     ///< --trust-inferred-l4
+  std::string marker_kit;                             ///< --marker-kit (empty: the package's config/skin_markers.yaml)
+  std::optional<cect::SkinMarkerOptions> markers;     ///< --skin-markers: the kit, rendered and looked for
+  bool parallax = true;   ///< the model's midline corrected for the silhouette's parallax (3D)
+  bool levels_3d = true;  ///< the levels spaced along the body's axis in 3D
   std::string acupoints;
   std::string pictures;  ///< --pictures: a folder for every pair's picture
   int seed_step = -1;
@@ -538,13 +541,15 @@ std::map<std::string, Eigen::Vector3d> trueLevels(const RenderedPair& r) {
 /// --given-landmarks: C7 and L4 as a therapist clicks them, each up to `mm` from the truth (uniform over a disc
 /// facing the camera), as rectified left pixels.
 std::vector<cect::GivenLandmark> clickedLandmarks(const RenderedPair& r, const camera::StereoModel& geometry, double mm,
-                                                  int subject) {
+                                                  const std::vector<std::string>& names, int subject) {
   std::mt19937 rng(static_cast<std::uint32_t>(7000 + subject));
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::vector<cect::GivenLandmark> out;
   const auto levels = trueLevels(r);
-  for (const char* name : {"C7", "L4"}) {
+  // Drawn in this order whichever are given, so a subject's C7 and L4 clicks stay the same with T7 added.
+  for (const char* name : {"C7", "L4", "T7"}) {
     const double radius = 0.001 * mm * std::sqrt(unit(rng)), angle = 2.0 * M_PI * unit(rng);
+    if (std::find(names.begin(), names.end(), name) == names.end()) continue;
     const Eigen::Vector3d p = levels.at(name) + radius * Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.0);
     const Eigen::Vector3d q = geometry.project(p);
     out.push_back({name, cv::Point2f(static_cast<float>(q.x()), static_cast<float>(q.y())), "clicked"});
@@ -581,7 +586,7 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   lo.levels_in_3d = o.levels_3d;
   lo.check_layout = o.layout_check;
   lo.trust = {!o.trust_c7_at_top, !o.trust_inferred_l4};
-  if (o.given_mm >= 0.0) lo.given = clickedLandmarks(r, geometry, o.given_mm, subject);
+  if (o.given_mm >= 0.0) lo.given = clickedLandmarks(r, geometry, o.given_mm, o.given_levels, subject);
   const cect::LocatedAcupoints result = cect::locateAcupoints(f, model, lo);
   if (!result.valid) res.failure = result.reason;
   res.check = result.check;
@@ -1002,6 +1007,12 @@ int main(int argc, char** argv) {
         t.values["--given-landmarks"] = [&](const std::string& opt, const std::string& v) {
           o.given_mm = tools::parseDouble(opt, v);
           tools::require(o.given_mm >= 0.0 && o.given_mm <= 100.0, opt + " must be in 0..100 mm");
+        };
+        t.values["--given-levels"] = [&](const std::string& opt, const std::string& v) {
+          o.given_levels = tools::splitList(v);
+          tools::require(!o.given_levels.empty(), opt + ": empty list");
+          for (const auto& n : o.given_levels)
+            tools::require(n == "C7" || n == "T7" || n == "L4", opt + ": unknown landmark '" + n + "' (C7, T7, L4)");
         };
         t.values["--first-subject"] = [&](const std::string& opt, const std::string& v) {
           o.first_subject = tools::parseInt(opt, v);

@@ -80,8 +80,9 @@ Options:
                            this pair's C7 -> L4 and the corrections of --profile
   --client NAME            the client's id in the saved profile
   --landmark NAME=U,V      a landmark a therapist palpated, at raw left pixel (U, V): C7
-                           (the vertebra prominens) or L4 (the iliac crests' line); it
-                           replaces the found one (repeat the option for both)
+                           (the vertebra prominens), T7 (the scapulae's inferior
+                           angles' line) or L4 (the iliac crests' line); it replaces
+                           the found one (repeat the option for each)
   --trust-c7-at-top        trust a C7 taken from the back's top where no neck is in
                            view (by default such a layout is "not trusted": give C7);
                            for backs rendered without a neck

@@ -384,7 +384,8 @@ TEST(AcupointModelValidation, OtherProblemsThrowWithClearMessages) {
     t.insert(t.find("cun_per_shoulder_width"), "plausibility: " + map + "\n");
     return t;
   };
-  EXPECT_NE(load("acu_pl_key.yaml", withBounds("{max_length: 0.6}")).find("unknown key 'max_length' (max_length_m"),
+  EXPECT_NE(load("acu_pl_key.yaml", withBounds("{max_length: 0.6}"))
+                .find("unknown key 'max_length' (given_level_tolerance, max_length_m"),
             std::string::npos);
   EXPECT_NE(load("acu_pl_order.yaml", withBounds("{min_length_m: 0.7}")).find("must be > 0 and < max_length_m"),
             std::string::npos);

@@ -98,6 +98,60 @@ TEST(GivenLandmarks, BothGivenMakeTheSpineLineStraightBetweenThem) {
   EXPECT_NEAR(t7.x, 326.0 - 0.06 * (t7.y - 100.0), 0.05);
 }
 
+TEST(GivenLandmarks, AGivenT7SpacesTheLevelsOnEachSideOfItByTheModel) {
+  // C7 100, L4 300: the model puts T7 at 172 (0.36) and a level at 0.18 half-way to it, one at 0.68 half-way on to L4.
+  // The therapist's T7 at 190 moves the levels above it in proportion to C7 -> T7, those below to T7 -> L4; C7, L4
+  // and the levels beyond them stay.
+  cect::AcupointModel m = model();
+  m.level_fraction["T3"] = 0.18;
+  m.level_fraction["T12"] = 0.68;
+  m.level_fraction["L5"] = 1.1;
+  cect::BackLandmarks l = back();
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"T7", {326.0f, 190.0f}, "marker"}}), "");
+  EXPECT_FALSE(l.c7_given || l.l4_given);
+  ASSERT_EQ(l.given_levels.size(), 1u);
+  EXPECT_EQ(l.given_levels[0].level, "T7");
+  EXPECT_NEAR(cect::levelPixel(l, m, "T7").y, 190.0, 1e-3);
+  EXPECT_NEAR(cect::levelPixel(l, m, "T3").y, 145.0, 1e-3);
+  EXPECT_NEAR(cect::levelPixel(l, m, "T12").y, 245.0, 1e-3);
+  EXPECT_NEAR(cect::levelPixel(l, m, "C7").y, 100.0, 1e-3);
+  EXPECT_NEAR(cect::levelPixel(l, m, "L4").y, 300.0, 1e-3);
+  EXPECT_NEAR(cect::levelPixel(l, m, "L5").y, 320.0, 1e-3);
+  // The midline passes through it (one given: shifted by 6 px), and the layout names it, given, between C7 and L4.
+  EXPECT_NEAR(cect::levelPixel(l, m, "T3").x, 326.0, 1e-3);
+  const std::vector<cect::LayoutLandmark> named = cect::layoutLandmarks(l);
+  ASSERT_EQ(named.size(), 3u);
+  EXPECT_EQ(named[0].name, "C7");
+  EXPECT_EQ(named[1].name, "T7");
+  EXPECT_EQ(named[1].source, "given");
+  EXPECT_EQ(named[1].detail, "marker");
+  EXPECT_NEAR(named[1].pixel.y, 190.0, 1e-3);
+  EXPECT_EQ(named[2].name, "L4");
+  // Its layout uncertainty along the body is the given one's at T7, between C7's and L4's elsewhere.
+  const double at_t7 = std::sqrt(cect::layoutCovariance(l, m, "T7", 0.002)(1, 1));
+  const double at_t12 = std::sqrt(cect::layoutCovariance(l, m, "T12", 0.002)(1, 1));
+  EXPECT_NEAR(at_t7, m.layout_sigma.level_given * 0.4, 1e-9);  // 200 px x 2 mm
+  EXPECT_NEAR(at_t12, 0.5 * (m.layout_sigma.level_given + m.layout_sigma.l4_measured) * 0.4, 1e-9);
+}
+
+TEST(GivenLandmarks, ThreeGivenMakeTheSpineLineStraightBetweenEachPair) {
+  cect::BackLandmarks l = back();
+  ASSERT_EQ(cect::applyGivenLandmarks(
+                &l, {{"C7", {320.0f, 100.0f}, ""}, {"L4", {320.0f, 300.0f}, ""}, {"T7", {330.0f, 170.0f}, ""}}),
+            "");
+  for (std::size_t i = 0; i < l.midline.size(); ++i) {
+    const cv::Point2f& m = l.midline[i];
+    if (m.y > 100.0f && m.y < 170.0f) {
+      EXPECT_NEAR(m.x, 320.0 + 10.0 * (m.y - 100.0) / 70.0, 1e-3);
+      EXPECT_NEAR(l.lateral[i].x * 10.0 + l.lateral[i].y * 70.0, 0.0, 1e-3);  // perpendicular to its segment
+    } else if (m.y > 170.0f && m.y < 300.0f) {
+      EXPECT_NEAR(m.x, 330.0 - 10.0 * (m.y - 170.0) / 130.0, 1e-3);
+      EXPECT_NEAR(l.lateral[i].x * -10.0 + l.lateral[i].y * 130.0, 0.0, 1e-3);
+    }
+  }
+  EXPECT_NE(cect::describeLandmarks(l).find("given: C7, L4, T7"), std::string::npos) << cect::describeLandmarks(l);
+}
+
 TEST(GivenLandmarks, OneGivenShiftsTheMidlineAndKeepsTheOther) {
   cect::BackLandmarks l = back();
   ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", {324.0f, 92.0f}, ""}}), "");
@@ -145,7 +199,12 @@ TEST(GivenLandmarks, BadLandmarksAreRefusedNamingTheProblemAndChangeNothing) {
     EXPECT_FALSE(l.c7_given || l.l4_given);
     return p;
   };
-  EXPECT_NE(problem({{"T3", {320.0f, 150.0f}, ""}}).find("unknown landmark 'T3' (one of: C7, L4)"), std::string::npos);
+  EXPECT_NE(problem({{"T3", {320.0f, 150.0f}, ""}}).find("unknown landmark 'T3' (one of: C7, T7, L4)"),
+            std::string::npos);
+  EXPECT_NE(problem({{"T7", {320.0f, 320.0f}, ""}}).find("landmark T7 at (320.0, 320.0) is not between C7 and L4"),
+            std::string::npos);
+  EXPECT_NE(problem({{"C7", {320.0f, 180.0f}, ""}, {"T7", {320.0f, 170.0f}, ""}}).find("not between C7 and L4"),
+            std::string::npos);
   EXPECT_NE(problem({{"C7", {320.0f, 100.0f}, ""}, {"C7", {320.0f, 110.0f}, ""}}).find("given twice"),
             std::string::npos);
   EXPECT_NE(problem({{"L4", {320.0f, 480.0f}, ""}}).find("not on the back's rows"), std::string::npos);
@@ -158,6 +217,31 @@ TEST(GivenLandmarks, BadLandmarksAreRefusedNamingTheProblemAndChangeNothing) {
   cect::BackLandmarks l = before;
   EXPECT_EQ(cect::applyGivenLandmarks(&l, {}), "");  // nothing given: nothing to do
   EXPECT_EQ(cect::checkGivenLandmarkName("L4"), "");
+}
+
+TEST(LayoutCheck, AGivenT7FarFromItsLevelIsNotTrusted) {
+  // C7 100, L4 300, the model's T7 at 0.36 (row 172) +- 0.06: a marker at row 175 agrees; one at row 190 (0.45) says
+  // that C7 (measured), the marker or L4 is a vertebra or more off.
+  cect::BackLandmarks near = back(), far = back();
+  ASSERT_EQ(cect::applyGivenLandmarks(&near, {{"T7", {320.0f, 175.0f}, "marker"}}), "");
+  ASSERT_EQ(cect::applyGivenLandmarks(&far, {{"T7", {320.0f, 190.0f}, "marker"}}), "");
+  const cect::LayoutCheck ok = cect::checkLayout(near, model(), kScale);
+  EXPECT_TRUE(ok.trusted) << ok.reason();
+  const cect::LayoutCheck bad = cect::checkLayout(far, model(), kScale);
+  EXPECT_FALSE(bad.trusted);
+  EXPECT_NE(bad.reason().find("T7 (given) lies at 0.45 of C7 -> L4, the model's 0.36 +- 0.06: C7, T7 or L4 is a "
+                              "vertebra or more off (give C7 and L4)"),
+            std::string::npos)
+      << bad.reason();
+  // With C7 and L4 given too, nothing is left to give: the message names no landmark to give.
+  cect::BackLandmarks all = back();
+  ASSERT_EQ(cect::applyGivenLandmarks(
+                &all, {{"C7", {320.0f, 100.0f}, ""}, {"T7", {320.0f, 190.0f}, ""}, {"L4", {320.0f, 300.0f}, ""}}),
+            "");
+  const cect::LayoutCheck given = cect::checkLayout(all, model(), kScale);
+  EXPECT_FALSE(given.trusted);
+  EXPECT_NE(given.reason().find("a vertebra or more off"), std::string::npos);
+  EXPECT_EQ(given.reason().find("(give "), std::string::npos) << given.reason();
 }
 
 TEST(LayoutCheck, AnAdultBackInProportionIsTrusted) {

@@ -135,9 +135,12 @@ TEST(RealBacks, SkinMarkersGiveC7AndL4AndTheirDotsAreTheBack) {
     ASSERT_TRUE(f.valid()) << f.reason();
     const cect::LocatedAcupoints a = cect::locateAcupoints(f, model());
     ASSERT_TRUE(a.valid) << a.reason;
-    ASSERT_EQ(a.markers.found.size(), 2u) << a.markers.describe();
+    ASSERT_EQ(a.markers.found.size(), 3u) << a.markers.describe();  // the kit's C7, L4 and its optional T7
     const cect::BackLandmarks& l = a.landmarks;
     EXPECT_TRUE(l.c7_given && l.l4_given) << cect::describeLandmarks(l);
+    ASSERT_EQ(l.given_levels.size(), 1u) << cect::describeLandmarks(l);
+    EXPECT_NEAR(cect::levelPixel(l, model(), "T7").y, gtRow(r, g, "T7"),
+                0.01 * (gtRow(r, g, "L4") - gtRow(r, g, "C7")));
     EXPECT_NE(cect::describeLandmarks(l).find("C7 (marker)"), std::string::npos) << cect::describeLandmarks(l);
     const double c7_gt = gtRow(r, g, "C7"), l4_gt = gtRow(r, g, "L4");
     const double length = l4_gt - c7_gt;
@@ -153,6 +156,25 @@ TEST(RealBacks, SkinMarkersGiveC7AndL4AndTheirDotsAreTheBack) {
       EXPECT_LT((p->point.position - truth.at(name)).norm(), 0.012) << name;
     }
     EXPECT_GE(a.validCount(), 100);
+  }
+  // Without its T7 dot the kit's optional T7 is absent, no problem, and C7 and L4 still given.
+  std::vector<sim::SkinSticker> two;
+  for (const sim::SkinSticker& s : stickers)
+    if (s.landmark != "T7") two.push_back(s);
+  ASSERT_EQ(two.size(), 2u);
+  {
+    const Rendered r2 = render(1, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kBrown, "", two);
+    const camera::StereoModel g2(r2.pair.left_info, r2.pair.right_info);
+    cect::CectParams params;
+    params.skin_markers = kit;
+    const cect::CectFrame f2 = cect::CectFrame::analyse(r2.frame.left.image, r2.frame.right.image, g2, params);
+    ASSERT_TRUE(f2.valid()) << f2.reason();
+    const cect::LocatedAcupoints a2 = cect::locateAcupoints(f2, model());
+    EXPECT_EQ(a2.markers.found.size(), 2u) << a2.markers.describe();
+    EXPECT_TRUE(a2.markers.problems.empty()) << a2.markers.describe();
+    ASSERT_EQ(a2.markers.absent.size(), 1u) << a2.markers.describe();
+    EXPECT_EQ(a2.markers.absent[0], "T7 (magenta dot)");
+    EXPECT_TRUE(a2.landmarks.c7_given && a2.landmarks.l4_given && a2.landmarks.given_levels.empty());
   }
   // Without the kit the same pair's dots stay out of the skin (their colour is no skin's).
   const Rendered r = render(1, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kBrown, "", stickers);

@@ -337,14 +337,39 @@ TEST(SkinMarkers, TheDotsPixelsAreMarkedButASheetOfTheirColourIsNot) {
   EXPECT_THROW(cect::skinMarkerPixels(cv::Mat(10, 10, CV_8UC1), kit()), std::invalid_argument);
 }
 
+TEST(SkinMarkers, AnOptionalMarkerWithoutItsDotIsAbsentNotAProblem) {
+  cect::SkinMarkerOptions o = kit();
+  cect::SkinMarkerSpec t7;
+  t7.landmark = "T7";
+  t7.colour = "magenta";
+  t7.hue_deg = 315;
+  t7.optional = true;
+  o.markers.push_back(t7);
+  const Scene s = standardScene();
+  const cect::SkinMarkers m = detect(s, o);
+  expectFound(m, s);
+  ASSERT_EQ(m.absent.size(), 1u) << m.describe();
+  EXPECT_EQ(m.absent[0], "T7 (magenta dot)");
+  EXPECT_TRUE(contains(m.describe(), "T7 (magenta dot): optional, not on the back")) << m.describe();
+  // The same marker required: its absence is a problem.
+  o.markers.back().optional = false;
+  const cect::SkinMarkers required = detect(s, o);
+  EXPECT_TRUE(required.absent.empty());
+  EXPECT_TRUE(contains(problemOf(required, "T7"), "not found in the left view")) << required.describe();
+}
+
 TEST(SkinMarkersOptions, TheShippedKitLoadsAndFindsTheKitsDots) {
   const cect::SkinMarkerOptions o =
       cect::loadSkinMarkerOptions(std::string(MASSAGE_CELL_SOURCE_DIR) + "/config/skin_markers.yaml");
-  ASSERT_EQ(o.markers.size(), 2u);
+  ASSERT_EQ(o.markers.size(), 3u);
   EXPECT_EQ(o.markers[0].landmark, "C7");
   EXPECT_EQ(o.markers[1].landmark, "L4");
+  EXPECT_EQ(o.markers[2].landmark, "T7");
   EXPECT_EQ(o.markers[0].colour, "green");
   EXPECT_EQ(o.markers[1].colour, "blue");
+  EXPECT_EQ(o.markers[2].colour, "magenta");
+  EXPECT_FALSE(o.markers[0].optional || o.markers[1].optional);
+  EXPECT_TRUE(o.markers[2].optional);
   EXPECT_DOUBLE_EQ(o.markers[0].diameter_m, 0.025);
   EXPECT_EQ(cect::checkSkinMarkerOptions(o), "");
   const Scene s = standardScene(cv::Size(640, 480));

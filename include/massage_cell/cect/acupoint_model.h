@@ -68,6 +68,8 @@ struct AcupointModel {
     double l4_measured = 0.075, l4_inferred = 0.08;
     /// A given landmark (given_landmarks.h): a palpated and clicked C7 or L4, ~5 mm of a ~0.45 m C7 -> L4.
     double c7_given = 0.012, l4_given = 0.012;
+    /// A level given between them (T7 palpated at the scapulae's inferior angles, or its marker).
+    double level_given = 0.012;
     double across = 0.02;
   } layout_sigma;
   /// Bounds of a believable layout (layout_check.h; optional in the YAML as `plausibility`): adult sizes with a
@@ -79,6 +81,8 @@ struct AcupointModel {
     double proportion_tolerance = 0.35;
     /// The shoulder line below C7, as a fraction of C7 -> L4 (when C7 was not taken from the shoulder line).
     double min_shoulder_below_c7 = -0.10, max_shoulder_below_c7 = 0.45;
+    /// A level given between C7 and L4 (T7) may lie this far (a fraction of C7 -> L4) from the model's fraction.
+    double given_level_tolerance = 0.06;
   } plausibility;
   bool head_up = true;  ///< head toward the image top
   std::vector<AcupointSpec> points;
@@ -132,6 +136,13 @@ struct BackLandmarks {
   bool c7_at_neck = false;
   /// C7 / L4 given from outside (given_landmarks.h: a therapist's click or a skin marker); they override the above.
   bool c7_given = false, l4_given = false;
+  /// Levels given between C7 and L4 (given_landmarks.h: T7, the scapulae's inferior angles), each at its row of the
+  /// body's frame: the levels between two of C7, these and L4 are spaced by the model's fractions between them.
+  struct GivenLevel {
+    std::string level;
+    double row = 0.0;
+  };
+  std::vector<GivenLevel> given_levels;
   std::vector<std::string> measured, inferred, given;
   /// How far the body is turned against the image's columns, degrees
   /// (+: the head toward the image right of a head-up view, clockwise on screen); 0 within
@@ -144,15 +155,15 @@ struct BackLandmarks {
 /// then those given, when any ("; given: C7 (clicked)").
 std::string describeLandmarks(const BackLandmarks& landmarks);
 
-/// One of the layout's two landmarks as a rectified left pixel, and what fixed it.
+/// One of the layout's landmarks (C7, a given T7, L4) as a rectified left pixel, and what fixed it.
 struct LayoutLandmark {
-  std::string name;    ///< "C7", "L4"
+  std::string name;    ///< "C7", "T7" (when given), "L4"
   cv::Point2f pixel;   ///< rectified left image
   std::string source;  ///< "measured", "inferred" or "given"
   std::string detail;  ///< from what: "the neck's base", "C7 and the shoulder width", "marker", "clicked", ...
 };
 
-/// C7 and L4 of `landmarks` (empty when they are not valid).
+/// C7, the given levels between (T7) and L4 of `landmarks`, head to feet (empty when they are not valid).
 std::vector<LayoutLandmark> layoutLandmarks(const BackLandmarks& landmarks);
 
 /// A point of the body's frame (BackLandmarks) in the rectified left image.

@@ -1,8 +1,10 @@
-// Landmarks given from outside the image analysis: a therapist palpates C7
-// and the iliac crests in seconds, and clicks them (rviz's Publish Point, a
-// click on the debug image, the cect node's ~set_landmark service). Given
-// landmarks replace the measured or inferred ones of the same name; the
-// levels between them follow from the model's level fractions. ROS-free.
+// Landmarks given from outside the image analysis: a therapist palpates C7,
+// the iliac crests (L4) and the scapulae's inferior angles (T7) in seconds,
+// and clicks them (rviz's Publish Point, a click on the debug image, the cect
+// node's ~set_landmark service) or sticks markers on them. Given landmarks
+// replace the measured or inferred ones of the same name; the levels between
+// two of them follow from the model's level fractions between those two.
+// ROS-free.
 #pragma once
 
 #include <map>
@@ -18,12 +20,13 @@
 namespace massage_cell::cect {
 
 struct GivenLandmark {
-  std::string name;    ///< givenLandmarkNames(): "C7" (the vertebra prominens), "L4" (the iliac crests' line)
+  std::string name;    ///< givenLandmarkNames(): "C7" (the vertebra prominens), "T7" (the scapulae's inferior angles'
+                       ///< line), "L4" (the iliac crests' line)
   cv::Point2f pixel;   ///< on the midline at that level, rectified left image
   std::string source;  ///< how it was given ("clicked", "service", "marker"): said in the landmarks' description
 };
 
-/// The names a landmark can be given by: "C7", "L4".
+/// The names a landmark can be given by: "C7", "T7", "L4".
 const std::vector<std::string>& givenLandmarkNames();
 
 /// An empty string when `name` can be given, else why not (naming the names that can).
@@ -31,11 +34,13 @@ std::string checkGivenLandmarkName(const std::string& name);
 
 /// Puts `given` into `landmarks` (as findLandmarks and the parallax corrections left them): each level at its
 /// pixel's row of the body's frame, the midline moved across to pass through the given pixels (with one, shifted by
-/// a constant; with both, the straight line through them between them, the lateral directions perpendicular to it,
-/// and beyond them the midline shifted to join it), `c7_given` / `l4_given` set and the description's "given" list
-/// filled. Clears `along` (measured from the old C7: call measureLevelsIn3D again). Returns an empty string when
-/// applied; else the problem (an unknown name, a name twice, a pixel not finite or not on the back's rows, L4 not
-/// below C7), leaving the landmarks as they were.
+/// a constant; with more, the straight lines through them in order between the first and the last, the lateral
+/// directions perpendicular to each, and beyond them the midline shifted to join it), `c7_given` / `l4_given` set,
+/// a given T7 in `given_levels` (placeAcupoints then spaces the levels C7..T7 and T7..L4 by the model's fractions
+/// between them) and the description's "given" list filled. Clears `along` (measured from the old C7: call
+/// measureLevelsIn3D again). Returns an empty string when applied; else the problem (an unknown name, a name twice,
+/// a pixel not finite or not on the back's rows, L4 not below C7, T7 not between them), leaving the landmarks as
+/// they were.
 std::string applyGivenLandmarks(BackLandmarks* landmarks, const std::vector<GivenLandmark>& given);
 
 /// The landmarks a node was given, each kept as a pixel of the camera's raw left image (what a click on the image,

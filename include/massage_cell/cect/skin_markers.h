@@ -1,8 +1,8 @@
 // Coloured adhesive skin markers (a kit of stickers a therapist puts on the palpated C7 and on the iliac crests'
-// line, L4) found in both views of a rectified stereo pair: per sticker, the pixels of its colour (HSV), opened and
-// split into blobs, the round ones of a dot's size kept; the one on the back in the left view is matched along its
-// row in the right view. Never guesses: none or several candidates are a problem, not a pick. What is found is meant
-// to become a GivenLandmark (given_landmarks.h) with source "marker". ROS-free.
+// line, L4, and optionally on T7) found in both views of a rectified stereo pair: per sticker, the pixels of its colour
+// (HSV), opened and split into blobs, the round ones of a dot's size kept; the one on the back in the left view is
+// matched along its row in the right view. Never guesses: none or several candidates are a problem, not a pick. What is
+// found is meant to become a GivenLandmark (given_landmarks.h) with source "marker". ROS-free.
 #pragma once
 
 #include <functional>
@@ -15,13 +15,15 @@ namespace massage_cell::cect {
 
 /// One sticker of the kit: which landmark it marks and its colour.
 struct SkinMarkerSpec {
-  std::string landmark;  ///< "C7" or "L4" (must pass checkGivenLandmarkName from given_landmarks.h)
+  std::string landmark;  ///< "C7", "T7" or "L4" (must pass checkGivenLandmarkName from given_landmarks.h)
   std::string colour;    ///< its everyday name ("green"): what to buy, what the simulator renders (empty: from the hue)
   double hue_deg = 0;    ///< the sticker's hue, degrees 0..360 (HSV of the sRGB image)
   double hue_tolerance_deg = 22;  ///< accepted |hue - hue_deg| (wrapping at 360)
   double min_saturation = 0.40;   ///< 0..1
   double min_value = 0.12;        ///< 0..1 (dark pixels have no reliable hue)
   double diameter_m = 0.025;      ///< printed size, metres (used with the pixel scale when known)
+  /// Stuck only on some backs (T7's dot): no candidate of its colour on the back is no problem (SkinMarkers::absent).
+  bool optional = false;
 };
 
 /// The kit and the limits of the search (pixels of the rectified images).
@@ -54,8 +56,11 @@ struct SkinMarkers {
   /// the left view, none taken (at ...)", "C7 (green dot): no match in the right view on rows 101..105 with
   /// disparity 8..40".
   std::vector<std::string> problems;
-  /// One line: the found ones, then the problems: "C7 at (160.2, 41.0) d 23.1; L4 (blue dot): not found in the left
-  /// view"; "no markers" when there is neither.
+  /// The optional markers with no candidate on the back ("T7 (magenta dot)"): not stuck on this subject.
+  std::vector<std::string> absent;
+  /// One line: the found ones, then the problems, then the optional ones absent: "C7 at (160.2, 41.0) d 23.1; L4
+  /// (blue dot): not found in the left view; T7 (magenta dot): optional, not on the back"; "no markers" when there
+  /// is none of these.
   std::string describe() const;
 };
 
