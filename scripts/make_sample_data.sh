@@ -16,8 +16,8 @@
 #                               face cradle with hair, a towel, light from the
 #                               left): the main job's default (cell.launch)
 #   rosbags/markers_session.*   the dressed session again with the skin markers of
-#                               config/skin_markers.yaml stuck on C7 (green) and L4
-#                               (blue): cell.launch markers:=true
+#                               config/skin_markers.yaml stuck on C7 (green), T7
+#                               (magenta) and L4 (blue): cell.launch markers:=true
 # Images are deterministic (fixed seeds); the bag's stamps are those of the run.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -39,5 +39,6 @@ rm -f "$root/rosbags/sample.bag"
 "$root/scripts/record_session.sh" "$root/rosbags/dressed_session.bag" --subject 7 --arms along --arm-angle 5 \
     --head --hair nape --towel white --light top_left --seed 12
 "$root/scripts/record_session.sh" "$root/rosbags/markers_session.bag" --subject 7 --arms along --arm-angle 5 \
-    --head --hair nape --towel white --light top_left --seed 12 --sticker C7=green --sticker L4=blue
+    --head --hair nape --towel white --light top_left --seed 12 --sticker C7=green --sticker L4=blue \
+    --sticker T7=magenta
 du -sh "$out" "$root/rosbags/"*

@@ -248,8 +248,12 @@ cv::Mat drawAcupoints(const cv::Mat& image, const std::vector<MarkedPixel>& esti
   for (const MarkedPixel& t : truth) cv::drawMarker(out, t.pixel, {0, 200, 0}, cv::MARKER_CROSS, 3 * r, 1);
   for (const MarkedPixel& l : landmarks) {
     cv::drawMarker(out, l.pixel, {255, 255, 0}, cv::MARKER_DIAMOND, 4 * r, 1, cv::LINE_AA);
-    cv::putText(out, l.label, l.pixel + cv::Point2d(-4.0 * r - 2, -2.0 * r), cv::FONT_HERSHEY_SIMPLEX,
-                0.3 * r / 2.0 + 0.2, {255, 255, 0}, 1, cv::LINE_AA);
+    // Ending left of the diamond: the routine's labels run to the right of their points, on and beside the spine.
+    const double scale = 0.3 * r / 2.0 + 0.2;
+    int baseline = 0;
+    const cv::Size text = cv::getTextSize(l.label, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &baseline);
+    cv::putText(out, l.label, l.pixel + cv::Point2d(-2.0 * r - 2 - text.width, 0.5 * text.height),
+                cv::FONT_HERSHEY_SIMPLEX, scale, {255, 255, 0}, 1, cv::LINE_AA);
   }
   for (const MarkedPixel& e : estimates) {
     if (!e.labelled) {

@@ -1,5 +1,6 @@
 // A client's profile (client_profile.h): its YAML file and its corrections on the acupoint model.
 #include "massage_cell/cect/client_profile.h"
+#include "massage_cell/cect/locate.h"
 
 #include <cmath>
 #include <fstream>
@@ -126,6 +127,20 @@ AcupointModel withCorrections(const AcupointModel& model, const ClientProfile& p
                                   "', which the acupoint model does not have");
   }
   return m;
+}
+
+ClientProfile measuredProfile(const ClientProfile& base, const LocatedAcupoints& located, const std::string& client) {
+  const BackLandmarks& l = located.landmarks;
+  if (!(l.c7_given && l.l4_given))
+    throw std::runtime_error(
+        "C7 and L4 must both be given (a click, ~set_landmark, --landmark, skin markers) to measure the client's C7 -> "
+        "L4");
+  if (!(located.valid && located.check.trusted && std::isfinite(located.check.length_m)))
+    throw std::runtime_error("no trusted C7 -> L4 on this pair: " + located.reason);
+  ClientProfile p = base;
+  if (!client.empty()) p.client = client;
+  p.c7_to_l4_m = located.check.length_m;
+  return p;
 }
 
 }  // namespace massage_cell::cect

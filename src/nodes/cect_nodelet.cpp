@@ -83,6 +83,7 @@ void CectNodelet::init() {
   tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);  // its own thread and queue
   localize_service_ = pnh.advertiseService("localize_pixels", &CectNodelet::localizePixels, this);
   acupoint_service_ = pnh.advertiseService("get_acupoint", &CectNodelet::getAcupoint, this);
+  profile_service_ = pnh.advertiseService("save_client_profile", &CectNodelet::saveClientProfile, this);
   landmarks_ = std::make_unique<LandmarkInput>(
       nh, pnh, *tf_buffer_, tracker_->model(),
       [this] {
@@ -195,11 +196,13 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
   }
 
   // 3. The model's acupoints in the left view, each to 3D, through the temporal filter.
-  cect::BackLandmarks landmarks;
-  const cect::TrackerUpdate update = track(*frame, header, decimation, config, &landmarks);
+  std::shared_ptr<const cect::LocatedAcupoints> located;
+  const cect::TrackerUpdate update = track(*frame, header, decimation, config, &located);
+  const cect::BackLandmarks& landmarks = located->landmarks;
   {
     std::lock_guard<std::mutex> lock(latest_mutex_);
     latest_.landmarks = landmarks;
+    latest_.located = located;
   }
   if (update.reset) NODELET_INFO("the stamps went back (a replay started over?): acupoint estimates reset");
   if (!update.problem.empty() && log_throttle_.due(update.problem))
@@ -212,13 +215,15 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
 
 cect::TrackerUpdate CectNodelet::track(const cect::CectFrame& frame, const std_msgs::Header& header,
                                        const camera::Decimation& decimation, const Config& config,
-                                       cect::BackLandmarks* landmarks) {
+                                       std::shared_ptr<const cect::LocatedAcupoints>* located_out) {
   cect::LocateOptions options = locateOptions(config);
   options.given = landmarks_->forPair(frame.geometry(), decimation);
   options.trust.client_length_m = client_.c7_to_l4_m;
   options.trust.length_tolerance_m = client_.length_tolerance_m;
-  const cect::LocatedAcupoints located = cect::locateAcupoints(frame, tracker_->model(), options);
-  *landmarks = located.landmarks;
+  const auto shared =
+      std::make_shared<const cect::LocatedAcupoints>(cect::locateAcupoints(frame, tracker_->model(), options));
+  *located_out = shared;
+  const cect::LocatedAcupoints& located = *shared;
   if (skin_markers_) {
     if (!located.markers.problems.empty() && log_throttle_.due("skin markers"))
       NODELET_WARN_STREAM("skin markers: " << located.markers.describe());

@@ -7,8 +7,10 @@
 // placed pixel to 3D, a temporal filter per acupoint; then publishes
 // `acupoints` (massage_cell/AcupointArray), a tf frame <frame_prefix><name>
 // per valid acupoint, `~markers` and `~debug_image`, and serves
-// `~localize_pixels` (any raw left pixel of the latest pair to 3D) and
-// `~get_acupoint` (one filtered acupoint, in any tf frame).
+// `~localize_pixels` (any raw left pixel of the latest pair to 3D),
+// `~get_acupoint` (one filtered acupoint, in any tf frame) and
+// `~save_client_profile` (the latest pair's C7 -> L4 of given landmarks, as
+// a client's profile file).
 //
 // A therapist's landmarks (landmark_input.h): `~set_landmark` (C7, T7 or L4, a
 // point in any tf frame or a raw left pixel), `~clear_landmarks`, and clicks
@@ -67,11 +69,13 @@
 #include "massage_cell/CECTConfig.h"
 #include "massage_cell/GetAcupoint.h"
 #include "massage_cell/LocalizePixels.h"
+#include "massage_cell/SaveClientProfile.h"
 #include "massage_cell/camera/calibration.h"
 #include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/cect/acupoint_model.h"
 #include "massage_cell/cect/cect.h"
 #include "massage_cell/cect/client_profile.h"
+#include "massage_cell/cect/locate.h"
 #include "massage_cell/cect/tracker.h"
 #include "stereo_pair_input.h"
 #include "wall_diagnostics.h"
@@ -93,6 +97,7 @@ class CectNodelet : public nodelet::Nodelet {
     std_msgs::Header header;        ///< the left image's stamp, the left optical frame
     camera::Decimation decimation;  ///< the frame's pixels against the camera's
     cect::BackLandmarks landmarks;  ///< the pair's layout (a click is taken as its nearest landmark)
+    std::shared_ptr<const cect::LocatedAcupoints> located;  ///< its acupoints and check (~save_client_profile)
   };
 
   void onInit() override;  ///< init(); a parameter of the wrong type: FATAL, the node exits 1
@@ -106,7 +111,8 @@ class CectNodelet : public nodelet::Nodelet {
   void process(const StereoPair& pair, const Config& config);
   void updateGeometry(const CameraInfo& left, const CameraInfo& right);
   cect::TrackerUpdate track(const cect::CectFrame& frame, const std_msgs::Header& header,
-                            const camera::Decimation& decimation, const Config& config, cect::BackLandmarks* landmarks);
+                            const camera::Decimation& decimation, const Config& config,
+                            std::shared_ptr<const cect::LocatedAcupoints>* located);
   void publish(const std_msgs::Header& header, const cect::CectFrame& frame, const cect::TrackerUpdate& update,
                std::vector<massage_cell::BackLandmark>&& landmarks, const Config& config);
   void recordStatus(const cect::CectFrame& frame, const cect::TrackerUpdate& update, double elapsed_ms,
@@ -114,6 +120,9 @@ class CectNodelet : public nodelet::Nodelet {
   void badPair(const std::string& problem);
   bool localizePixels(massage_cell::LocalizePixels::Request& request, massage_cell::LocalizePixels::Response& response);
   bool getAcupoint(massage_cell::GetAcupoint::Request& request, massage_cell::GetAcupoint::Response& response);
+  /// ~save_client_profile (cect_nodelet_files.cpp): the latest pair's C7 -> L4 with client_'s corrections.
+  bool saveClientProfile(massage_cell::SaveClientProfile::Request& request,
+                         massage_cell::SaveClientProfile::Response& response);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
 
   // Inputs and the worker thread (stopped first in the destructor).
@@ -125,7 +134,7 @@ class CectNodelet : public nodelet::Nodelet {
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
-  ros::ServiceServer localize_service_, acupoint_service_;
+  ros::ServiceServer localize_service_, acupoint_service_, profile_service_;
   std::unique_ptr<LandmarkInput> landmarks_;  ///< a therapist's landmarks (its services and clicks)
   std::string frame_prefix_ = "acupoint/";
   std::optional<cect::SkinMarkerOptions> skin_markers_;  ///< the kit of ~skin_markers_file (read once at start-up)

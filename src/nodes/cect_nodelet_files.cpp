@@ -1,5 +1,7 @@
-// The cect nodelet's start-up files (cect_nodelet.h): the acupoint model with a client's profile on it, and the
-// skin-marker kit. Read once; a bad model stops the node, a bad profile or kit is logged and left out.
+// The cect nodelet's files (cect_nodelet.h): at start-up the acupoint model with a client's profile on it, and the
+// skin-marker kit (read once; a bad model stops the node, a bad profile or kit is logged and left out); on
+// ~save_client_profile, the client's profile measured on the latest pair.
+#include <sstream>
 #include <stdexcept>
 
 #include <ros/package.h>
@@ -53,6 +55,38 @@ void CectNodelet::loadSkinMarkers() {
         "skin markers " << path << ": " << e.what()
                         << "; going on without them (landmarks from the image, clicks, ~set_landmark)");
   }
+}
+
+bool CectNodelet::saveClientProfile(massage_cell::SaveClientProfile::Request& request,
+                                    massage_cell::SaveClientProfile::Response& response) {
+  std::shared_ptr<const cect::LocatedAcupoints> located;
+  {
+    std::lock_guard<std::mutex> lock(latest_mutex_);
+    located = latest_.located;
+  }
+  response.success = false;
+  if (request.path.empty()) {
+    response.message = "no path: name the file to write";
+  } else if (!located) {
+    response.message = "no pair analysed yet";
+  } else {
+    try {
+      const cect::ClientProfile profile = cect::measuredProfile(client_, *located, request.client);
+      cect::saveClientProfile(profile, request.path);
+      std::ostringstream s;
+      s << "saved " << request.path << ": client '" << profile.client << "', C7 -> L4 " << profile.c7_to_l4_m << " m, "
+        << profile.corrections.size() << " corrections";
+      response.success = true;
+      response.message = s.str();
+    } catch (const std::exception& e) {
+      response.message = std::string("not saved: ") + e.what();
+    }
+  }
+  if (response.success)
+    NODELET_INFO_STREAM("~save_client_profile: " << response.message);
+  else
+    NODELET_WARN_STREAM("~save_client_profile: " << response.message);
+  return true;
 }
 
 }  // namespace massage_cell::nodes

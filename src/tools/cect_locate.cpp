@@ -291,17 +291,15 @@ cect::ClientProfile loadProfile(const Options& o) {
 
 /// --save-profile: the client's C7 -> L4 from this pair (both landmarks given, the layout trusted) with the
 /// corrections of --profile carried over.
-void saveProfile(const Options& o, cect::ClientProfile profile, const cect::LocatedAcupoints& located) {
-  const cect::BackLandmarks& l = located.landmarks;
+void saveProfile(const Options& o, const cect::ClientProfile& profile, const cect::LocatedAcupoints& located) {
   // What the pair gave, not the options: errors of content (exit 1).
-  if (!(l.c7_given && l.l4_given))
-    throw std::runtime_error(
-        "--save-profile: C7 and L4 must both be given (--landmark or skin markers) to measure the client's C7 -> L4");
-  if (!(located.valid && located.check.trusted && std::isfinite(located.check.length_m)))
-    throw std::runtime_error("--save-profile: no trusted C7 -> L4 on this pair: " + oneLine(located.reason));
-  if (!o.client.empty()) profile.client = o.client;
-  profile.c7_to_l4_m = located.check.length_m;
-  cect::saveClientProfile(profile, o.save_profile);
+  cect::ClientProfile measured;
+  try {
+    measured = cect::measuredProfile(profile, located, o.client);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error("--save-profile: " + oneLine(e.what()));
+  }
+  cect::saveClientProfile(measured, o.save_profile);
 }
 
 cect::CectParams cectParams(const Options& o) {

@@ -19,7 +19,9 @@
 // refuses before any pair, an unknown name and a pixel outside the image; C7
 // given by pixel moves GV14 there; an rviz click (Publish Point) near GV3
 // moves L4 (the nearer landmark) to it, a click on ~debug_image near GV14
-// moves C7; ~clear_landmarks brings the automatic layout back.
+// moves C7; ~save_client_profile refuses before any pair and with C7 alone,
+// and with C7 and L4 both given writes the client's C7 -> L4; ~clear_landmarks
+// brings the automatic layout back.
 //
 // Parameters (private): bag, ground_truth, acupoints (paths), tolerance (m, 0.03).
 #include <gtest/gtest.h>
@@ -27,10 +29,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <map>
 #include <set>
 #include <string>
 #include <vector>
+
+#include <unistd.h>
 
 #include <geometry_msgs/Point.h>
 #include <geometry_msgs/PointStamped.h>
@@ -45,8 +50,10 @@
 #include "massage_cell/AcupointArray.h"
 #include "massage_cell/GetAcupoint.h"
 #include "massage_cell/LocalizePixels.h"
+#include "massage_cell/SaveClientProfile.h"
 #include "massage_cell/SetLandmark.h"
 #include "massage_cell/cect/acupoint_model.h"
+#include "massage_cell/cect/client_profile.h"
 #include "massage_cell/cect/tracker.h"
 #include "spin_util.h"
 #include "stereo_node_test.h"
@@ -58,6 +65,7 @@ using massage_cell::AcupointArray;
 using massage_cell::AcupointArrayConstPtr;
 using massage_cell::GetAcupoint;
 using massage_cell::LocalizePixels;
+using massage_cell::SaveClientProfile;
 using massage_cell::SetLandmark;
 using namespace massage_cell::test;
 
@@ -493,10 +501,25 @@ TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
     return call.response;
   };
 
-  // Before any pair there is no view to place a landmark in.
+  ros::ServiceClient save_client = ns.serviceClient<SaveClientProfile>("cect/save_client_profile");
+  ASSERT_TRUE(save_client.waitForExistence(ros::Duration(5.0)));
+  const std::string profile_path = "/tmp/test_cect_node_profile_" + std::to_string(::getpid()) + ".yaml";
+  std::remove(profile_path.c_str());
+  auto saveProfile = [&](const std::string& path) {
+    SaveClientProfile call;
+    call.request.path = path;
+    call.request.client = "test client";
+    EXPECT_TRUE(save_client.call(call));
+    return call.response;
+  };
+
+  // Before any pair there is no view to place a landmark in, nor a layout to save.
   SetLandmark::Response early = setLandmark("C7", 160.0, 60.0);
   EXPECT_FALSE(early.success);
   EXPECT_NE(early.message.find("no stereo pair analysed yet"), std::string::npos) << early.message;
+  SaveClientProfile::Response early_save = saveProfile(profile_path);
+  EXPECT_FALSE(early_save.success);
+  EXPECT_NE(early_save.message.find("no pair analysed yet"), std::string::npos) << early_save.message;
 
   // 1. The automatic layout.
   const AcupointArrayConstPtr automatic = layoutOf(input.publish(good));
@@ -519,6 +542,11 @@ TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
   EXPECT_NEAR(placedPixel(*given, "GV14").x, gv14.x, 0.6);
   EXPECT_NEAR(placedPixel(*given, "GV14").y, gv14.y + 8.0, 0.6);
   EXPECT_NEAR(placedPixel(*given, "GV3").y, gv3.y, 0.6);
+  // C7 alone does not measure the client's C7 -> L4: no profile.
+  SaveClientProfile::Response one_given = saveProfile(profile_path);
+  EXPECT_FALSE(one_given.success);
+  EXPECT_NE(one_given.message.find("C7 and L4 must both be given"), std::string::npos) << one_given.message;
+  EXPECT_FALSE(std::ifstream(profile_path).good()) << "nothing written";
 
   // 3. rviz's Publish Point 2 cm toward the feet of GV3's 3D point: the nearest landmark, L4, goes there.
   const massage_cell::Acupoint* gv3_point = findPoint(*given, "GV3");
@@ -555,7 +583,20 @@ TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
   }
   EXPECT_TRUE(moved) << "GV14 at v " << placedPixel(*given, "GV14").y << ", the click at v " << gv14.y - 4.0;
 
-  // 5. ~clear_landmarks: the automatic layout again.
+  // 5. ~save_client_profile with C7 and L4 both given: the client's C7 -> L4 in the file (an adult's); no path refused.
+  SaveClientProfile::Response saved = saveProfile(profile_path);
+  ASSERT_TRUE(saved.success) << saved.message;
+  EXPECT_NE(saved.message.find("client 'test client'"), std::string::npos) << saved.message;
+  const massage_cell::cect::ClientProfile profile = massage_cell::cect::loadClientProfile(profile_path);
+  EXPECT_EQ(profile.client, "test client");
+  EXPECT_GT(profile.c7_to_l4_m, 0.28);
+  EXPECT_LT(profile.c7_to_l4_m, 0.58);
+  std::remove(profile_path.c_str());
+  SaveClientProfile::Response no_path = saveProfile("");
+  EXPECT_FALSE(no_path.success);
+  EXPECT_NE(no_path.message.find("no path"), std::string::npos) << no_path.message;
+
+  // 6. ~clear_landmarks: the automatic layout again.
   std_srvs::Trigger clear;
   ASSERT_TRUE(clear_client.call(clear));
   EXPECT_TRUE(clear.response.success);

@@ -5,7 +5,7 @@
 // (index.html, the pictures); a routine naming an unknown acupoint fails with
 // a line that names it; a bad routine file exits 2 naming the field. With
 // --markers (test/ros/markers_session.test: the skin-marker recording) the
-// report must say that C7 and L4 came from the markers.
+// report must say that C7, T7 and L4 came from the markers.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -17,7 +17,7 @@
 namespace {
 
 namespace fs = std::filesystem;
-bool g_markers = false;  ///< --markers: the layout's C7 and L4 must be given by skin markers
+bool g_markers = false;  ///< --markers: the layout's C7, T7 and L4 must be given by skin markers
 using massage_cell::test::runCommand;
 using massage_cell::test::TempDir;
 
@@ -47,7 +47,7 @@ TEST(SessionNode, AShortRoutineCompletesAtOneTimesWithItsReport) {
   EXPECT_TRUE(contains(run.output, "the session went well")) << run.output;
   EXPECT_TRUE(contains(run.output, "  layout: C7 ")) << "the report names the layout's landmarks\n" << run.output;
   if (g_markers) {
-    EXPECT_TRUE(contains(run.output, "layout: C7 given (marker), L4 given (marker)")) << run.output;
+    EXPECT_TRUE(contains(run.output, "layout: C7 given (marker), T7 given (marker), L4 given (marker)")) << run.output;
   }
   for (const char* file : {"index.html", "acupoints.png", "trajectory.png"}) {
     EXPECT_TRUE(fs::exists(dir.path() / "report" / file)) << file << "\n" << run.output;

@@ -28,6 +28,8 @@
 
 namespace massage_cell::cect {
 
+struct LocatedAcupoints;  // locate.h
+
 struct AcupointCorrection {
   double along = 0.0;       ///< fraction of C7 -> L4 toward L4, |along| <= 0.1
   double across_cun = 0.0;  ///< cun toward the subject's left, |across_cun| <= 1
@@ -48,6 +50,11 @@ ClientProfile loadClientProfile(const std::string& path);
 /// Writes a profile (the format above). Throws std::runtime_error when the
 /// file cannot be written, std::invalid_argument for values outside the limits.
 void saveClientProfile(const ClientProfile& profile, const std::string& path);
+
+/// The client's profile measured on one located pair: `base` (its corrections, its client unless `client` is not
+/// empty) with the pair's C7 -> L4. Throws std::runtime_error saying why when the pair's C7 and L4 were not both
+/// given (a click, ~set_landmark, --landmark, skin markers) or its layout was not trusted.
+ClientProfile measuredProfile(const ClientProfile& base, const LocatedAcupoints& located, const std::string& client);
 
 /// The model with the profile's corrections on its points. Throws
 /// std::invalid_argument naming a correction for an acupoint the model does
