@@ -67,6 +67,14 @@ double gtRow(const Rendered& r, const camera::StereoModel& g, const std::string&
   return g.project(sim::toCameraFrame(r.back.landmarks(), r.pair.left).at(name)).y();
 }
 
+/// CECT on a rendered pair looking for `kit`'s skin markers.
+cect::CectFrame analyseWithKit(const Rendered& r, const cect::SkinMarkerOptions& kit) {
+  const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
+  cect::CectParams params;
+  params.skin_markers = kit;
+  return cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, params);
+}
+
 }  // namespace
 
 TEST(RealBacks, ArmsTouchingTheTrunkAreCutAtTheirCreasesAndC7AndL4Found) {
@@ -129,9 +137,7 @@ TEST(RealBacks, SkinMarkersGiveC7AndL4AndTheirDotsAreTheBack) {
     SCOPED_TRACE("varied subject " + std::to_string(index));
     const Rendered r = render(index, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kBrown, "", stickers);
     const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
-    cect::CectParams params;
-    params.skin_markers = kit;
-    const cect::CectFrame f = cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, params);
+    const cect::CectFrame f = analyseWithKit(r, kit);
     ASSERT_TRUE(f.valid()) << f.reason();
     const cect::LocatedAcupoints a = cect::locateAcupoints(f, model());
     ASSERT_TRUE(a.valid) << a.reason;
@@ -164,10 +170,7 @@ TEST(RealBacks, SkinMarkersGiveC7AndL4AndTheirDotsAreTheBack) {
   ASSERT_EQ(two.size(), 2u);
   {
     const Rendered r2 = render(1, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kBrown, "", two);
-    const camera::StereoModel g2(r2.pair.left_info, r2.pair.right_info);
-    cect::CectParams params;
-    params.skin_markers = kit;
-    const cect::CectFrame f2 = cect::CectFrame::analyse(r2.frame.left.image, r2.frame.right.image, g2, params);
+    const cect::CectFrame f2 = analyseWithKit(r2, kit);
     ASSERT_TRUE(f2.valid()) << f2.reason();
     const cect::LocatedAcupoints a2 = cect::locateAcupoints(f2, model());
     EXPECT_EQ(a2.markers.found.size(), 2u) << a2.markers.describe();
