@@ -87,36 +87,40 @@ double rowAtFraction(const BackLandmarks& l, double fraction) {
   return by_rows;  // beyond the measured stretch
 }
 
-/// The knots (the model's fraction, the layout's fraction) of the given levels between C7 and L4 (given_levels),
-/// with C7 (0, 0) and L4 (1, 1) at the ends; a level of the model not known is left out.
-std::vector<std::pair<double, double>> givenKnots(const BackLandmarks& l, const AcupointModel& model) {
-  std::vector<std::pair<double, double>> knots{{0.0, 0.0}};
+/// Knots (the model's fraction of C7 -> L4, a value) from C7's value, one per given level between C7 and L4
+/// (`at_given` of it; a level the model does not know is left out) and L4's, in the model's order.
+using Knots = std::vector<std::pair<double, double>>;
+template <typename AtGiven>
+Knots givenKnots(const BackLandmarks& l, const AcupointModel& model, double at_c7, const AtGiven& at_given,
+                 double at_l4) {
+  Knots knots{{0.0, at_c7}};
   for (const BackLandmarks::GivenLevel& g : l.given_levels) {
     const auto it = model.level_fraction.find(g.level);
     if (it != model.level_fraction.end() && it->second > 0.0 && it->second < 1.0)
-      knots.emplace_back(it->second, fractionAtRow(l, g.row));
+      knots.emplace_back(it->second, at_given(g));
   }
-  knots.emplace_back(1.0, 1.0);
+  knots.emplace_back(1.0, at_l4);
   std::sort(knots.begin(), knots.end());
   return knots;
+}
+
+/// The knots' value at `x` in [0, 1] (linear between them).
+double between(const Knots& knots, double x) {
+  for (std::size_t k = 0; k + 1 < knots.size(); ++k) {
+    const auto [x0, y0] = knots[k];
+    const auto [x1, y1] = knots[k + 1];
+    if (x <= x1) return y0 + (x - x0) / (x1 - x0) * (y1 - y0);
+  }
+  return knots.back().second;
 }
 
 /// The body frame's row of a level (its fraction of C7 -> L4 by the model): between two given landmarks (C7, a
 /// given level such as T7, L4) the model's fractions spaced between the two; beyond C7 and L4 as they are.
 double levelRow(const BackLandmarks& l, const AcupointModel& model, double fraction) {
-  double f = fraction;
-  if (!l.given_levels.empty() && fraction > 0.0 && fraction < 1.0) {
-    const std::vector<std::pair<double, double>> knots = givenKnots(l, model);
-    for (std::size_t k = 0; k + 1 < knots.size(); ++k) {
-      const auto [m0, f0] = knots[k];
-      const auto [m1, f1] = knots[k + 1];
-      if (fraction <= m1) {
-        f = f0 + (fraction - m0) / (m1 - m0) * (f1 - f0);
-        break;
-      }
-    }
-  }
-  return rowAtFraction(l, f);
+  if (l.given_levels.empty() || !(fraction > 0.0 && fraction < 1.0)) return rowAtFraction(l, fraction);
+  const Knots knots = givenKnots(
+      l, model, 0.0, [&l](const BackLandmarks::GivenLevel& g) { return fractionAtRow(l, g.row); }, 1.0);
+  return rowAtFraction(l, between(knots, fraction));
 }
 
 /// A scale of image pixels as one of the body frame's pixels.
@@ -217,22 +221,9 @@ Eigen::Matrix3d layoutCovariance(const BackLandmarks& landmarks, const AcupointM
   const double at_c7 = landmarks.c7_given ? ls.c7_given : landmarks.c7_measured ? ls.c7_measured : ls.c7_inferred;
   const double at_l4 = landmarks.l4_given ? ls.l4_given : landmarks.waist_measured ? ls.l4_measured : ls.l4_inferred;
   // Linear in the level between two of C7, a given level and L4 (beyond C7 and L4, the nearer one's).
-  const double m = std::clamp(it->second, 0.0, 1.0);
-  std::vector<std::pair<double, double>> knots{{0.0, at_c7}};  // (the model's fraction, sigma)
-  for (const BackLandmarks::GivenLevel& g : landmarks.given_levels) {
-    const auto given = model.level_fraction.find(g.level);
-    if (given != model.level_fraction.end() && given->second > 0.0 && given->second < 1.0)
-      knots.emplace_back(given->second, ls.level_given);
-  }
-  knots.emplace_back(1.0, at_l4);
-  std::sort(knots.begin(), knots.end());
-  double sigma = at_l4;
-  for (std::size_t k = 0; k + 1 < knots.size(); ++k) {
-    if (m > knots[k + 1].first) continue;
-    const double t = (m - knots[k].first) / (knots[k + 1].first - knots[k].first);
-    sigma = (1.0 - t) * knots[k].second + t * knots[k + 1].second;
-    break;
-  }
+  const Knots knots = givenKnots(
+      landmarks, model, at_c7, [&ls](const BackLandmarks::GivenLevel&) { return ls.level_given; }, at_l4);
+  const double sigma = between(knots, std::clamp(it->second, 0.0, 1.0));
   const double length = length_px * metres_per_pixel;
   const double along = sigma * length, across = ls.across * length;
   const Eigen::Vector3d a((l4.x - c7.x) / length_px, (l4.y - c7.y) / length_px, 0.0);
