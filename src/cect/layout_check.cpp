@@ -106,6 +106,10 @@ LayoutCheck checkLayout(const BackLandmarks& l, const AcupointModel& model, cons
   const double shoulder_mpp = scale ? scale(toImage(l, midlineNear(l, l.shoulder_row))) : kNaN;
   c.shoulder_width_m = l.shoulder_width * (std::isfinite(shoulder_mpp) && shoulder_mpp > 0.0 ? shoulder_mpp : mpp);
   within(&c, c.length_m, pl.min_length_m, pl.max_length_m, "C7 -> L4", " m", 3);
+  // With the back's 3D a size that cannot be measured is no size that passed: too few of the midline's points have
+  // a depth (a back found in part, its 3D lost).
+  if (scale && !std::isfinite(c.length_m))
+    c.problems.push_back("C7 -> L4 not measured: too few points of the midline between them have a depth");
   if (std::isfinite(rules.client_length_m) && std::isfinite(c.length_m) &&
       std::abs(c.length_m - rules.client_length_m) > rules.length_tolerance_m)
     c.problems.push_back("C7 -> L4 " + fixed(c.length_m, 3) + " m, the client's profile says " +

@@ -244,6 +244,18 @@ TEST(LayoutCheck, AGivenT7FarFromItsLevelIsNotTrusted) {
   EXPECT_EQ(given.reason().find("(give "), std::string::npos) << given.reason();
 }
 
+TEST(LayoutCheck, ABackWithoutDepthOnItsMidlineIsNotTrustedInStereo) {
+  // The pair's 3D has no depth on the midline (a back found in part): its size cannot be checked, which is no pass.
+  const cect::PixelScale none = [](const cv::Point2f&) { return std::numeric_limits<double>::quiet_NaN(); };
+  const cect::LayoutCheck c = cect::checkLayout(back(), model(), none);
+  EXPECT_FALSE(c.trusted);
+  EXPECT_NE(c.reason().find("C7 -> L4 not measured: too few points of the midline between them have a depth"),
+            std::string::npos)
+      << c.reason();
+  // A photo has no 3D at all (no scale function): its proportions alone decide.
+  EXPECT_TRUE(cect::checkLayout(back(), model(), cect::PixelScale()).trusted);
+}
+
 TEST(LayoutCheck, AnAdultBackInProportionIsTrusted) {
   const cect::LayoutCheck c = cect::checkLayout(back(), model(), kScale);
   EXPECT_TRUE(c.trusted) << c.reason();
