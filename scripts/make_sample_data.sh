@@ -3,6 +3,9 @@
 #   data/sample_stereo/         20 rendered pairs of a textured plane 0.8 m away
 #                               (rectified 320x240, baseline 6 cm): the camera
 #                               driver's test data (render_sample)
+#   data/back_pair/             one rendered 640x480 pair of the dressed subject of
+#                               dressed_session (below) with its calibrations and truth:
+#                               cect_locate's example (render_scene --preset back)
 #   rosbags/back_session.bag    a 5 s session at 10 Hz of the mean subject lying
 #                               prone and breathing under the stereo camera
 #                               (render_scene --preset back --frames 50), played
@@ -34,6 +37,12 @@ rm -rf "$out"
 "$bin/render_sample" --out "$out" --frames 20 --width 320 --height 240 \
     --fx 300 --baseline 0.06 --distance 0.8 --amplitude 0.005 --format jpg --seed 7 --noise 1.0
 
+pair="$root/data/back_pair" tmp=$(mktemp -d)
+"$bin/render_scene" --preset back --out "$tmp" --subject 7 --arms along --arm-angle 5 --head --hair nape \
+    --towel white --light top_left --seed 12
+cp "$tmp"/{left.png,right.png,left_camera_info.yaml,right_camera_info.yaml,acupoints_truth.yaml} "$pair/"
+rm -rf "$tmp"
+
 rm -f "$root/rosbags/sample.bag"
 "$root/scripts/record_session.sh" "$root/rosbags/back_session.bag" --subject 0 --seed 11
 "$root/scripts/record_session.sh" "$root/rosbags/dressed_session.bag" --subject 7 --arms along --arm-angle 5 \
@@ -41,4 +50,4 @@ rm -f "$root/rosbags/sample.bag"
 "$root/scripts/record_session.sh" "$root/rosbags/markers_session.bag" --subject 7 --arms along --arm-angle 5 \
     --head --hair nape --towel white --light top_left --seed 12 --sticker C7=green --sticker L4=blue \
     --sticker T7=magenta
-du -sh "$out" "$root/rosbags/"*
+du -sh "$out" "$pair" "$root/rosbags/"*

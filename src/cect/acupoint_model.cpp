@@ -121,6 +121,12 @@ void AcupointModel::validate() const {
     fail("plausibility: proportion_tolerance " + num(pl.proportion_tolerance) + " is not in (0, 1)");
   if (!(pl.given_level_tolerance > 0.0 && pl.given_level_tolerance < 0.5))
     fail("plausibility: given_level_tolerance " + num(pl.given_level_tolerance) + " is not in (0, 0.5)");
+  if (!(pl.given_level_limit >= pl.given_level_tolerance && pl.given_level_limit < 0.5))
+    fail("plausibility: given_level_limit " + num(pl.given_level_limit) + " is not in [given_level_tolerance, 0.5)");
+  if (!(pl.max_given_off_midline_cun > 0.0 && pl.max_given_off_midline_cun <= 6.0))
+    fail("plausibility: max_given_off_midline_cun " + num(pl.max_given_off_midline_cun) + " is not in (0, 6]");
+  if (!(pl.given_disagreement_sigmas > 0.0))
+    fail("plausibility: given_disagreement_sigmas " + num(pl.given_disagreement_sigmas) + " must be > 0");
   if (!(pl.min_shoulder_below_c7 < pl.max_shoulder_below_c7))
     fail("plausibility: min_shoulder_below_c7 must be < max_shoulder_below_c7");
   if (!(waist_fraction > 0.0 && waist_fraction < 1.5)) {
@@ -200,7 +206,10 @@ AcupointModel acupointModel(const std::string& path) {
                                                 {"proportion_tolerance", &b.proportion_tolerance},
                                                 {"min_shoulder_below_c7", &b.min_shoulder_below_c7},
                                                 {"max_shoulder_below_c7", &b.max_shoulder_below_c7},
-                                                {"given_level_tolerance", &b.given_level_tolerance}};
+                                                {"given_level_tolerance", &b.given_level_tolerance},
+                                                {"given_level_limit", &b.given_level_limit},
+                                                {"max_given_off_midline_cun", &b.max_given_off_midline_cun},
+                                                {"given_disagreement_sigmas", &b.given_disagreement_sigmas}};
     for (const auto& kv : pl) {
       const std::string key = kv.first.as<std::string>();
       const auto field = fields.find(key);

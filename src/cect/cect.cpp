@@ -113,6 +113,10 @@ CectParams scaledParams(const CectParams& p, double scale) {
 void CectFrameBuilder::run(const cv::Mat& left, const cv::Mat& right) {
   const auto t0 = Clock::now();
   f_.geometry_.rectify(left, right, &f_.left_rect_, &f_.right_rect_);
+  // Rectified input comes back as the caller's own images, which may be a message's buffer that dies with it: the
+  // frame keeps copies, so that its views outlive the pair (a node keeps its latest frame for its services).
+  if (f_.left_rect_.data == left.data) f_.left_rect_ = left.clone();
+  if (f_.right_rect_.data == right.data) f_.right_rect_ = right.clone();
   f_.timings_.rectify_ms = msSince(t0);
   f_.disparity_range_ = disparityRange(f_.params_, f_.geometry_);
   if (!(f_.disparity_range_[1] > f_.disparity_range_[0]))

@@ -2,8 +2,13 @@
 #include "massage_cell/cect/client_profile.h"
 #include "massage_cell/cect/locate.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <iomanip>
+#include <iterator>
+#include <limits>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 
@@ -43,35 +48,105 @@ std::string problemOf(const ClientProfile& p) {
   return "";
 }
 
-double number(const YAML::Node& node, const std::string& field) {
-  try {
-    return node.as<double>();
-  } catch (const YAML::Exception&) {
-    throw std::runtime_error(field + " is not a number");
+const char* const kKeys[] = {"format", "client", "c7_to_l4_m", "length_tolerance_m", "corrections"};
+const char* const kCorrectionKeys[] = {"along", "across_cun"};
+
+template <std::size_t N>
+std::string listOf(const char* const (&keys)[N]) {
+  std::string s;
+  for (const char* k : keys) s += (s.empty() ? "" : ", ") + std::string(k);
+  return s;
+}
+
+template <std::size_t N>
+bool known(const char* const (&keys)[N], const std::string& key) {
+  return std::find(std::begin(keys), std::end(keys), key) != std::end(keys);
+}
+
+/// What kind of YAML node `node` is, for the messages.
+std::string kindOf(const YAML::Node& node) {
+  switch (node.Type()) {
+    case YAML::NodeType::Map:
+      return "a map";
+    case YAML::NodeType::Sequence:
+      return "a list";
+    case YAML::NodeType::Scalar:
+      return "'" + node.Scalar() + "'";
+    default:
+      return "empty";
   }
 }
 
+/// The name a map's key gives (a scalar); `where` names the map in the message.
+std::string keyName(const YAML::Node& key, const std::string& where) {
+  if (!key.IsScalar()) throw std::runtime_error(where + " has a key that is not a name (" + kindOf(key) + ")");
+  return key.Scalar();
+}
+
+/// A finite number; `field` names it in the message.
+double number(const YAML::Node& node, const std::string& field) {
+  double v = std::numeric_limits<double>::quiet_NaN();
+  try {
+    if (node.IsScalar()) v = node.as<double>();
+  } catch (const YAML::Exception&) {
+  }
+  if (!std::isfinite(v)) throw std::runtime_error(field + " is not a number (got " + kindOf(node) + ")");
+  return v;
+}
+
+AcupointCorrection correction(const std::string& name, const YAML::Node& node) {
+  const std::string field = "corrections." + name;
+  if (!node.IsMap()) throw std::runtime_error(field + " is not a map {along, across_cun} (got " + kindOf(node) + ")");
+  AcupointCorrection c;
+  std::set<std::string> seen;
+  for (const auto& kv : node) {
+    const std::string key = keyName(kv.first, field);
+    if (!known(kCorrectionKeys, key))
+      throw std::runtime_error("unknown key '" + field + "." + key + "' (known: " + listOf(kCorrectionKeys) + ")");
+    if (!seen.insert(key).second) throw std::runtime_error(field + "." + key + " given twice");
+    (key == "along" ? c.along : c.across_cun) = number(kv.second, field + "." + key);
+  }
+  return c;
+}
+
 ClientProfile parse(const YAML::Node& root) {
-  if (!root.IsMap()) throw std::runtime_error("not a YAML map");
-  if (!root["format"] || root["format"].as<std::string>() != kFormat)
-    throw std::runtime_error(std::string("no 'format: ") + kFormat +
-                             "' line (not a client profile, or another version)");
+  if (!root.IsMap())
+    throw std::runtime_error("not a YAML map of the keys " + listOf(kKeys) + " (got " + kindOf(root) + ")");
+  // The format first: another kind of file (an acupoint model, a camera_info) is said to be one, not a list of
+  // unknown keys.
+  const YAML::Node format = root["format"];
+  if (!format)
+    throw std::runtime_error(std::string("missing key 'format' (format: ") + kFormat + "): not a client profile");
+  if (!format.IsScalar() || format.Scalar() != kFormat)
+    throw std::runtime_error("format is " + kindOf(format) + ", not '" + kFormat +
+                             "' (not a client profile, or another version)");
   ClientProfile p;
-  if (root["client"]) p.client = root["client"].as<std::string>();
-  if (root["c7_to_l4_m"]) p.c7_to_l4_m = number(root["c7_to_l4_m"], "c7_to_l4_m");
-  if (root["length_tolerance_m"]) p.length_tolerance_m = number(root["length_tolerance_m"], "length_tolerance_m");
-  if (const YAML::Node cs = root["corrections"]) {
-    if (!cs.IsMap()) throw std::runtime_error("corrections is not a map of acupoint names");
-    for (const auto& kv : cs) {
-      const std::string name = kv.first.as<std::string>();
-      if (!kv.second.IsMap()) throw std::runtime_error("corrections." + name + " is not a map {along, across_cun}");
-      AcupointCorrection c;
-      if (kv.second["along"]) c.along = number(kv.second["along"], "corrections." + name + ".along");
-      if (kv.second["across_cun"])
-        c.across_cun = number(kv.second["across_cun"], "corrections." + name + ".across_cun");
-      p.corrections[name] = c;
+  std::set<std::string> seen;
+  for (const auto& kv : root) {
+    const std::string key = keyName(kv.first, "the file");
+    if (!known(kKeys, key)) throw std::runtime_error("unknown key '" + key + "' (known: " + listOf(kKeys) + ")");
+    if (!seen.insert(key).second) throw std::runtime_error(key + " given twice");
+    const YAML::Node& value = kv.second;
+    if (key == "client") {
+      if (!value.IsScalar())
+        throw std::runtime_error("client is not a name (got " + kindOf(value) + "; quote it: client: \"...\")");
+      p.client = value.Scalar();
+    } else if (key == "c7_to_l4_m") {
+      p.c7_to_l4_m = number(value, key);
+    } else if (key == "length_tolerance_m") {
+      p.length_tolerance_m = number(value, key);
+    } else if (key == "corrections") {
+      if (!value.IsMap())
+        throw std::runtime_error("corrections is not a map of acupoint names (got " + kindOf(value) + ")");
+      for (const auto& c : value) {
+        const std::string name = keyName(c.first, "corrections");
+        if (p.corrections.count(name)) throw std::runtime_error("corrections." + name + " given twice");
+        p.corrections[name] = correction(name, c.second);
+      }
     }
   }
+  if (!seen.count("client"))
+    throw std::runtime_error("missing key 'client' (the client's id; client: \"\" when there is none)");
   if (const std::string problem = problemOf(p); !problem.empty()) throw std::runtime_error(problem);
   return p;
 }
@@ -88,6 +163,17 @@ ClientProfile loadClientProfile(const std::string& path) {
   } catch (const std::runtime_error& e) {
     throw std::runtime_error("client profile '" + path + "': " + e.what());
   }
+}
+
+std::string describeClientProfile(const ClientProfile& p) {
+  std::ostringstream s;
+  s << "'" << p.client << "', C7 -> L4 ";
+  if (std::isnan(p.c7_to_l4_m))
+    s << "not measured";
+  else
+    s << std::fixed << std::setprecision(3) << p.c7_to_l4_m << " m";
+  s << ", " << p.corrections.size() << (p.corrections.size() == 1 ? " correction" : " corrections");
+  return s.str();
 }
 
 void saveClientProfile(const ClientProfile& p, const std::string& path) {

@@ -65,6 +65,77 @@ void within(LayoutCheck* c, double value, double lo, double hi, const std::strin
                         fixed(hi, precision) + unit);
 }
 
+/// "98 mm (3.9 cun)" with a scale, else "3.9 cun".
+std::string across(double pixels, double cun_px, double mpp) {
+  const std::string cun = fixed(std::abs(pixels) / cun_px, 1) + " cun";
+  return std::isfinite(mpp) ? fixed(std::abs(pixels) * mpp * 1000.0, 0) + " mm (" + cun + ")" : cun;
+}
+
+/// A level given between C7 and L4 (T7) where the model puts it; beyond the model's proportions noted, beyond the
+/// population's spread refused.
+void checkGivenLevels(LayoutCheck* c, const BackLandmarks& l, const AcupointModel& model) {
+  const AcupointModel::Plausibility& pl = model.plausibility;
+  for (const BackLandmarks::GivenLevel& g : l.given_levels) {
+    const auto expected = model.level_fraction.find(g.level);
+    if (expected == model.level_fraction.end()) continue;
+    const double at = fractionAtRow(l, g.row), off = std::abs(at - expected->second);
+    const std::string where =
+        g.level + " (given) lies at " + fixed(at, 2) + " of C7 -> L4, the model's " + fixed(expected->second, 2);
+    if (off > pl.given_level_limit)
+      c->problems.push_back(where + " +- " + fixed(pl.given_level_limit, 2) + " (the population's spread): C7, " +
+                            g.level + " or L4 is not where it was given");
+    else if (off > pl.given_level_tolerance)
+      c->notes.push_back(where + ": more than " + fixed(pl.given_level_tolerance, 2) +
+                         " off the model's proportions (used as given)");
+  }
+}
+
+/// Each given landmark on the spine: within max_given_off_midline_cun of the back's midline as the pair measured it
+/// (`midline_mpp`: the midline's median metres per pixel, NaN without a scale).
+void checkGivenOnSpine(LayoutCheck* c, const BackLandmarks& l, const AcupointModel& model, const PixelScale& scale,
+                       double midline_mpp) {
+  const double limit = model.plausibility.max_given_off_midline_cun;
+  const double cun_m = scale ? cunMetres(l, model, scale) : kNaN;
+  for (const BackLandmarks::GivenCheck& g : l.given_checks) {
+    // The scale at the given row; where the skin there has no depth (a C7 at the back's top edge), the midline's.
+    const double here = scale ? scale(toImage(l, midlineAt(l, g.body.y))) : kNaN;
+    const double mpp = std::isfinite(here) && here > 0.0 ? here : midline_mpp;
+    const bool metric = std::isfinite(cun_m) && std::isfinite(mpp) && mpp > 0.0;
+    // Without a scale the cun in pixels as cunMetres takes it: from C7 -> L4 with both given, else the shoulders.
+    const double cun_px = metric                     ? cun_m / mpp
+                          : l.c7_given && l.l4_given ? model.cun_per_shoulder_width / model.length_per_shoulder_width *
+                                                           (static_cast<double>(l.l4.y) - l.c7.y)
+                                                     : model.cun_per_shoulder_width * l.shoulder_width;
+    if (!(cun_px > 0.0) || std::abs(g.off_midline) <= limit * cun_px) continue;
+    c->problems.push_back("the given " + g.level + " (" + g.source + ") lies " +
+                          across(g.off_midline, cun_px, metric ? mpp : kNaN) + " to the subject's " +
+                          (g.off_midline > 0.0 ? "right" : "left") + " of the back's midline (a spine lies within " +
+                          fixed(limit, 1) + " cun of it): not on the spine");
+  }
+}
+
+/// Each given landmark the pair also measured: within given_disagreement_sigmas of both sigmas along the body, or
+/// confirmed.
+void checkGivenAgainstMeasured(LayoutCheck* c, const BackLandmarks& l, const AcupointModel& model, double mpp) {
+  const AcupointModel::LayoutSigma& s = model.layout_sigma;
+  const double length_rows = static_cast<double>(l.l4.y) - l.c7.y;
+  for (const BackLandmarks::GivenCheck& g : l.given_checks) {
+    if (!std::isfinite(g.measured_row) || g.confirmed) continue;
+    const double sigma =
+        g.level == "C7" ? std::hypot(s.c7_measured, s.c7_given) : std::hypot(s.l4_measured, s.l4_given);
+    const double apart = std::abs(g.body.y - g.measured_row) / length_rows;
+    if (apart <= model.plausibility.given_disagreement_sigmas * sigma) continue;
+    const cv::Point2f given = toImage(l, g.body), measured = toImage(l, midlineAt(l, g.measured_row));
+    const std::string distance =
+        std::isfinite(mpp) ? fixed(apart * length_rows * mpp * 1000.0, 0) + " mm" : fixed(apart, 2) + " of C7 -> L4";
+    c->problems.push_back("the given " + g.level + " (" + g.source + ") at pixel (" + fixed(given.x, 0) + ", " +
+                          fixed(given.y, 0) + ") and " + g.level + " measured at " + g.measured_from + " at (" +
+                          fixed(measured.x, 0) + ", " + fixed(measured.y, 0) + ") lie " + distance +
+                          " apart along the body (more than " + fixed(model.plausibility.given_disagreement_sigmas, 1) +
+                          " sigma of both): confirm the given one");
+  }
+}
+
 }  // namespace
 
 std::string LayoutCheck::reason() const {
@@ -83,6 +154,7 @@ LayoutCheck checkLayout(const BackLandmarks& l, const AcupointModel& model, cons
     c.problems.push_back("no landmarks" + (l.reason.empty() ? std::string() : ": " + l.reason));
     return c;
   }
+  if (!rules.configuration_problem.empty()) c.problems.push_back(rules.configuration_problem);
   const AcupointModel::Plausibility& pl = model.plausibility;
   const double length_rows = static_cast<double>(l.l4.y) - l.c7.y;
   if (!(length_rows > 0.0)) {
@@ -124,20 +196,14 @@ LayoutCheck checkLayout(const BackLandmarks& l, const AcupointModel& model, cons
     const double expected = model.length_per_shoulder_width, tol = pl.proportion_tolerance * expected;
     within(&c, c.length_per_shoulder_width, expected - tol, expected + tol, "C7 -> L4 over the shoulder width", "", 2);
   }
-  // A level given between C7 and L4 where the model puts it: else C7, L4 or it is a vertebra or more off.
-  for (const BackLandmarks::GivenLevel& g : l.given_levels) {
-    const auto expected = model.level_fraction.find(g.level);
-    if (expected == model.level_fraction.end()) continue;
-    const double at = fractionAtRow(l, g.row), tol = pl.given_level_tolerance;
-    if (std::abs(at - expected->second) > tol)
-      c.problems.push_back(g.level + " (given) lies at " + fixed(at, 2) + " of C7 -> L4, the model's " +
-                           fixed(expected->second, 2) + " +- " + fixed(tol, 2) + ": C7, " + g.level +
-                           " or L4 is a vertebra or more off" +
-                           (both_given   ? std::string()
-                            : l.c7_given ? std::string(" (give L4)")
-                            : l.l4_given ? std::string(" (give C7)")
-                                         : std::string(" (give C7 and L4)")));
+  for (const BackLandmarks::GivenCheck& g : l.given_checks) {
+    if (!g.stale.empty())
+      c.problems.push_back("the given " + g.level + " (" + g.source + ") is stale: " + g.stale +
+                           "; confirm the landmarks again (~confirm_landmarks, a click, ~set_landmark)");
   }
+  checkGivenLevels(&c, l, model);
+  checkGivenOnSpine(&c, l, model, scale, mpp);
+  checkGivenAgainstMeasured(&c, l, model, mpp);
   const bool c7_independent = (l.c7_measured || l.c7_given) && !both_given;
   if (c7_independent) {
     c.shoulder_below_c7 = (l.shoulder_row - l.c7.y) / length_rows;

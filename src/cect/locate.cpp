@@ -63,10 +63,14 @@ bool gives(const std::vector<GivenLandmark>& given, const std::string& name) {
   return std::any_of(given.begin(), given.end(), [&](const GivenLandmark& g) { return g.name == name; });
 }
 
-/// The given landmarks: `options.given`, then each marker found whose landmark it does not have.
+/// The given landmarks: `options.given`, then each marker found whose landmark it does not have, or has stale (a
+/// marker seen again where the subject lies now).
 std::vector<GivenLandmark> givenWithMarkers(const LocateOptions& options, const SkinMarkers& markers) {
   std::vector<GivenLandmark> given = options.given;
   for (const SkinMarkerDetection& m : markers.found) {
+    given.erase(std::remove_if(given.begin(), given.end(),
+                               [&](const GivenLandmark& g) { return g.name == m.landmark && !g.stale.empty(); }),
+                given.end());
     if (!gives(given, m.landmark)) given.push_back({m.landmark, m.left, "marker"});
   }
   return given;
@@ -74,8 +78,8 @@ std::vector<GivenLandmark> givenWithMarkers(const LocateOptions& options, const 
 
 /// The given landmarks put into `landmarks`; false, with `refused` naming the problem, when they cannot be.
 bool putGiven(BackLandmarks* landmarks, const AcupointModel& model, const std::vector<GivenLandmark>& given,
-              LocatedAcupoints* refused) {
-  const std::string problem = applyGivenLandmarks(landmarks, given);
+              const PointLookup& points, LocatedAcupoints* refused) {
+  const std::string problem = applyGivenLandmarks(landmarks, given, points);
   if (problem.empty()) return true;
   *refused = unplaced(model, "given landmarks not usable: " + problem);
   refused->landmarks = std::move(*landmarks);
@@ -106,7 +110,7 @@ LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& mo
   const PointLookup points = framePoints(frame);
   if (options.correct_parallax) correctMidlineParallax(&landmarks, frame.left(), points);
   if (options.levels_in_3d) correctWaistParallax(&landmarks, model, frame.left(), points);
-  if (LocatedAcupoints refused; !putGiven(&landmarks, model, given, &refused)) {
+  if (LocatedAcupoints refused; !putGiven(&landmarks, model, given, points, &refused)) {
     refused.markers = std::move(markers);
     return refused;
   }
@@ -152,7 +156,7 @@ LocatedAcupoints locateAcupoints(const CectFrame& frame, const AcupointModel& mo
 LocatedAcupoints locateLayout(const Segmentation& view, const AcupointModel& model, const LocateOptions& options) {
   BackLandmarks landmarks = findLandmarks(view, model, gives(options.given, "L4"));
   if (!landmarks.valid) return unplaced(model, "no landmarks of the back: " + landmarks.reason);
-  if (LocatedAcupoints refused; !putGiven(&landmarks, model, options.given, &refused)) return refused;
+  if (LocatedAcupoints refused; !putGiven(&landmarks, model, options.given, PointLookup(), &refused)) return refused;
   // One scale for the whole image: placeAcupoints takes the cun as cun_per_shoulder_width x shoulder width (px) x
   // scale and converts it back to pixels with the same scale, so any constant gives lateral offsets of
   // lateral_cun x cun_per_shoulder_width x shoulder width pixels.

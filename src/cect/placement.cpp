@@ -156,8 +156,9 @@ std::string describeLandmarks(const BackLandmarks& landmarks) {
     for (const std::string& x : v) s += (s.empty() ? "" : ", ") + x;
     return s.empty() ? std::string("-") : s;
   };
-  return "measured: " + join(landmarks.measured) + "; inferred: " + join(landmarks.inferred) +
-         (landmarks.given.empty() ? std::string() : "; given: " + join(landmarks.given));
+  std::vector<std::string> used;
+  for (const LayoutLandmark& l : layoutLandmarks(landmarks)) used.push_back(describeLandmark(l));
+  return "used: " + join(used) + "; measured: " + join(landmarks.measured) + "; inferred: " + join(landmarks.inferred);
 }
 
 namespace {
@@ -194,6 +195,10 @@ std::vector<LayoutLandmark> layoutLandmarks(const BackLandmarks& l) {
     out.push_back({g.level, toImage(l, midlineAt(l, g.row)), "given", givenHow(l, g.level)});
   out.push_back(l4);
   return out;
+}
+
+std::string describeLandmark(const LayoutLandmark& l) {
+  return l.name + " " + l.source + (l.detail.empty() || l.detail == l.source ? "" : " (" + l.detail + ")");
 }
 
 cv::Point2f toImage(const BackLandmarks& landmarks, const cv::Point2f& body_pixel) {

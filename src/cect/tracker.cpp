@@ -56,8 +56,9 @@ const TrackerUpdate& AcupointTracker::update(const LocatedAcupoints& located, do
   any_ = true;
   last_stamp_ = stamp;
   u.problem = located.valid ? std::string() : located.reason;
-  if (located.valid) {
+  if (located.landmarks.valid) {  // a refused layout's too: the landmarks say what it was built on
     u.landmarks = describeLandmarks(located.landmarks);
+    for (const std::string& note : located.check.notes) u.landmarks += "; noted: " + note;
     u.body_angle_deg = located.landmarks.body_angle_deg;
   }
   if (!located.valid && u.problem.empty()) u.problem = "no acupoints located";
@@ -175,7 +176,8 @@ PixelPoints localizePixels(const CectFrame* frame, const camera::Decimation& dec
 
 int debugImageScale(int cols, int min_width) { return cols > 0 ? std::max(1, (min_width + cols - 1) / cols) : 1; }
 
-cv::Mat drawAcupoints(const CectFrame& frame, const std::vector<TrackedAcupoint>& points, int min_width) {
+cv::Mat drawAcupoints(const CectFrame& frame, const std::vector<TrackedAcupoint>& points, int min_width,
+                      const std::vector<LayoutLandmark>& landmarks) {
   cv::Mat image;
   try {
     image = frame.drawDebug();
@@ -195,6 +197,19 @@ cv::Mat drawAcupoints(const CectFrame& frame, const std::vector<TrackedAcupoint>
                                            : cv::Scalar(160, 160, 160);
     cv::circle(image, centre, 3, colour, p.accepted ? cv::FILLED : 1, cv::LINE_AA);
     cv::putText(image, p.name, centre + cv::Point(4, -2), cv::FONT_HERSHEY_PLAIN, 0.7, colour, 1, cv::LINE_AA);
+  }
+  for (const LayoutLandmark& l : landmarks) {
+    const cv::Point centre(cvRound((l.pixel.x + 0.5) * scale - 0.5), cvRound((l.pixel.y + 0.5) * scale - 0.5));
+    const cv::Scalar colour = l.source == "given"      ? cv::Scalar(255, 0, 255)
+                              : l.source == "measured" ? cv::Scalar(255, 255, 0)
+                                                       : cv::Scalar(160, 160, 160);
+    cv::drawMarker(image, centre, colour, cv::MARKER_CROSS, 14, 2, cv::LINE_AA);
+    // Named to the left of the cross: the midline's acupoints (GV) are named to their right.
+    const std::string text = describeLandmark(l);
+    int baseline = 0;
+    const cv::Size size = cv::getTextSize(text, cv::FONT_HERSHEY_PLAIN, 0.8, 1, &baseline);
+    cv::putText(image, text, centre + cv::Point(-10 - size.width, size.height / 2), cv::FONT_HERSHEY_PLAIN, 0.8, colour,
+                1, cv::LINE_AA);
   }
   return image;
 }

@@ -209,7 +209,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
     NODELET_WARN_STREAM("no acupoints in this pair: " << update.problem);
 
   // 4. Outputs, then the status.
-  publish(header, *frame, update, landmarkMsgs(landmarks, frame->geometry(), decimation), config);
+  publish(header, *frame, update, landmarks, decimation, config);
   recordStatus(*frame, update, msSince(start), waited_ms);
 }
 
@@ -217,9 +217,10 @@ cect::TrackerUpdate CectNodelet::track(const cect::CectFrame& frame, const std_m
                                        const camera::Decimation& decimation, const Config& config,
                                        std::shared_ptr<const cect::LocatedAcupoints>* located_out) {
   cect::LocateOptions options = locateOptions(config);
-  options.given = landmarks_->forPair(frame.geometry(), decimation);
+  options.given = landmarks_->forPair(frame, decimation);
   options.trust.client_length_m = client_.c7_to_l4_m;
   options.trust.length_tolerance_m = client_.length_tolerance_m;
+  options.trust.configuration_problem = client_profile_problem_;  // a profile that could not be read: none trusted
   const auto shared =
       std::make_shared<const cect::LocatedAcupoints>(cect::locateAcupoints(frame, tracker_->model(), options));
   *located_out = shared;
@@ -257,11 +258,11 @@ void CectNodelet::recordStatus(const cect::CectFrame& frame, const cect::Tracker
 }
 
 void CectNodelet::publish(const std_msgs::Header& header, const cect::CectFrame& frame,
-                          const cect::TrackerUpdate& update, std::vector<massage_cell::BackLandmark>&& landmarks,
-                          const Config& config) {
+                          const cect::TrackerUpdate& update, const cect::BackLandmarks& landmarks,
+                          const camera::Decimation& decimation, const Config& config) {
   auto array = boost::make_shared<massage_cell::AcupointArray>();
   array->header = header;
-  array->landmarks = std::move(landmarks);
+  array->landmarks = landmarkMsgs(landmarks, frame.geometry(), decimation);
   std::vector<geometry_msgs::TransformStamped> transforms;
   visualization_msgs::MarkerArray markers;
   for (std::size_t i = 0; i < update.points.size(); ++i) {
@@ -275,7 +276,7 @@ void CectNodelet::publish(const std_msgs::Header& header, const cect::CectFrame&
   if (!config.publish_debug) return;
   if (markers_pub_.getNumSubscribers() > 0) markers_pub_.publish(markers);
   if (debug_image_pub_.getNumSubscribers() > 0) {
-    const cv::Mat image = cect::drawAcupoints(frame, update.points, kDebugWidth);
+    const cv::Mat image = cect::drawAcupoints(frame, update.points, kDebugWidth, cect::layoutLandmarks(landmarks));
     if (!image.empty()) {
       debug_image_pub_.publish(cv_bridge::CvImage(header, sensor_msgs::image_encodings::BGR8, image).toImageMsg());
     }

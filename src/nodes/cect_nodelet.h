@@ -22,7 +22,9 @@
 // followed as the subject breathes; a click overrides a marker. A client's
 // profile (~client_profile_file: cect/client_profile.h) moves the model's
 // points by its corrections and refuses layouts whose C7 -> L4 disagrees
-// with the client's.
+// with the client's; a profile it cannot read leaves the node running but
+// trusting no layout, saying why (the log, the diagnostics, each layout's
+// reason).
 //
 // Validity: an acupoint is published valid while the temporal filter holds
 // an estimate refreshed within max_age (so a point this pair could not
@@ -114,7 +116,7 @@ class CectNodelet : public nodelet::Nodelet {
                             const camera::Decimation& decimation, const Config& config,
                             std::shared_ptr<const cect::LocatedAcupoints>* located);
   void publish(const std_msgs::Header& header, const cect::CectFrame& frame, const cect::TrackerUpdate& update,
-               std::vector<massage_cell::BackLandmark>&& landmarks, const Config& config);
+               const cect::BackLandmarks& landmarks, const camera::Decimation& decimation, const Config& config);
   void recordStatus(const cect::CectFrame& frame, const cect::TrackerUpdate& update, double elapsed_ms,
                     double waited_ms);
   void badPair(const std::string& problem);
@@ -139,6 +141,10 @@ class CectNodelet : public nodelet::Nodelet {
   std::string frame_prefix_ = "acupoint/";
   std::optional<cect::SkinMarkerOptions> skin_markers_;  ///< the kit of ~skin_markers_file (read once at start-up)
   cect::ClientProfile client_;                           ///< ~client_profile_file (read once at start-up; or none)
+  std::string client_profile_path_;                      ///< ~client_profile_file ("" none)
+  /// Why ~client_profile_file could not be used ("" when it was, or none was named): every layout is refused with
+  /// it (TrustRules::configuration_problem) and the diagnostics say it.
+  std::string client_profile_problem_;
 
   // The acupoint model (read once at start-up) and the acupoints tracked over the pairs: written by the worker,
   // read by ~get_acupoint (guarded by tracker_mutex_).

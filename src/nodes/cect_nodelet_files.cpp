@@ -1,5 +1,6 @@
 // The cect nodelet's files (cect_nodelet.h): at start-up the acupoint model with a client's profile on it, and the
-// skin-marker kit (read once; a bad model stops the node, a bad profile or kit is logged and left out); on
+// skin-marker kit (read once; a bad model stops the node, a bad kit is logged and left out, a profile that cannot be
+// used is logged and every layout refused with it: TrustRules::configuration_problem); on
 // ~save_client_profile, the client's profile measured on the latest pair.
 #include <sstream>
 #include <stdexcept>
@@ -10,6 +11,18 @@
 #include "typed_param.h"
 
 namespace massage_cell::nodes {
+
+namespace {
+
+/// A profile's error without its leading "client profile '<file or client>': " (the node names the file itself).
+std::string withoutPrefix(const std::string& error) {
+  const std::string head = "client profile '";
+  const auto end = error.find("': ", head.size());
+  if (error.compare(0, head.size(), head) != 0 || end == std::string::npos) return error;
+  return error.substr(end + 3);
+}
+
+}  // namespace
 
 void CectNodelet::loadModel() {
   ros::NodeHandle& pnh = getPrivateNodeHandle();
@@ -29,17 +42,30 @@ void CectNodelet::loadModel() {
     NODELET_FATAL_STREAM("acupoint model " << model_path_ << ": " << e.what());
     throw;
   }
-  const std::string profile = typedParam<std::string>(pnh, "client_profile_file", "");
-  if (!profile.empty()) {
+  // The client's profile: one that cannot be used (unreadable, or not the format's) does not stop the node, but no
+  // layout is trusted while it runs without it (the therapist meant this client's corrections and length check).
+  client_profile_path_ = typedParam<std::string>(pnh, "client_profile_file", "");
+  if (!client_profile_path_.empty()) {
     try {
-      client_ = cect::loadClientProfile(profile);
+      client_ = cect::loadClientProfile(client_profile_path_);
       model = cect::withCorrections(model, client_);
-      NODELET_INFO_STREAM("client profile " << profile << ": '" << client_.client << "', " << client_.corrections.size()
-                                            << " corrections");
+      NODELET_INFO_STREAM("client profile " << client_profile_path_ << ": " << cect::describeClientProfile(client_));
     } catch (const std::exception& e) {
       client_ = {};
-      NODELET_ERROR_STREAM(e.what() << "; going on without the client's profile");
+      client_profile_problem_ = "client profile " + client_profile_path_ + " not usable: " + withoutPrefix(e.what()) +
+                                "; no layout is trusted until the node is started with a readable profile (or none)";
+      NODELET_ERROR_STREAM(e.what() << "; going on without the client's profile, trusting no layout until the node is "
+                                       "started with a readable profile (or none)");
     }
+  }
+  {
+    std::lock_guard<std::mutex> lock(status_mutex_);
+    if (client_profile_path_.empty())
+      status_.setClientProfile("none", "");
+    else if (client_profile_problem_.empty())
+      status_.setClientProfile(client_profile_path_ + " (" + cect::describeClientProfile(client_) + ")", "");
+    else
+      status_.setClientProfile(client_profile_path_ + " not usable", client_profile_problem_);
   }
   tracker_ = std::make_unique<cect::AcupointTracker>(model);
 }

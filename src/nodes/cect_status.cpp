@@ -22,7 +22,9 @@ void CectStatus::record(const cect::CectFrame& frame, const cect::TrackerUpdate&
 void CectStatus::report(diagnostic_updater::DiagnosticStatusWrapper& status, const PairStats& stats,
                         const StereoPairInput::Counts& input, int total, const std::string& model_path) const {
   using diagnostic_msgs::DiagnosticStatus;
-  if (stats.lastPairBad()) {
+  if (!client_profile_problem_.empty()) {  // a configuration error: no layout is trusted until a restart
+    status.summary(DiagnosticStatus::ERROR, client_profile_problem_);
+  } else if (stats.lastPairBad()) {
     status.summary(DiagnosticStatus::ERROR, "last pair skipped: " + stats.lastError());
   } else if (stats.processed() > 0 && !last_problem_.empty()) {
     status.summary(DiagnosticStatus::WARN, last_problem_);
@@ -37,6 +39,7 @@ void CectStatus::report(diagnostic_updater::DiagnosticStatusWrapper& status, con
     status.summary(DiagnosticStatus::OK, "all " + std::to_string(total) + " acupoints valid");
   }
   status.add("acupoint model", model_path);
+  status.add("client profile", client_profile_);
   status.add("input", input_);
   stats.addCounts(status, input);
   status.add("pairs without acupoints", unusable_);

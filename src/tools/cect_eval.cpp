@@ -49,7 +49,7 @@ const char* kUsage = R"(Usage: cect_eval [--experiments ideal,lighting,shift] [-
                  [--yaw DEG] [--raw] [--acupoints FILE] [--seed-step N] [--query-search PX]
                  [--param NAME=VALUE,...] [--csv] [--per-point] [--no-parallax-correction]
                  [--no-3d-levels] [--pictures DIR] [--by-border] [--given-landmarks MM] [--given-levels LIST]
-                 [--conditions LIST] [--first-subject N] [--no-layout-check] [--trust-c7-at-top]
+                 [--confirm-given] [--conditions LIST] [--first-subject N] [--no-layout-check] [--trust-c7-at-top]
                  [--trust-inferred-l4]
 
 Renders prone subjects with the scene simulator and localises points on their
@@ -107,6 +107,8 @@ CECT ms: segmentation to 3D acupoints per pair (2 cores).
                simulator's true C7 and iliac-crest line (cect/given_landmarks.h)
   --given-levels LIST  which landmarks --given-landmarks gives, of C7, T7
                (the scapulae's inferior angles' line), L4 (default C7,L4)
+  --confirm-given  the clicks confirmed (~set_landmark's confirm): a pair whose
+               own C7 or L4 disagrees with them is not refused for it
   --skin-markers  the kit's coloured skin markers (config/skin_markers.yaml, or
                --marker-kit FILE) stuck on each subject's landmarks, rendered, and
                found by the chain in both views (cect/skin_markers.h)
@@ -149,14 +151,15 @@ struct Options {
   bool by_border = false;  ///< --by-border
   double given_mm = -1.0;  ///< --given-landmarks: C7 and L4 clicked within this many mm (< 0: none given)
   std::vector<std::string> given_levels{"C7", "L4"};  ///< --given-levels: which ones are clicked
-  int first_subject = 1;                              ///< --first-subject (the realistic conditions)
-  bool layout_check = true;                           ///< --no-layout-check: false
-  bool trust_c7_at_top = false;                       ///< --trust-c7-at-top
-  bool trust_inferred_l4 = false;                     ///< --trust-inferred-l4
-  std::string marker_kit;                             ///< --marker-kit (empty: the package's config/skin_markers.yaml)
-  std::optional<cect::SkinMarkerOptions> markers;     ///< --skin-markers: the kit, rendered and looked for
-  bool parallax = true;   ///< the model's midline corrected for the silhouette's parallax (3D)
-  bool levels_3d = true;  ///< the levels spaced along the body's axis in 3D
+  bool confirm_given = false;      ///< --confirm-given: the clicks confirmed over the pair's own landmarks
+  int first_subject = 1;           ///< --first-subject (the realistic conditions)
+  bool layout_check = true;        ///< --no-layout-check: false
+  bool trust_c7_at_top = false;    ///< --trust-c7-at-top
+  bool trust_inferred_l4 = false;  ///< --trust-inferred-l4
+  std::string marker_kit;          ///< --marker-kit (empty: the package's config/skin_markers.yaml)
+  std::optional<cect::SkinMarkerOptions> markers;  ///< --skin-markers: the kit, rendered and looked for
+  bool parallax = true;                            ///< the model's midline corrected for the silhouette's parallax (3D)
+  bool levels_3d = true;                           ///< the levels spaced along the body's axis in 3D
   std::string acupoints;
   std::string pictures;  ///< --pictures: a folder for every pair's picture
   int seed_step = -1;
@@ -585,8 +588,10 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   lo.correct_parallax = o.parallax;
   lo.levels_in_3d = o.levels_3d;
   lo.check_layout = o.layout_check;
-  lo.trust = {!o.trust_c7_at_top, !o.trust_inferred_l4};
+  lo.trust.c7_at_neck = !o.trust_c7_at_top;
+  lo.trust.l4_measured = !o.trust_inferred_l4;
   if (o.given_mm >= 0.0) lo.given = clickedLandmarks(r, geometry, o.given_mm, o.given_levels, subject);
+  for (cect::GivenLandmark& g : lo.given) g.confirmed = o.confirm_given;
   const cect::LocatedAcupoints result = cect::locateAcupoints(f, model, lo);
   if (!result.valid) res.failure = result.reason;
   res.check = result.check;
@@ -1022,6 +1027,7 @@ int main(int argc, char** argv) {
         t.flags["--no-layout-check"] = [&] { o.layout_check = false; };
         t.flags["--trust-c7-at-top"] = [&] { o.trust_c7_at_top = true; };
         t.flags["--trust-inferred-l4"] = [&] { o.trust_inferred_l4 = true; };
+        t.flags["--confirm-given"] = [&] { o.confirm_given = true; };
         bool skin_markers = false;
         t.flags["--skin-markers"] = [&] { skin_markers = true; };
         t.values["--marker-kit"] = [&](const std::string&, const std::string& v) { o.marker_kit = v; };

@@ -79,10 +79,15 @@ Options:
   --save-profile FILE      (stereo mode, C7 and L4 both given) write the client's profile:
                            this pair's C7 -> L4 and the corrections of --profile
   --client NAME            the client's id in the saved profile
-  --landmark NAME=U,V      a landmark a therapist palpated, at raw left pixel (U, V): C7
-                           (the vertebra prominens), T7 (the scapulae's inferior
-                           angles' line) or L4 (the iliac crests' line); it replaces
-                           the found one (repeat the option for each)
+  --landmark NAME=U,V[,confirm]  a landmark a therapist palpated, at raw left pixel
+                           (U, V) inside the image: C7 (the vertebra prominens), T7 (the
+                           scapulae's inferior angles' line) or L4 (the iliac crests'
+                           line); it replaces the found one (repeat the option for
+                           each). It is checked like a measured one: off the spine, or
+                           out of its place between C7 and L4, the layout is "not
+                           trusted"; where the pair measured the same landmark (C7 at
+                           a neck's base, L4 at the waist) and the two disagree, too,
+                           unless `confirm` keeps the given one
   --trust-c7-at-top        trust a C7 taken from the back's top where no neck is in
                            view (by default such a layout is "not trusted": give C7);
                            for backs rendered without a neck
@@ -124,9 +129,13 @@ Stereo mode only:
   disparity_sigma          standard deviation of the disparity, pixels
                            (x .. disparity_sigma NaN / empty when not valid)
 YAML: a header, then the list `acupoints:`. The header: mode; the inputs;
-frame (CECT's status: valid, reason, view_scale, disparity_range searched,
+client_profile (none, or --profile's file with its client, C7 -> L4 and number
+of corrections, also said on standard error); frame (CECT's status: valid,
+reason, view_scale, disparity_range searched,
 timings_ms: CECT's stages and the layout + 3D step on this pair, 2 cores; in
-layout-only mode the segmentation's valid and reason); landmarks (valid, reason,
+layout-only mode the segmentation's valid and reason); landmarks (valid: found,
+trusted: the layout on them passed the checks, reason, used: the landmarks the
+layout used with their sources, notes: disagreements that did not refuse it,
 body_angle_deg, shoulder_width_px, measured / inferred / given, and c7, l4, shoulder_line, waist_line,
 iliac_line: points on the midline, raw left pixels [u, v]); valid / reason
 (whether the acupoints could be placed, and why not); acupoints_valid and
@@ -137,7 +146,9 @@ A pair or image without a (usable) back is not an error: the tool exits 0 with
 every acupoint invalid and the reason, the header saying why, and a warning on
 standard error. Exit status: 0 done, 2 bad usage (unknown or missing option,
 bad value), 1 other errors (unreadable image or file, image size not matching
-its camera_info, bad calibration, malformed acupoint model); all with a one-line
+its camera_info, bad calibration, malformed acupoint model, a --profile that
+cannot be read or has an unknown key, a value of the wrong type or a missing
+one: docs/cect.md "Client profiles"); all with a one-line
 message.
 
 Example:
@@ -178,8 +189,11 @@ struct PointRow {
 };
 
 struct LandmarkSummary {
-  bool valid = false;
+  bool valid = false;    ///< found in the view
+  bool trusted = false;  ///< ... and the layout built on them passed the checks (cect::checkLayout)
   std::string reason;
+  std::vector<std::string> used;   ///< the layout's landmarks with their sources: "C7 given (clicked)", ...
+  std::vector<std::string> notes;  ///< disagreements that did not refuse the layout
   double body_angle_deg = kNaN, shoulder_width_px = kNaN;
   std::vector<std::string> measured, inferred, given;  ///< which landmarks this view measured / inferred / was given
   std::string trunk;                                   ///< what the segmentation cut away (arms, cloth)
@@ -191,6 +205,7 @@ struct LandmarkSummary {
 struct Report {
   bool stereo = true;
   std::vector<std::pair<std::string, std::string>> inputs;  ///< (key, path)
+  std::string client_profile = "none";                      ///< --profile's file and what it holds
   bool frame_valid = false;
   std::string frame_reason;
   double view_scale = kNaN;
@@ -221,11 +236,16 @@ cv::Point2f midlinePoint(const cect::BackLandmarks& lm, double row) {
   return m[i] + f * (m[j] - m[i]);
 }
 
-LandmarkSummary summarise(const cect::BackLandmarks& lm, const ToRaw& to_raw) {
+LandmarkSummary summarise(const cect::LocatedAcupoints& located, const ToRaw& to_raw) {
+  const cect::BackLandmarks& lm = located.landmarks;
   LandmarkSummary s;
   s.valid = lm.valid;
   s.reason = lm.reason;
   if (!lm.valid || lm.midline.empty()) return s;
+  s.trusted = located.check.trusted;
+  if (!s.trusted) s.reason = located.check.reason();
+  s.notes = located.check.notes;
+  for (const cect::LayoutLandmark& l : cect::layoutLandmarks(lm)) s.used.push_back(cect::describeLandmark(l));
   s.body_angle_deg = lm.body_angle_deg;
   s.shoulder_width_px = lm.shoulder_width;
   s.measured = lm.measured;
@@ -282,7 +302,8 @@ cect::AcupointModel loadModel(const Options& o, const cect::ClientProfile& profi
 
 std::string oneLine(std::string s);
 
-/// The client's profile (--profile), or an empty one.
+/// The client's profile (--profile), or an empty one. One that cannot be read (or has an unknown key, a value of the
+/// wrong type, ...) is an error: exit 1, before any image is read.
 cect::ClientProfile loadProfile(const Options& o) {
   cect::ClientProfile p;
   if (!o.profile.empty()) p = cect::loadClientProfile(o.profile);
@@ -360,13 +381,24 @@ Report stereoReport(const Options& o, const cect::CectFrame& frame, const cect::
   r.valid = located.valid;
   r.reason = located.reason;
   const ToRaw to_raw = [&geometry](const cv::Point2f& p) { return geometry.toRaw(p); };
-  r.landmarks = summarise(located.landmarks, to_raw);
+  r.landmarks = summarise(located, to_raw);
   r.landmarks.trunk = frame.left().valid ? frame.left().trunk.summary() : std::string();
   r.landmarks.background = frame.background().summary();
   if (!located.valid && located.landmarks.reason.empty()) r.landmarks.reason = located.reason;
   for (const cect::LocatedAcupoint& a : located.points) r.points.push_back(stereoRow(a));
   addOutlines(&r, frame.left(), located.landmarks, to_raw);
   return r;
+}
+
+/// --landmark's pixels, each checked against the raw left image's size as the node checks a click (GivenLandmarkSet);
+/// throws UsageError naming the one outside.
+std::vector<cect::GivenLandmark> givenInImage(const std::vector<cect::GivenLandmark>& given, cv::Size size) {
+  cect::GivenLandmarkSet set;
+  for (const cect::GivenLandmark& g : given) {
+    const std::string problem = set.set(g.name, g.pixel, g.source, size, g.confirmed);
+    if (!problem.empty()) throw UsageError("--landmark: " + problem);
+  }
+  return given;
 }
 
 Report locateStereo(const Options& o, const cect::AcupointModel& model, const cect::ClientProfile& profile) {
@@ -379,8 +411,8 @@ Report locateStereo(const Options& o, const cect::AcupointModel& model, const ce
   lo.trust.l4_measured = !o.trust_inferred_l4;
   lo.trust.client_length_m = profile.c7_to_l4_m;
   lo.trust.length_tolerance_m = profile.length_tolerance_m;
-  for (const cect::GivenLandmark& g : o.landmarks)
-    lo.given.push_back({g.name, in.geometry.toRectified(g.pixel), g.source});
+  for (const cect::GivenLandmark& g : givenInImage(o.landmarks, in.left.size()))
+    lo.given.push_back({g.name, in.geometry.toRectified(g.pixel), g.source, g.confirmed});
   const auto t0 = std::chrono::steady_clock::now();
   const cect::LocatedAcupoints located = cect::locateAcupoints(frame, model, lo);
   const double locate_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -409,8 +441,9 @@ Report locateLayout(const Options& o, const cect::AcupointModel& model) {
   const cv::Mat image = readImage(o.layout_only, "--layout-only");
   const cect::Segmentation seg = cect::segmentBack(image, segmentationFor(image.cols));
   cect::LocateOptions lo;
-  lo.given = o.landmarks;
-  lo.trust = {!o.trust_c7_at_top, !o.trust_inferred_l4};
+  lo.given = givenInImage(o.landmarks, image.size());
+  lo.trust.c7_at_neck = !o.trust_c7_at_top;
+  lo.trust.l4_measured = !o.trust_inferred_l4;
   const cect::LocatedAcupoints located = cect::locateLayout(seg, model, lo);
 
   Report r;
@@ -421,7 +454,7 @@ Report locateLayout(const Options& o, const cect::AcupointModel& model) {
   r.valid = located.valid;
   r.reason = located.reason;
   const ToRaw identity = [](const cv::Point2f& p) { return p; };
-  r.landmarks = summarise(located.landmarks, identity);
+  r.landmarks = summarise(located, identity);
   r.landmarks.trunk = seg.valid ? seg.trunk.summary() : std::string();
   for (const cect::LocatedAcupoint& a : located.points) {
     PointRow row;
@@ -447,6 +480,7 @@ void emitPixel(YAML::Emitter& y, const std::string& key, const cv::Point2f& p) {
 void emitHeader(YAML::Emitter& y, const Report& r) {
   y << YAML::Key << "mode" << YAML::Value << (r.stereo ? "stereo" : "layout_only");
   for (const auto& [key, path] : r.inputs) y << YAML::Key << key << YAML::Value << path;
+  y << YAML::Key << "client_profile" << YAML::Value << r.client_profile;
   y << YAML::Key << "frame" << YAML::Value << YAML::BeginMap;
   y << YAML::Key << "valid" << YAML::Value << r.frame_valid;
   y << YAML::Key << "reason" << YAML::Value << r.frame_reason;
@@ -469,7 +503,10 @@ void emitHeader(YAML::Emitter& y, const Report& r) {
   const LandmarkSummary& l = r.landmarks;
   y << YAML::Key << "landmarks" << YAML::Value << YAML::BeginMap;
   y << YAML::Key << "valid" << YAML::Value << l.valid;
+  y << YAML::Key << "trusted" << YAML::Value << l.trusted;
   y << YAML::Key << "reason" << YAML::Value << l.reason;
+  y << YAML::Key << "used" << YAML::Value << YAML::Flow << l.used;
+  if (!l.notes.empty()) y << YAML::Key << "notes" << YAML::Value << l.notes;
   y << YAML::Key << "body_angle_deg" << YAML::Value << l.body_angle_deg;
   y << YAML::Key << "shoulder_width_px" << YAML::Value << l.shoulder_width_px;
   y << YAML::Key << "measured" << YAML::Value << YAML::Flow << l.measured;
@@ -632,7 +669,11 @@ void run(const Options& o) {
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_ERROR);
   const cect::ClientProfile profile = loadProfile(o);
   const cect::AcupointModel model = loadModel(o, profile);
-  const Report r = o.stereo() ? locateStereo(o, model, profile) : locateLayout(o, model);
+  Report r = o.stereo() ? locateStereo(o, model, profile) : locateLayout(o, model);
+  if (!o.profile.empty()) {
+    r.client_profile = o.profile + " (" + cect::describeClientProfile(profile) + ")";
+    std::cerr << "cect_locate: client profile: " << r.client_profile << "\n";
+  }
   writeText(o, o.format == "csv" ? toCsv(r) : toYaml(r));
   if (!o.overlay.empty()) writeOverlay(o, r);
   if (!r.valid) std::cerr << "cect_locate: warning: no acupoints: " << oneLine(r.reason) << "\n";
@@ -709,12 +750,13 @@ tools::OptionTable optionTable(Options& o) {
     const std::string problem = cect::checkGivenLandmarkName(name);
     require(problem.empty(), opt + ": " + problem);
     const std::vector<std::string> uv = tools::splitList(v.substr(eq + 1));
-    require(uv.size() == 2, opt + " " + name + ": expected the pixel as U,V, got '" + v.substr(eq + 1) + "'");
+    require(uv.size() == 2 || (uv.size() == 3 && uv[2] == "confirm"),
+            opt + " " + name + ": expected the pixel as U,V or U,V,confirm, got '" + v.substr(eq + 1) + "'");
     for (const cect::GivenLandmark& g : o.landmarks) require(g.name != name, opt + ": " + name + " given twice");
     o.landmarks.push_back({name,
                            cv::Point2f(static_cast<float>(tools::parseDouble(opt + " " + name, uv[0])),
                                        static_cast<float>(tools::parseDouble(opt + " " + name, uv[1]))),
-                           "given"});
+                           "--landmark", uv.size() == 3});
   };
   return t;
 }

@@ -485,11 +485,16 @@ TEST(CectLocateTool, AC7WithoutANeckIsNotTrustedUntilGiven) {
   ASSERT_TRUE(y["valid"].as<bool>()) << y["reason"].as<std::string>();
   EXPECT_GE(y["acupoints_valid"].as<int>(), 90);
   EXPECT_EQ(y["landmarks"]["given"].size(), 2u);
+  // C7 given and the layout trusted: GV14 (at C7) must be localised, at the given pixel.
+  int gv14_checked = 0;
   for (const YAML::Node& a : y["acupoints"]) {
-    if (a["name"].as<std::string>() != "GV14" || !a["valid"].as<bool>()) continue;
+    if (a["name"].as<std::string>() != "GV14") continue;
+    ++gv14_checked;
+    ASSERT_TRUE(a["valid"].as<bool>()) << "GV14 invalid with C7 given: " << a["reason"].as<std::string>("");
     EXPECT_NEAR(a["u"].as<double>(), c7u, 1.0);
     EXPECT_NEAR(a["v"].as<double>(), c7v, 1.0);
   }
+  EXPECT_EQ(gv14_checked, 1) << "GV14 is not in the output";
   expectFailure(p.args(true) + " --landmark T3=10,10", 2, "unknown landmark 'T3'");
   expectFailure(p.args(true) + " --landmark C7=10", 2, "expected the pixel as U,V");
 
@@ -521,6 +526,47 @@ TEST(CectLocateTool, AC7WithoutANeckIsNotTrustedUntilGiven) {
 }
 
 }  // namespace
+
+/// The shipped back pair (data/back_pair, a dressed subject: arms along the trunk, head in the cradle, a towel):
+/// C7 and L4 clicked on the spine are used (>= 100 of 108 points); the same clicks 10 cm to the subject's right (a
+/// mis-click, or the previous client's places) are refused, naming them; a click outside the image is an error.
+TEST(CectLocateTool, OnTheShippedBackPairClicksBesideTheSpineAreRefused) {
+  const std::string dir = std::string(MASSAGE_CELL_SOURCE_DIR) + "/data/back_pair/";
+  const std::string args = "--left " + dir + "left.png --right " + dir + "right.png --left-info " + dir +
+                           "left_camera_info.yaml --right-info " + dir + "right_camera_info.yaml";
+  const YAML::Node truth = YAML::LoadFile(dir + "acupoints_truth.yaml")["landmarks"];
+  const YAML::Node info = YAML::LoadFile(dir + "left_camera_info.yaml");
+  const double fx = info["camera_matrix"]["data"][0].as<double>();
+  // The therapist's clicks: the true C7 and iliac-crest line, then 10 cm toward the subject's right (the camera's
+  // +x: the subject lies prone, head up in the image, the subject's left on the image's left).
+  auto clicks = [&](double right_m) {
+    std::string s;
+    for (const std::string level : {"C7", "L4"}) {
+      const double z = truth[level]["left_optical"][2].as<double>();
+      const double u = truth[level]["left_pixel"][0].as<double>() + right_m * fx / z;
+      s += " --landmark " + level + "=" + std::to_string(u) + "," +
+           std::to_string(truth[level]["left_pixel"][1].as<double>());
+    }
+    return s;
+  };
+  const TempDir tmp("back_pair");
+  const std::string out = tmp.str() + "/out.yaml";
+  const YAML::Node on = YAML::Load(runOk(args + clicks(0.0), out));
+  ASSERT_TRUE(on["valid"].as<bool>()) << on["reason"].as<std::string>();
+  EXPECT_GE(on["acupoints_valid"].as<int>(), 100);
+  EXPECT_TRUE(on["landmarks"]["trusted"].as<bool>());
+  EXPECT_EQ(on["landmarks"]["used"][0].as<std::string>(), "C7 given (--landmark)");
+  const YAML::Node beside = YAML::Load(runOk(args + clicks(0.10), out));
+  EXPECT_FALSE(beside["valid"].as<bool>());
+  EXPECT_EQ(beside["acupoints_valid"].as<int>(), 0);
+  EXPECT_FALSE(beside["landmarks"]["trusted"].as<bool>());
+  for (const std::string level : {"C7", "L4"})
+    EXPECT_NE(beside["reason"].as<std::string>().find("the given " + level + " (--landmark) lies "), std::string::npos)
+        << beside["reason"].as<std::string>();
+  EXPECT_NE(beside["reason"].as<std::string>().find("to the subject's right of the back's midline"), std::string::npos);
+  expectFailure(args + " --landmark C7=900,62", 1,
+                "--landmark: landmark C7 at (900.0, 62.0) lies outside the 640x480 image");
+}
 
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);

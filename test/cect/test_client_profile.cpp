@@ -50,6 +50,21 @@ std::string tempFile(const std::string& name, const std::string& text = "") {
   return path;
 }
 
+/// The error loadClientProfile gives for a file of `text` (a failure when it reads it), checked to name the file.
+std::string loadError(const std::string& name, const std::string& text) {
+  const std::string path = tempFile(name, text);
+  try {
+    cect::loadClientProfile(path);
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("client profile '" + path + "': "), std::string::npos) << e.what();
+    return e.what();
+  }
+  ADD_FAILURE() << "accepted:\n" << text;
+  return "";
+}
+
+const std::string kHead = "format: massage_cell/client_profile 1\nclient: \"A. N. Other\"\n";
+
 cv::Point2f pixelOf(const std::vector<cect::AcupointPixel>& pts, const std::string& name) {
   for (const auto& p : pts)
     if (p.name == name && p.valid) return p.pixel;
@@ -73,6 +88,7 @@ TEST(ClientProfile, SavedAndLoadedAgainUnchanged) {
   ASSERT_EQ(q.corrections.size(), 1u);
   EXPECT_DOUBLE_EQ(q.corrections.at("BL23_L").along, 0.012);
   EXPECT_DOUBLE_EQ(q.corrections.at("BL23_L").across_cun, -0.2);
+  EXPECT_EQ(cect::describeClientProfile(q), "'A. N. Other', C7 -> L4 0.452 m, 1 correction");
   // Without a length or corrections: both stay unset.
   const std::string bare = tempFile("profile_bare.yaml", "format: massage_cell/client_profile 1\nclient: x\n");
   EXPECT_TRUE(std::isnan(cect::loadClientProfile(bare).c7_to_l4_m));
@@ -80,7 +96,7 @@ TEST(ClientProfile, SavedAndLoadedAgainUnchanged) {
 }
 
 TEST(ClientProfile, ABadFileIsRefusedNamingTheField) {
-  const std::string head = "format: massage_cell/client_profile 1\n";
+  const std::string head = "format: massage_cell/client_profile 1\nclient: x\n";
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"client: x\n", "format"},
       {"format: massage_cell/client_profile 2\n", "format"},
@@ -106,6 +122,53 @@ TEST(ClientProfile, ABadFileIsRefusedNamingTheField) {
   cect::ClientProfile wild;
   wild.corrections["GV9"] = {0.5, 0.0};
   EXPECT_THROW(cect::saveClientProfile(wild, tempFile("profile_wild.yaml")), std::invalid_argument);
+}
+
+TEST(ClientProfile, AMisspeltKeyIsRefusedNamingIt) {
+  // `c7_to_l4` for `c7_to_l4_m`: read leniently, the length check would be off without a word.
+  const std::string error = loadError("profile_misspelt.yaml", kHead + "c7_to_l4: 0.452\n");
+  EXPECT_NE(error.find("unknown key 'c7_to_l4' (known: format, client, c7_to_l4_m, length_tolerance_m, corrections)"),
+            std::string::npos)
+      << error;
+}
+
+TEST(ClientProfile, AnUnknownKeyInACorrectionIsRefusedNamingIt) {
+  const std::string error =
+      loadError("profile_correction_key.yaml", kHead + "corrections:\n  BL23_L: {along: 0.01, acros_cun: 0.2}\n");
+  EXPECT_NE(error.find("unknown key 'corrections.BL23_L.acros_cun' (known: along, across_cun)"), std::string::npos)
+      << error;
+  // Either half alone is a correction (the other 0).
+  const cect::ClientProfile p =
+      cect::loadClientProfile(tempFile("profile_correction_half.yaml", kHead + "corrections: {GV14: {along: 0.0}}\n"));
+  EXPECT_EQ(p.corrections.count("GV14"), 1u);
+}
+
+TEST(ClientProfile, AValueOfTheWrongTypeIsRefusedNamingItsKey) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {kHead + "c7_to_l4_m: \"0.45 m\"\n", "c7_to_l4_m is not a number (got '0.45 m')"},
+      {kHead + "length_tolerance_m: [0.03]\n", "length_tolerance_m is not a number (got a list)"},
+      {kHead + "c7_to_l4_m: .nan\n", "c7_to_l4_m is not a number"},
+      {"format: massage_cell/client_profile 1\nclient: {name: x}\n", "client is not a name (got a map"},
+      {"format: massage_cell/client_profile 1\nclient:\n", "client is not a name (got empty"},
+      {kHead + "corrections: BL23_L\n", "corrections is not a map of acupoint names (got 'BL23_L')"},
+      {kHead + "corrections: {BL23_L: [0.01, 0.2]}\n", "corrections.BL23_L is not a map {along, across_cun}"},
+      {kHead + "corrections: {BL23_L: {along: up}}\n", "corrections.BL23_L.along is not a number (got 'up')"},
+      {"format: [massage_cell/client_profile 1]\nclient: x\n", "format is a list"}};
+  int i = 0;
+  for (const auto& [text, expected] : cases) {
+    const std::string error = loadError("profile_type_" + std::to_string(i++) + ".yaml", text);
+    EXPECT_NE(error.find(expected), std::string::npos) << "expected '" << expected << "' in: " << error;
+  }
+}
+
+TEST(ClientProfile, AMissingFormatOrClientIsRefusedNamingIt) {
+  const std::string no_format = loadError("profile_no_format.yaml", "client: x\nc7_to_l4_m: 0.452\n");
+  EXPECT_NE(no_format.find("missing key 'format'"), std::string::npos) << no_format;
+  const std::string no_client =
+      loadError("profile_no_client.yaml", "format: massage_cell/client_profile 1\nc7_to_l4_m: 0.452\n");
+  EXPECT_NE(no_client.find("missing key 'client'"), std::string::npos) << no_client;
+  const std::string empty = loadError("profile_empty.yaml", "# nothing yet\n");
+  EXPECT_NE(empty.find("not a YAML map of the keys format, client"), std::string::npos) << empty;
 }
 
 TEST(ClientProfile, CorrectionsMoveTheirPointInTheLayoutsUnits) {

@@ -40,6 +40,7 @@ cect::AcupointModel model() {
   cect::AcupointModel m;
   m.level_fraction = {{"C7", 0.0}, {"T7", 0.36}, {"L4", 1.0}};
   m.length_per_shoulder_width = 1.22;
+  m.cun_per_shoulder_width = 0.06323;  // the shipped model's: 180 px x 2 mm -> a cun of 22.8 mm, 11.4 px
   return m;
 }
 
@@ -67,7 +68,9 @@ TEST(GivenLandmarks, TheLevelsAndTheMidlinePassThroughTheGivenPixels) {
   EXPECT_NEAR(l.midline.front().x, 330.0, 1e-3);
   EXPECT_NEAR(l.midline.back().x, 310.0, 1e-3);
   for (const cv::Point2f& v : l.lateral) EXPECT_NEAR(std::hypot(v.x, v.y), 1.0, 1e-5);
-  EXPECT_NE(cect::describeLandmarks(l).find("given: C7 (clicked), L4 (service)"), std::string::npos)
+  EXPECT_NE(cect::describeLandmarks(l).find(
+                "used: C7 given (clicked), L4 given (service); measured: C7 at the neck's base, the waist"),
+            std::string::npos)
       << cect::describeLandmarks(l);
 }
 
@@ -149,7 +152,8 @@ TEST(GivenLandmarks, ThreeGivenMakeTheSpineLineStraightBetweenEachPair) {
       EXPECT_NEAR(l.lateral[i].x * -10.0 + l.lateral[i].y * 130.0, 0.0, 1e-3);
     }
   }
-  EXPECT_NE(cect::describeLandmarks(l).find("given: C7, L4, T7"), std::string::npos) << cect::describeLandmarks(l);
+  EXPECT_NE(cect::describeLandmarks(l).find("used: C7 given, T7 given, L4 given;"), std::string::npos)
+      << cect::describeLandmarks(l);
 }
 
 TEST(GivenLandmarks, OneGivenShiftsTheMidlineAndKeepsTheOther) {
@@ -219,29 +223,105 @@ TEST(GivenLandmarks, BadLandmarksAreRefusedNamingTheProblemAndChangeNothing) {
   EXPECT_EQ(cect::checkGivenLandmarkName("L4"), "");
 }
 
-TEST(LayoutCheck, AGivenT7FarFromItsLevelIsNotTrusted) {
-  // C7 100, L4 300, the model's T7 at 0.36 (row 172) +- 0.06: a marker at row 175 agrees; one at row 190 (0.45) says
-  // that C7 (measured), the marker or L4 is a vertebra or more off.
-  cect::BackLandmarks near = back(), far = back();
-  ASSERT_EQ(cect::applyGivenLandmarks(&near, {{"T7", {320.0f, 175.0f}, "marker"}}), "");
-  ASSERT_EQ(cect::applyGivenLandmarks(&far, {{"T7", {320.0f, 190.0f}, "marker"}}), "");
-  const cect::LayoutCheck ok = cect::checkLayout(near, model(), kScale);
-  EXPECT_TRUE(ok.trusted) << ok.reason();
-  const cect::LayoutCheck bad = cect::checkLayout(far, model(), kScale);
-  EXPECT_FALSE(bad.trusted);
-  EXPECT_NE(bad.reason().find("T7 (given) lies at 0.45 of C7 -> L4, the model's 0.36 +- 0.06: C7, T7 or L4 is a "
-                              "vertebra or more off (give C7 and L4)"),
+TEST(LayoutCheck, AGivenT7OffTheModelsProportionsIsUsedAndNotedBeyondThePopulationRefused) {
+  // C7 100, L4 300, the model's T7 at 0.36 (row 172): a marker at row 175 agrees; one at row 190 (0.45) disagrees
+  // with the model's proportions by more than 0.06 but lies within the population's spread (0.20): used, the
+  // disagreement noted; one at row 220 (0.60, T10's place and more) is refused.
+  const auto checked = [](float row) {
+    cect::BackLandmarks l = back();
+    EXPECT_EQ(cect::applyGivenLandmarks(&l, {{"T7", {320.0f, row}, "marker"}}), "");
+    return cect::checkLayout(l, model(), kScale);
+  };
+  const cect::LayoutCheck agrees = checked(175.0f);
+  EXPECT_TRUE(agrees.trusted) << agrees.reason();
+  EXPECT_TRUE(agrees.notes.empty());
+  const cect::LayoutCheck noted = checked(190.0f);
+  EXPECT_TRUE(noted.trusted) << noted.reason();
+  ASSERT_EQ(noted.notes.size(), 1u);
+  EXPECT_EQ(noted.notes[0],
+            "T7 (given) lies at 0.45 of C7 -> L4, the model's 0.36: more than 0.06 off the model's proportions (used "
+            "as given)");
+  const cect::LayoutCheck refused = checked(220.0f);
+  EXPECT_FALSE(refused.trusted);
+  EXPECT_NE(refused.reason().find("T7 (given) lies at 0.60 of C7 -> L4, the model's 0.36 +- 0.20 (the population's "
+                                  "spread): C7, T7 or L4 is not where it was given"),
             std::string::npos)
-      << bad.reason();
-  // With C7 and L4 given too, nothing is left to give: the message names no landmark to give.
-  cect::BackLandmarks all = back();
-  ASSERT_EQ(cect::applyGivenLandmarks(
-                &all, {{"C7", {320.0f, 100.0f}, ""}, {"T7", {320.0f, 190.0f}, ""}, {"L4", {320.0f, 300.0f}, ""}}),
-            "");
-  const cect::LayoutCheck given = cect::checkLayout(all, model(), kScale);
-  EXPECT_FALSE(given.trusted);
-  EXPECT_NE(given.reason().find("a vertebra or more off"), std::string::npos);
-  EXPECT_EQ(given.reason().find("(give "), std::string::npos) << given.reason();
+      << refused.reason();
+}
+
+TEST(LayoutCheck, GivenLandmarksBesideTheSpineAreNotTrusted) {
+  // 2 mm a pixel, C7 -> L4 0.4 m, a cun of 20.7 mm from it: C7 and L4 clicked 50 px (100 mm) to the image's right of
+  // the measured midline (a mis-click, or the previous client's landmarks) are refused, naming each; the same clicks 2
+  // px (4 mm) off pass.
+  const auto checked = [](float dx, const cect::PixelScale& scale) {
+    cect::BackLandmarks l = back();
+    EXPECT_EQ(cect::applyGivenLandmarks(
+                  &l, {{"C7", {320.0f + dx, 100.0f}, "clicked"}, {"L4", {320.0f + dx, 300.0f}, "clicked"}}),
+              "");
+    return cect::checkLayout(l, model(), scale);
+  };
+  const cect::LayoutCheck beside = checked(50.0f, kScale);
+  EXPECT_FALSE(beside.trusted);
+  EXPECT_NE(beside.reason().find("the given C7 (clicked) lies 100 mm (4.8 cun) to the subject's right of the back's "
+                                 "midline (a spine lies within 2.5 cun of it): not on the spine"),
+            std::string::npos)
+      << beside.reason();
+  EXPECT_NE(beside.reason().find("the given L4 (clicked) lies 100 mm"), std::string::npos) << beside.reason();
+  EXPECT_TRUE(checked(2.0f, kScale).trusted) << checked(2.0f, kScale).reason();
+  EXPECT_TRUE(checked(-12.0f, kScale).trusted) << "24 mm, 1.2 cun: a spine may lie there";
+  // To the subject's left (the image's left, head up), and on a photo (no scale: in cun of the shoulder width).
+  EXPECT_NE(checked(-50.0f, kScale).reason().find("to the subject's left"), std::string::npos);
+  const cect::LayoutCheck photo = checked(50.0f, cect::PixelScale());
+  EXPECT_FALSE(photo.trusted);
+  EXPECT_NE(photo.reason().find("the given C7 (clicked) lies 4.8 cun to the subject's right"), std::string::npos)
+      << photo.reason();
+  // One given T7 beside the spine moves the whole midline with it: refused too.
+  cect::BackLandmarks t7 = back();
+  ASSERT_EQ(cect::applyGivenLandmarks(&t7, {{"T7", {360.0f, 172.0f}, "clicked"}}), "");
+  EXPECT_NE(cect::checkLayout(t7, model(), kScale).reason().find("the given T7 (clicked) lies 80 mm"),
+            std::string::npos);
+}
+
+TEST(LayoutCheck, AGivenLandmarkFarFromTheSameOneMeasuredWaitsForConfirmation) {
+  // C7 measured at the neck's base at row 100 and L4 at the waist at row 300 (2 mm a pixel). A given C7 20 rows
+  // (40 mm) lower disagrees beyond both sigmas (3 x hypot(0.025, 0.012) of C7 -> L4, ~33 mm): not trusted until
+  // confirmed, the reason naming both positions; 5 rows (10 mm) agrees.
+  const auto checked = [](const std::vector<cect::GivenLandmark>& given) {
+    cect::BackLandmarks l = back();
+    EXPECT_EQ(cect::applyGivenLandmarks(&l, given), "");
+    return cect::checkLayout(l, model(), kScale);
+  };
+  const cect::LayoutCheck apart = checked({{"C7", {320.0f, 120.0f}, "clicked"}});
+  EXPECT_FALSE(apart.trusted);
+  EXPECT_NE(apart.reason().find("the given C7 (clicked) at pixel (320, 120) and C7 measured at the neck's base at "
+                                "(320, 100) lie 40 mm apart along the body (more than 3.0 sigma of both): confirm the "
+                                "given one"),
+            std::string::npos)
+      << apart.reason();
+  EXPECT_TRUE(checked({{"C7", {320.0f, 120.0f}, "clicked", true}}).trusted) << "confirmed";
+  EXPECT_TRUE(checked({{"C7", {320.0f, 105.0f}, "clicked"}}).trusted);
+  // L4 55 rows (110 mm) above the waist's: refused; 20 rows (40 mm, within 3 x hypot(0.075, 0.012)) agrees.
+  EXPECT_NE(checked({{"L4", {320.0f, 245.0f}, "service"}}).reason().find("L4 measured at the waist"),
+            std::string::npos);
+  EXPECT_TRUE(checked({{"L4", {320.0f, 280.0f}, "service"}}).trusted);
+  // A C7 the pair did not measure at a neck's base has nothing to disagree with.
+  cect::BackLandmarks top = back();
+  top.c7_at_neck = false;
+  ASSERT_EQ(cect::applyGivenLandmarks(&top, {{"C7", {320.0f, 120.0f}, "clicked"}}), "");
+  EXPECT_EQ(cect::checkLayout(top, model(), kScale).reason().find("confirm"), std::string::npos);
+}
+
+TEST(GivenLandmarks, AClickIsNamedByTheNearestLevelOnlyWhenThatIsUnambiguous) {
+  // C7 at row 100, T7 at 172, L4 at 300 on the midline x = 320.
+  const cect::BackLandmarks l = back();
+  EXPECT_EQ(cect::nameClick(l, model(), {322.0f, 104.0f}).name, "C7");
+  EXPECT_EQ(cect::nameClick(l, model(), {318.0f, 295.0f}).name, "L4");
+  // Halfway between C7 and T7: refused, naming both.
+  const cect::ClickName between = cect::nameClick(l, model(), {320.0f, 136.0f});
+  EXPECT_EQ(between.name, "");
+  EXPECT_NE(between.problem.find("about as near C7 (36 px) as T7 (36 px)"), std::string::npos) << between.problem;
+  EXPECT_NE(cect::nameClick(cect::BackLandmarks(), model(), {320.0f, 104.0f}).problem.find("no layout"),
+            std::string::npos);
 }
 
 TEST(LayoutCheck, ABackWithoutDepthOnItsMidlineIsNotTrustedInStereo) {
@@ -382,4 +462,14 @@ TEST(LayoutCheck, AChildSizedOrGiantBackIsNotTrusted) {
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();
+}
+
+TEST(LayoutCheck, AStaleGivenLandmarkIsNotTrusted) {
+  cect::BackLandmarks l = back();
+  cect::GivenLandmark c7("C7", {320.0f, 100.0f}, "clicked");
+  c7.stale = "the back moved 30 mm and turned 0.0 deg since it was given (more than 20 mm or 5 deg)";
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {c7}), "");
+  const cect::LayoutCheck c = cect::checkLayout(l, model(), kScale);
+  EXPECT_FALSE(c.trusted);
+  EXPECT_NE(c.reason().find("the given C7 (clicked) is stale: the back moved 30 mm"), std::string::npos) << c.reason();
 }

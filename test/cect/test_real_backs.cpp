@@ -8,10 +8,12 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <memory>
 #include <string>
 
 #include <opencv2/imgproc.hpp>
 
+#include "massage_cell/cect/given_landmarks.h"
 #include "massage_cell/cect/locate.h"
 #include "massage_cell/sim/cell_scene.h"
 #include "massage_cell/sim/renderer.h"
@@ -38,9 +40,10 @@ struct Rendered {
 /// the neck to below L4.
 Rendered render(int index, double abduction, sim::ArmPose arms = sim::ArmPose::kAlongTrunk,
                 sim::HairColour hair = sim::HairColour::kBrown, const std::string& sheet = "",
-                const std::vector<sim::SkinSticker>& stickers = {}, const std::vector<sim::Patch>& patches = {}) {
+                const std::vector<sim::SkinSticker>& stickers = {}, const std::vector<sim::Patch>& patches = {},
+                double camera_shift = 0.0, double breathing_phase = 0.0) {
   const sim::BodyParameters body = sim::BodyParameters::varied(index);
-  sim::BackModel back(body);
+  sim::BackModel back(body, breathing_phase, breathing_phase > 0.0 ? 0.004 : 0.0);  // 4 mm: the renderer's default
   sim::Dressing d;
   d.arms = arms;
   d.arm_abduction_left = d.arm_abduction_right = abduction;
@@ -53,7 +56,8 @@ Rendered render(int index, double abduction, sim::ArmPose arms = sim::ArmPose::k
   d.skin_patches = patches;
   const sim::Scene scene = sim::makeCellScene(back, 1, d);
   const sim::Renderer renderer(scene);
-  const sim::RigParameters rig = sim::frameRig(sim::RigParameters{}, 0.12, back.levelX("L4") - 0.12, 0.17);
+  sim::RigParameters rig = sim::frameRig(sim::RigParameters{}, 0.12, back.levelX("L4") - 0.12, 0.17);
+  rig.shift = camera_shift;  // the camera moved along the table: the subject moved the other way in its view
   sim::StereoPairModel pair = sim::makeStereoPair(rig);
   sim::RenderOptions ro;
   ro.noise_seed = static_cast<std::uint32_t>(index);
@@ -147,7 +151,7 @@ TEST(RealBacks, SkinMarkersGiveC7AndL4AndTheirDotsAreTheBack) {
     ASSERT_EQ(l.given_levels.size(), 1u) << cect::describeLandmarks(l);
     EXPECT_NEAR(cect::levelPixel(l, model(), "T7").y, gtRow(r, g, "T7"),
                 0.01 * (gtRow(r, g, "L4") - gtRow(r, g, "C7")));
-    EXPECT_NE(cect::describeLandmarks(l).find("C7 (marker)"), std::string::npos) << cect::describeLandmarks(l);
+    EXPECT_NE(cect::describeLandmarks(l).find("C7 given (marker)"), std::string::npos) << cect::describeLandmarks(l);
     const double c7_gt = gtRow(r, g, "C7"), l4_gt = gtRow(r, g, "L4");
     const double length = l4_gt - c7_gt;
     EXPECT_NEAR(cect::toImage(l, l.c7).y, c7_gt, 0.01 * length);  // automatic: 3 % and 6 % (above)
@@ -356,6 +360,52 @@ TEST(RealBacks, ASheetOfSkinsColourIsLeftOutByTheTablesPlane) {
   const cv::Mat sheet = r.frame.left.labels == sim::kLabelTable;
   EXPECT_LT(cv::countNonZero(f.left().mask & sheet), 0.01 * cv::countNonZero(f.left().mask));
   EXPECT_GE(cect::locateAcupoints(f, model(), segmentationCheck()).validCount(), 80);
+}
+
+TEST(RealBacks, GivenLandmarksFollowTheBackAndGoStaleWhenTheSubjectSlides) {
+  // The same breathing subject seen again 5 mm and 30 mm further along the table (the camera moved the other way,
+  // toward the head: the back moves toward the image's bottom): a landmark given on the first pair follows the small
+  // move and is stale after the large one until it is confirmed; with no back in view it is stale too.
+  const camera::Decimation full(cv::Size(640, 480), 1);
+  auto viewAt = [&](double shift, double phase) {
+    const Rendered r = render(5, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kBrown, "", {}, {}, shift, phase);
+    const camera::StereoModel g(r.pair.left_info, r.pair.right_info);
+    return cect::backView(cect::CectFrame::analyse(r.frame.left.image, r.frame.right.image, g, {}), full);
+  };
+  const cect::BackView here = viewAt(0.0, 0.0), breathing = viewAt(0.0, 0.5), near = viewAt(0.005, 0.0),
+                       far = viewAt(0.03, 0.0);
+  const cect::BackMotion still = cect::backMotion(here, breathing), small = cect::backMotion(here, near),
+                         large = cect::backMotion(here, far);
+  ASSERT_TRUE(still.valid && small.valid && large.valid) << still.reason << small.reason << large.reason;
+  std::cout << "moves: breathing " << still.move_m << " m, " << small.move_m << " m, " << large.move_m << " m ("
+            << large.agreeing << " of " << large.tracks << " tracks)\n";
+  EXPECT_LT(still.move_m, 0.003);
+  EXPECT_NEAR(small.move_m, 0.005, 0.002);
+  EXPECT_NEAR(large.move_m, 0.03, 0.004);
+  EXPECT_NEAR(large.turn_deg, 0.0, 0.5);
+  EXPECT_GT(large.transform(1, 2), 0.0) << "the back moves toward the image's bottom";
+
+  cect::GivenLandmarkSet set;
+  const cv::Point2f c7(330.0f, 60.0f);
+  ASSERT_EQ(set.set("C7", c7, "clicked", {640, 480}, false, here), "");
+  auto given = [&](const cect::BackView& v) { return set.forPair(v.geometry, full).at(0); };
+  set.follow(near);
+  EXPECT_EQ(given(near).stale, "");
+  EXPECT_NEAR(given(near).pixel.y - c7.y, small.transform(1, 2), 0.5) << "carried with the back";
+  set.follow(far);
+  EXPECT_NE(given(far).stale.find("since it was given (more than 20 mm or 5 deg)"), std::string::npos)
+      << given(far).stale;
+  EXPECT_NEAR(given(far).pixel.y - c7.y, large.transform(1, 2), 0.5) << "stale, but carried to be confirmed";
+  ASSERT_EQ(set.confirm(far), "");
+  set.follow(far);
+  EXPECT_EQ(given(far).stale, "") << "confirmed where the subject lies now";
+  EXPECT_NEAR(given(far).pixel.y - c7.y, large.transform(1, 2), 0.5);
+  // No back in view (a grey image): lost.
+  const cv::Mat blank(480, 640, CV_8UC3, cv::Scalar(90, 90, 90));
+  const cect::BackView empty = cect::backView(cect::CectFrame::analyse(blank, blank, far.geometry, {}), full);
+  EXPECT_FALSE(empty.valid);
+  set.follow(empty);
+  EXPECT_NE(given(empty).stale.find("the back is lost"), std::string::npos) << given(empty).stale;
 }
 
 int main(int argc, char** argv) {

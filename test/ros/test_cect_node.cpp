@@ -226,8 +226,17 @@ TEST_F(CectNode, BagOutputs) {
   // 4. Every pair of the bag, and the node's output for the last one.
   spinUntil([&] { return input_stamps.size() >= truth.size(); }, 20.0);
   ASSERT_EQ(input_stamps.size(), truth.size()) << "the bag did not replay every pair";
-  spinUntil([&] { return arrays.back()->header.stamp == *input_stamps.rbegin(); }, 5.0);
-  spinUntil([] { return false; }, 1.5);  // the last diagnostics
+  ASSERT_TRUE(spinUntil([&] { return arrays.back()->header.stamp == *input_stamps.rbegin(); }, 15.0))
+      << "no acupoints for the bag's last pair";
+  // The diagnostics are published once a second on the wall clock: wait for the one that has counted the bag's last
+  // pair and every pair whose acupoints came (a loaded machine can still be processing the last one).
+  const auto last_counted = [&] {
+    return status.count("pairs received") >= static_cast<long>(truth.size()) &&
+           status.count("pairs processed") >= static_cast<long>(arrays.size());
+  };
+  ASSERT_TRUE(spinUntil(last_counted, 10.0))
+      << "no diagnostics counting the bag's last pair: " << status.count("pairs received") << " pairs received, "
+      << status.count("pairs processed") << " processed, " << arrays.size() << " acupoint messages";
 
   // 5. A tf frame for every acupoint (tf keeps 60 s here).
   std::vector<std::string> missing;
@@ -308,9 +317,7 @@ TEST_F(CectNode, BagOutputs) {
       truth.size(), arrays.size(), valid_min, valid_max, n, 1e3 * median(errors),
       1e3 * sorted[static_cast<std::size_t>(0.9 * (sorted.size() - 1))], 1e3 * sorted.back());
 
-  // 7. Diagnostics of the node on the bag (published once a second on the wall clock: wait for the one that has
-  // counted the bag's last pair, which a loaded machine can still be processing).
-  spinUntil([&] { return status.count("pairs received") >= static_cast<long>(truth.size()); }, 10.0);
+  // 7. Diagnostics of the node on the bag (the one that counted the bag's last pair: waited for in 4).
   ASSERT_TRUE(status.seen) << "no diagnostics from stereo/cect";
   EXPECT_EQ(status.count("bad pairs"), 0) << status.text("last error");
   EXPECT_EQ(status.count("pairs received"), static_cast<long>(truth.size()));
@@ -568,7 +575,41 @@ TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
                      << " (it was at " << gv3.y << ")";
   EXPECT_NEAR(placedPixel(*given, "GV14").y, gv14.y + 8.0, 0.6) << "C7 stays given";
 
-  // 4. A click on ~debug_image (scaled up to at least 960 px, the node's debug width) 4 px above the automatic C7:
+  // 4. ~save_client_profile with C7 and L4 both given: the file holds the C7 -> L4 the node reports, and it is the
+  // given landmarks' length: C7 -> L4 along the body's axis (the chord between them, measureLevelsIn3D), so within
+  // the depth noise of the straight line between the layout's 3D points at C7 and L4 (the automatic layout's is
+  // printed beside it). No path refused.
+  SaveClientProfile::Response saved = saveProfile(profile_path);
+  ASSERT_TRUE(saved.success) << saved.message;
+  EXPECT_NE(saved.message.find("client 'test client'"), std::string::npos) << saved.message;
+  const massage_cell::cect::ClientProfile profile = massage_cell::cect::loadClientProfile(profile_path);
+  EXPECT_EQ(profile.client, "test client");
+  const std::size_t reported_at = saved.message.find("C7 -> L4 ");
+  ASSERT_NE(reported_at, std::string::npos) << saved.message;
+  const double reported = std::stod(saved.message.substr(reported_at + 9));
+  EXPECT_NEAR(profile.c7_to_l4_m, reported, 1e-5) << "the file's C7 -> L4 is not the one the node reports";
+  // The straight line between the layout's points at C7 and L4 (GV14 below C7's spinous process, GV3 below L4's),
+  // CECT's 3D of each.
+  auto chordOf = [&](const AcupointArray& layout) {
+    const massage_cell::Acupoint *gv14_at = findPoint(layout, "GV14"), *gv3_at = findPoint(layout, "GV3");
+    if (!gv14_at || !gv3_at || !gv14_at->valid || !gv3_at->valid) return std::nan("");
+    return (vec(gv3_at->position) - vec(gv14_at->position)).norm();
+  };
+  // The two points' depth noise and their offsets from the levels' rows (1-1.5 cm seen); beyond the profile's own
+  // length tolerance (3 cm) the saved length would refuse this very client in the next session.
+  constexpr double kChordSlack = 0.03;
+  const double chord = chordOf(*given);
+  ASSERT_TRUE(std::isfinite(chord)) << "GV14 and GV3 of the given layout not localised: "
+                                    << (findPoint(*given, "GV14") ? findPoint(*given, "GV14")->reason : "");
+  std::printf("saved C7 -> L4 %.4f m; straight line between the given C7 and L4 %.4f m (automatic ones %.4f m)\n",
+              profile.c7_to_l4_m, chord, chordOf(*automatic));
+  EXPECT_NEAR(profile.c7_to_l4_m, chord, kChordSlack) << "not the given layout's C7 -> L4";
+  std::remove(profile_path.c_str());
+  SaveClientProfile::Response no_path = saveProfile("");
+  EXPECT_FALSE(no_path.success);
+  EXPECT_NE(no_path.message.find("no path"), std::string::npos) << no_path.message;
+
+  // 5. A click on ~debug_image (scaled up to at least 960 px, the node's debug width) 4 px above the automatic C7:
   // C7, the nearer landmark, goes there.
   const double k = massage_cell::cect::debugImageScale(static_cast<int>(good.left_info.width), 960);
   geometry_msgs::PointStamped pixel;
@@ -583,19 +624,6 @@ TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
   }
   EXPECT_TRUE(moved) << "GV14 at v " << placedPixel(*given, "GV14").y << ", the click at v " << gv14.y - 4.0;
 
-  // 5. ~save_client_profile with C7 and L4 both given: the client's C7 -> L4 in the file (an adult's); no path refused.
-  SaveClientProfile::Response saved = saveProfile(profile_path);
-  ASSERT_TRUE(saved.success) << saved.message;
-  EXPECT_NE(saved.message.find("client 'test client'"), std::string::npos) << saved.message;
-  const massage_cell::cect::ClientProfile profile = massage_cell::cect::loadClientProfile(profile_path);
-  EXPECT_EQ(profile.client, "test client");
-  EXPECT_GT(profile.c7_to_l4_m, 0.28);
-  EXPECT_LT(profile.c7_to_l4_m, 0.58);
-  std::remove(profile_path.c_str());
-  SaveClientProfile::Response no_path = saveProfile("");
-  EXPECT_FALSE(no_path.success);
-  EXPECT_NE(no_path.message.find("no path"), std::string::npos) << no_path.message;
-
   // 6. ~clear_landmarks: the automatic layout again.
   std_srvs::Trigger clear;
   ASSERT_TRUE(clear_client.call(clear));
@@ -609,6 +637,106 @@ TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
 }
 
 }  // namespace
+
+/// Both images of `pair` moved `rows` rows down (the top row repeated above): the subject slid toward the feet,
+/// parallel to the image plane, by rows x the metres per pixel.
+StereoPair slid(StereoPair pair, int rows) {
+  for (sensor_msgs::Image* image : {&pair.left, &pair.right}) {
+    std::vector<std::uint8_t>& d = image->data;
+    const std::size_t step = image->step, n = step * static_cast<std::size_t>(rows);
+    std::copy_backward(d.begin(), d.end() - static_cast<std::ptrdiff_t>(n), d.end());
+    for (int r = 1; r < rows; ++r) std::copy_n(d.begin(), step, d.begin() + static_cast<std::ptrdiff_t>(r * step));
+  }
+  return pair;
+}
+
+TEST_F(CectNode, AClientWhoMovesMakesTheGivenLandmarksStale) {
+  StereoPair good;
+  ASSERT_NO_FATAL_FAILURE(readFirstPair(bag_path_, &good));
+  ros::NodeHandle ns("/landmarks");
+  PairPublisher input(ns);
+  std::vector<AcupointArrayConstPtr> outputs;
+  ros::Subscriber sub =
+      ns.subscribe<AcupointArray>("acupoints", 10, [&](const AcupointArrayConstPtr& m) { outputs.push_back(m); });
+  NodeStatus status;
+  ros::Subscriber diag = watchDiagnostics(nh_, "landmarks/cect", kDiagnostics, status);
+  ASSERT_NO_FATAL_FAILURE(waitForNode(input, status, "/landmarks"));
+  ros::ServiceClient set_client = ns.serviceClient<SetLandmark>("cect/set_landmark");
+  ros::ServiceClient clear_client = ns.serviceClient<std_srvs::Trigger>("cect/clear_landmarks");
+  ros::ServiceClient confirm_client = ns.serviceClient<std_srvs::Trigger>("cect/confirm_landmarks");
+  ASSERT_TRUE(confirm_client.waitForExistence(ros::Duration(5.0)));
+  auto layoutOf = [&](const StereoPair& pair) -> AcupointArrayConstPtr {
+    const ros::Time stamp = input.publish(pair);
+    if (!spinUntil([&] { return !outputs.empty() && outputs.back()->header.stamp == stamp; }, 15.0)) return nullptr;
+    return outputs.back();
+  };
+  auto give = [&](const std::string& name, const cv::Point2d& at) {
+    SetLandmark call;
+    call.request.name = name;
+    call.request.u = at.x;
+    call.request.v = at.y;
+    EXPECT_TRUE(set_client.call(call));
+    EXPECT_TRUE(call.response.success) << call.response.message;
+  };
+  // The metres per pixel at the back: f 250 px, the back ~0.8 m away -> ~3.2 mm; 3 cm ~ 9 rows, 5 mm ~ 2 rows.
+  const AcupointArrayConstPtr automatic = layoutOf(good);
+  ASSERT_TRUE(automatic);
+  const massage_cell::Acupoint* gv14 = findPoint(*automatic, "GV14");
+  ASSERT_TRUE(gv14 && gv14->valid) << (gv14 ? gv14->reason : "");
+  const double mpp = gv14->position.z / good.left_info.K[0];
+  const int small_move = static_cast<int>(std::lround(0.005 / mpp)),
+            large_move = static_cast<int>(std::lround(0.03 / mpp));
+
+  // 0. Requests that name no place, or a place off the skin, are refused with the reason.
+  SetLandmark nothing;
+  nothing.request.name = "L4";
+  ASSERT_TRUE(set_client.call(nothing));
+  EXPECT_FALSE(nothing.response.success);
+  EXPECT_NE(nothing.response.message.find("no point and no pixel"), std::string::npos) << nothing.response.message;
+  SetLandmark deep;
+  deep.request.name = "C7";
+  deep.request.point.header.frame_id = kOptical;
+  deep.request.point.point = gv14->position;
+  deep.request.point.point.z += 0.69;  // 0.69 m below the skin, on the same ray
+  ASSERT_TRUE(set_client.call(deep));
+  EXPECT_FALSE(deep.response.success);
+  EXPECT_NE(deep.response.message.find("from the skin measured at its pixel"), std::string::npos)
+      << deep.response.message;
+
+  // 1. C7 and L4 given where the automatic layout has them: trusted.
+  give("C7", placedPixel(*automatic, "GV14"));
+  give("L4", placedPixel(*automatic, "GV3"));
+  AcupointArrayConstPtr given = layoutOf(good);
+  ASSERT_TRUE(given);
+  ASSERT_TRUE(findPoint(*given, "GV14")->valid) << findPoint(*given, "GV14")->reason;
+  // 2. Breathing-sized: the client moved 5 mm: the landmarks follow the back.
+  given = layoutOf(slid(good, small_move));
+  ASSERT_TRUE(given);
+  EXPECT_TRUE(findPoint(*given, "GV14")->valid) << findPoint(*given, "GV14")->reason;
+  EXPECT_NEAR(placedPixel(*given, "GV14").y, placedPixel(*automatic, "GV14").y + small_move, 1.0) << "followed";
+  // 3. The client slid 3 cm: no layout is trusted, each point saying why, until the landmarks are confirmed again.
+  given = layoutOf(slid(good, large_move));
+  ASSERT_TRUE(given);
+  EXPECT_FALSE(findPoint(*given, "GV14")->valid);
+  EXPECT_NE(findPoint(*given, "GV14")->reason.find("is stale: the back moved"), std::string::npos)
+      << findPoint(*given, "GV14")->reason;
+  EXPECT_EQ(std::count_if(given->acupoints.begin(), given->acupoints.end(),
+                          [](const massage_cell::Acupoint& a) { return a.valid; }),
+            0);
+  given = layoutOf(slid(good, large_move));  // still not trusted on the next pair
+  ASSERT_TRUE(given);
+  EXPECT_FALSE(findPoint(*given, "GV14")->valid);
+  std_srvs::Trigger confirm;
+  ASSERT_TRUE(confirm_client.call(confirm));
+  EXPECT_TRUE(confirm.response.success) << confirm.response.message;
+  given = layoutOf(slid(good, large_move));
+  ASSERT_TRUE(given);
+  EXPECT_TRUE(findPoint(*given, "GV14")->valid) << "confirmed: " << findPoint(*given, "GV14")->reason;
+  EXPECT_NEAR(placedPixel(*given, "GV14").y, placedPixel(*automatic, "GV14").y + large_move, 1.0)
+      << "C7 carried with the back and confirmed there";
+  std_srvs::Trigger clear;
+  ASSERT_TRUE(clear_client.call(clear));
+}
 
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);

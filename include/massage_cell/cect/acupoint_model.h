@@ -11,6 +11,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -81,8 +82,16 @@ struct AcupointModel {
     double proportion_tolerance = 0.35;
     /// The shoulder line below C7, as a fraction of C7 -> L4 (when C7 was not taken from the shoulder line).
     double min_shoulder_below_c7 = -0.10, max_shoulder_below_c7 = 0.45;
-    /// A level given between C7 and L4 (T7) may lie this far (a fraction of C7 -> L4) from the model's fraction.
+    /// A level given between C7 and L4 (T7) farther than this (a fraction of C7 -> L4) from the model's fraction
+    /// disagrees with the model's proportions: reported (LayoutCheck::notes), the given level used.
     double given_level_tolerance = 0.06;
+    /// ... farther than this, beyond the population's spread of that landmark: refused.
+    double given_level_limit = 0.20;
+    /// A given landmark farther than this (cun) across the back's measured midline is not on the spine: refused.
+    double max_given_off_midline_cun = 2.5;
+    /// A given landmark the pair also measured (C7 at a neck's base, L4 at the waist) farther from it along the body
+    /// than this many of their combined sigmas (layout_sigma) is refused until it is confirmed.
+    double given_disagreement_sigmas = 3.0;
   } plausibility;
   bool head_up = true;  ///< head toward the image top
   std::vector<AcupointSpec> points;
@@ -143,6 +152,22 @@ struct BackLandmarks {
     double row = 0.0;
   };
   std::vector<GivenLevel> given_levels;
+  /// What the checks need to know of each given landmark (applyGivenLandmarks; checkLayout): where it was given
+  /// against the back as measured before it was applied.
+  struct GivenCheck {
+    std::string level;         ///< "C7", "T7", "L4"
+    std::string source;        ///< how it was given ("clicked", "service", "marker", ...)
+    cv::Point2f body;          ///< the given pixel in the body's frame
+    double off_midline = 0.0;  ///< pixels of the body's frame across the measured midline (+: the body frame's right,
+                               ///< the subject's right in a head-up view), at the given row
+    /// The same landmark as the pair measured it (C7 at a neck's base, L4 from the waist), body frame row; NaN when
+    /// the pair did not measure it.
+    double measured_row = std::numeric_limits<double>::quiet_NaN();
+    std::string measured_from;  ///< "the neck's base", "the waist"
+    bool confirmed = false;     ///< the given one confirmed over a measured one that disagrees with it
+    std::string stale;          ///< non-empty: why it no longer holds (the back moved since it was given)
+  };
+  std::vector<GivenCheck> given_checks;
   std::vector<std::string> measured, inferred, given;
   /// How far the body is turned against the image's columns, degrees
   /// (+: the head toward the image right of a head-up view, clockwise on screen); 0 within
@@ -150,9 +175,9 @@ struct BackLandmarks {
   double body_angle_deg = 0.0;
 };
 
-/// One line: the landmarks measured, then those inferred, e.g. "measured: C7
-/// at the neck's base; inferred: L4 from C7 and the shoulder width (...)";
-/// then those given, when any ("; given: C7 (clicked)").
+/// One line: the landmarks the layout used with their sources (layoutLandmarks), then what the pair itself measured
+/// and inferred (a given landmark replaces its measured one), e.g. "used: C7 given (clicked), L4 measured (the
+/// waist); measured: C7 at the neck's base, the waist; inferred: -".
 std::string describeLandmarks(const BackLandmarks& landmarks);
 
 /// One of the layout's landmarks (C7, a given T7, L4) as a rectified left pixel, and what fixed it.
@@ -165,6 +190,9 @@ struct LayoutLandmark {
 
 /// C7, the given levels between (T7) and L4 of `landmarks`, head to feet (empty when they are not valid).
 std::vector<LayoutLandmark> layoutLandmarks(const BackLandmarks& landmarks);
+
+/// "C7 given (clicked)", "L4 measured (the waist)", "T7 given" (a detail that only repeats the source left out).
+std::string describeLandmark(const LayoutLandmark& landmark);
 
 /// A point of the body's frame (BackLandmarks) in the rectified left image.
 cv::Point2f toImage(const BackLandmarks& landmarks, const cv::Point2f& body_pixel);

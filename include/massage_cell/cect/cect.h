@@ -300,6 +300,7 @@ class CectFrame {
   const std::string& reason() const { return reason_; }
   const Segmentation& left() const { return left_seg_; }    ///< rectified left view
   const Segmentation& right() const { return right_seg_; }  ///< rectified right view
+  /// The rectified views, the frame's own (never the caller's buffers): they live as long as the frame.
   const cv::Mat& leftRectified() const { return left_rect_; }
   const cv::Mat& rightRectified() const { return right_rect_; }
   const std::vector<Correspondence>& vertices() const { return vertices_; }

@@ -12,12 +12,18 @@
 //   `along` a fraction of C7 -> L4 toward L4, `across_cun` cun toward the
 //   subject's left.
 //
-// File (YAML):
-//   format: massage_cell/client_profile 1
-//   client: "A. N. Other"            # any id the therapist uses
-//   c7_to_l4_m: 0.452                # optional
-//   corrections:                     # optional
+// File (YAML), read strictly (docs/cect.md, "Client profiles"):
+//   format: massage_cell/client_profile 1   # required, exactly this
+//   client: "A. N. Other"            # required (may be ""): any id the therapist uses
+//   c7_to_l4_m: 0.452                # optional, 0.2 .. 0.8 m
+//   length_tolerance_m: 0.03         # optional (default 0.03), (0, 0.1] m
+//   corrections:                     # optional: acupoint name -> {along, across_cun}, each optional (0)
 //     BL23_L: {along: 0.012, across_cun: -0.2}
+// Every other key, at the top or in a correction, is an error (a misspelt `c7_to_l4` would otherwise turn the
+// length check off without a word), as is a value of the wrong type. `client` is required because a profile is one
+// person's: the file must say whose it is so that the node's diagnostics and cect_locate's output show the therapist
+// whose profile is in effect (the length check only catches another client whose back differs by more than the
+// tolerance); the tools always write it, "" when no id was given.
 #pragma once
 
 #include <limits>
@@ -42,10 +48,15 @@ struct ClientProfile {
   std::map<std::string, AcupointCorrection> corrections;
 };
 
-/// Reads a profile. Throws std::runtime_error naming the file and the bad
-/// field (missing or other format line, a length outside 0.2 .. 0.8 m, a
-/// correction beyond its limit).
+/// Reads a profile. Throws std::runtime_error "client profile '<path>': ..." naming the bad key: an unknown key
+/// (with the known ones), a missing `format` or `client`, another format line, a value of the wrong type (a number
+/// that is not one, `client` not a scalar, `corrections` or a correction not a map), a key given twice, a length
+/// outside 0.2 .. 0.8 m, a correction beyond its limit; or that the file cannot be read or parsed.
 ClientProfile loadClientProfile(const std::string& path);
+
+/// One line for logs, diagnostics and tools: "'A. N. Other', C7 -> L4 0.452 m, 3 corrections" ("C7 -> L4 not
+/// measured" without a length).
+std::string describeClientProfile(const ClientProfile& profile);
 
 /// Writes a profile (the format above). Throws std::runtime_error when the
 /// file cannot be written, std::invalid_argument for values outside the limits.

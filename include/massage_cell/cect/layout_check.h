@@ -17,6 +17,9 @@ namespace massage_cell::cect {
 struct LayoutCheck {
   bool trusted = true;
   std::vector<std::string> problems;  ///< each failed check, in words with its numbers
+  /// Disagreements that do not refuse the layout (a given level off the model's proportions but within the
+  /// population's spread): said in the layout's status and the node's diagnostics.
+  std::vector<std::string> notes;
   /// "layout not trusted: " and the problems joined by "; " (empty when trusted).
   std::string reason() const;
   /// The quantities checked (NaN where the pair could not give them).
@@ -41,12 +44,18 @@ struct TrustRules {
   /// 3D gives it, must agree within `length_tolerance_m`.
   double client_length_m = std::numeric_limits<double>::quiet_NaN();
   double length_tolerance_m = 0.03;
+  /// A configuration problem that makes every layout untrusted (e.g. a client's profile the node could not read):
+  /// empty when none. Said as the first problem.
+  std::string configuration_problem;
 };
 
 /// Checks the landmarks (after the corrections and any given landmarks) with `scale` (metres per pixel at a
 /// rectified left pixel; may be empty or give NaN: the checks in metres are then skipped, the proportions kept).
-/// A given landmark is not second-guessed, but proportions that hang on a found one still are; `rules` say which
-/// landmarks must have been measured or given.
+/// A given landmark passes the same gate as a measured one: on the spine (within max_given_off_midline_cun of the
+/// back's measured midline), a given level within the population's spread of its place between C7 and L4 (beyond
+/// the model's proportions only noted), and, where the pair measured the same landmark, agreeing with it within
+/// both sigmas or confirmed; proportions that hang on a found landmark are checked too; `rules` say which landmarks
+/// must have been measured or given.
 LayoutCheck checkLayout(const BackLandmarks& landmarks, const AcupointModel& model, const PixelScale& scale,
                         const TrustRules& rules = {});
 

@@ -43,7 +43,7 @@ struct TrackerUpdate {
   int measured = 0;                     ///< points localised in this pair
   int valid = 0;                        ///< points with an estimate after it
   bool reset = false;                   ///< the stamps went back (a replay started over): estimates cleared first
-  std::string landmarks;                ///< which landmarks the pair measured and which it inferred (when it gave any)
+  std::string landmarks;                ///< describeLandmarks and the check's notes (when the pair found landmarks)
   double body_angle_deg = std::numeric_limits<double>::quiet_NaN();  ///< the body's turn on the table (landmarks)
 };
 
@@ -97,10 +97,12 @@ PixelPoints localizePixels(const CectFrame* frame, const camera::Decimation& dec
                            const std::vector<cv::Point2d>& raw_pixels);
 
 /// The left view with CECT's analysis (CectFrame::drawDebug) and the tracked acupoints at their rectified pixels
-/// (filled: measured and accepted; red ring: measured, rejected by the filter; grey ring: placed, not localised),
-/// scaled up by an integer factor to at least `min_width` pixels so the names stay legible. Empty when the frame has
-/// no left image.
-cv::Mat drawAcupoints(const CectFrame& frame, const std::vector<TrackedAcupoint>& points, int min_width);
+/// (filled: measured and accepted; red ring: measured, rejected by the filter; grey ring: placed, not localised)
+/// and the layout's `landmarks` as crosses with their names and sources ("C7 given (clicked)"; magenta: given, cyan:
+/// measured, grey: inferred), scaled up by an integer factor to at least `min_width` pixels so the names stay
+/// legible. Empty when the frame has no left image.
+cv::Mat drawAcupoints(const CectFrame& frame, const std::vector<TrackedAcupoint>& points, int min_width,
+                      const std::vector<LayoutLandmark>& landmarks = {});
 
 /// The integer factor drawAcupoints scales a `cols`-wide view by to reach `min_width` (>= 1); a pixel (x, y) of its
 /// image is the view's ((x + 0.5) / factor - 0.5, (y + 0.5) / factor - 0.5).
