@@ -156,3 +156,43 @@ TEST(LocalizePixels, WithoutAnAnalysedPairEveryPixelSaysSo) {
     EXPECT_EQ(p.reason, none.message);
   }
 }
+
+TEST(DrawAcupoints, TheLayoutsLandmarksAreDrawnWithTheirSources) {
+  // A grey pair (no back: the plain left view is drawn) and the layout's landmarks: a given C7 in magenta, a measured
+  // L4 in cyan, each a cross with its name and source to its left; the view scaled by 3 to 960 px.
+  camera::CameraCalibration c;
+  c.width = 320;
+  c.height = 240;
+  c.D = {0, 0, 0, 0, 0};
+  c.K = {250, 0, 160, 0, 250, 120, 0, 0, 1};
+  c.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  c.P = {250, 0, 160, 0, 0, 250, 120, 0, 0, 0, 1, 0};
+  camera::CameraCalibration r = c;
+  r.P[3] = -25.0;
+  const cv::Mat grey(240, 320, CV_8UC3, cv::Scalar(90, 90, 90));
+  const cect::CectFrame frame = cect::CectFrame::analyse(grey, grey, camera::StereoModel(c, r), {});
+  const std::vector<cect::LayoutLandmark> landmarks{{"C7", {200.0f, 40.0f}, "given", "clicked"},
+                                                    {"L4", {200.0f, 200.0f}, "measured", "the waist"}};
+  const cv::Mat image = cect::drawAcupoints(frame, {}, 960, landmarks);
+  ASSERT_EQ(image.cols, 960);
+  // Magenta-ish (blue and red, no green) and cyan-ish (blue and green, no red) pixels around a point; anti-aliased
+  // text and lines blend into the grey, so by their hue.
+  auto count = [](const cv::Mat& img, const cv::Point& at, int radius, bool magenta) {
+    int n = 0;
+    for (int y = at.y - radius; y <= at.y + radius; ++y)
+      for (int x = at.x - radius; x <= at.x + radius; ++x) {
+        const cv::Vec3b p = img.at<cv::Vec3b>(y, x);
+        const int other = magenta ? p[1] : p[2], shared = magenta ? p[2] : p[1];
+        n += p[0] > 140 && shared > 140 && other < 110;
+      }
+    return n;
+  };
+  EXPECT_GT(count(image, {601, 121}, 6, true), 10) << "C7's cross";
+  EXPECT_GT(count(image, {601, 601}, 6, false), 10) << "L4's cross";
+  EXPECT_EQ(count(image, {601, 601}, 6, true), 0) << "L4 is not drawn as given";
+  // The name to the left of the cross ("C7 given (clicked)", ~150 px wide at this size), none to its right.
+  EXPECT_GT(count(image, {520, 121}, 20, true), 20) << "C7's name";
+  EXPECT_EQ(count(image, {700, 121}, 20, true), 0) << "nothing to the right";
+  const cv::Mat none = cect::drawAcupoints(frame, {}, 960);
+  EXPECT_EQ(count(none, {601, 121}, 6, true) + count(none, {520, 121}, 20, true), 0) << "no landmarks, none drawn";
+}

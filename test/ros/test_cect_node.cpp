@@ -703,7 +703,18 @@ TEST_F(CectNode, AClientWhoMovesMakesTheGivenLandmarksStale) {
   EXPECT_NE(deep.response.message.find("from the skin measured at its pixel"), std::string::npos)
       << deep.response.message;
 
-  // 1. C7 and L4 given where the automatic layout has them: trusted.
+  // 1. C7 and L4 given 10 cm to the subject's right of the spine (a mis-click, or the previous client's places): not
+  // trusted, the reason naming them; where the automatic layout has them (on the spine): trusted.
+  const cv::Point2d beside(0.10 / mpp, 0.0);
+  give("C7", placedPixel(*automatic, "GV14") + beside);
+  give("L4", placedPixel(*automatic, "GV3") + beside);
+  AcupointArrayConstPtr refused = layoutOf(good);
+  ASSERT_TRUE(refused);
+  EXPECT_FALSE(findPoint(*refused, "GV14")->valid);
+  EXPECT_NE(findPoint(*refused, "GV14")->reason.find("the given C7 (service) lies"), std::string::npos)
+      << findPoint(*refused, "GV14")->reason;
+  EXPECT_NE(findPoint(*refused, "GV14")->reason.find("to the subject's right of the back's midline"),
+            std::string::npos);
   give("C7", placedPixel(*automatic, "GV14"));
   give("L4", placedPixel(*automatic, "GV3"));
   AcupointArrayConstPtr given = layoutOf(good);
