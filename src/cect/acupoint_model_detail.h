@@ -17,7 +17,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "massage_cell/cect/acupoint_model.h"
-#include "stats_detail.h"
+#include "stats_detail.h"  // median; robustFit, huberWeight (the midline, the parallax's line, the levels' cubic)
 
 namespace massage_cell::cect {
 
@@ -106,46 +106,25 @@ bool fitMidline(const Rows& rows, int ia, int ib, Midline& m);
 bool midlineCrossings(const Segmentation& seg, const Midline& m, double* top, double* bottom);
 
 // ---------------------------------------------------------------------------
-// The robust fits (the midline, the parallax's line, the levels' cubic).
-
-/// Iteratively reweighted least squares of A C = B, one sample a row (B's columns fitted together; a row's residual
-/// is the norm of its row of A C - B): a plain fit, then `passes` refits, each with every row weighted by
-/// weight(r, m), r its residual and m the median of the residuals (the upper middle one of an even count). A weight
-/// multiplies its row: the square root of an IRLS weight (huberWeight). false when a fit is rank-deficient or not
-/// finite; *used, when given: the weights of the last fit.
-template <typename Coefficients, typename Weight>
-bool robustFit(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, int passes, const Weight& weight, Coefficients* C,
-               Eigen::VectorXd* used = nullptr) {
-  const Eigen::Index n = A.rows();
-  Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
-  for (int pass = 0;; ++pass) {
-    const Eigen::MatrixXd Aw = w.asDiagonal() * A, Bw = w.asDiagonal() * B;
-    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(Aw);
-    if (qr.rank() < A.cols()) return false;
-    *C = qr.solve(Bw);
-    if (!C->allFinite()) return false;
-    if (pass == passes) break;
-    const Eigen::VectorXd r = (A * *C - B).rowwise().norm();
-    const double m = median(std::vector<double>(r.data(), r.data() + n), EvenCount::kUpperMiddle);
-    for (Eigen::Index i = 0; i < n; ++i) w(i) = weight(r(i), m);
-  }
-  if (used) *used = w;
-  return true;
-}
-
-/// Huber's weight of a row with residual r (robustFit's: the square root of k / r beyond k).
-inline double huberWeight(double r, double k) { return r <= k ? 1.0 : std::sqrt(k / r); }
-
-// ---------------------------------------------------------------------------
 // Along the midline.
 
-/// The midline's point at row y (linear between its rows, extrapolated beyond its ends).
-inline cv::Point2f midlineAt(const BackLandmarks& l, double y) {
+/// What midlineAt gives beyond the midline's ends.
+enum class Beyond {
+  kExtrapolate,  ///< the end segment continued: the point at row y
+  kClamp,        ///< the end point itself: the row clamped to the midline's rows
+};
+
+/// The midline's point at row y of the body frame: linear between its points (one a row), beyond its ends as `beyond`
+/// says. The midline must not be empty.
+inline cv::Point2f midlineAt(const BackLandmarks& l, double y, Beyond beyond = Beyond::kExtrapolate) {
   const auto& m = l.midline;
+  const double last = static_cast<double>(m.size() - 1);
+  double t = y - m.front().y;
+  if (beyond == Beyond::kClamp && t < 0.0) return m.front();
+  if (beyond == Beyond::kClamp && t > last) return m.back();
   if (m.size() == 1) return {m[0].x, static_cast<float>(y)};
-  const double t = y - m.front().y;
-  const std::size_t i = static_cast<std::size_t>(std::clamp(std::floor(t), 0.0, double(m.size() - 2)));
-  const double f = t - double(i);  // may be < 0 or > 1 beyond the ends: linear extrapolation
+  const std::size_t i = static_cast<std::size_t>(std::clamp(std::floor(t), 0.0, last - 1.0));
+  const double f = t - double(i);  // < 0 or > 1 beyond the ends (kExtrapolate): linear extrapolation
   return {static_cast<float>(m[i].x + f * (m[i + 1].x - m[i].x)), static_cast<float>(y)};
 }
 

@@ -283,9 +283,7 @@ cv::Mat CectFrameBuilder::diffuseGrey(const cv::Mat& bgr, const cv::Mat& mask) c
       std::vector<float> v;
       v.reserve(chroma.size() / 2);
       for (auto it = chroma.begin(); it != half; ++it) v.push_back((*it)[k]);
-      auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-      std::nth_element(v.begin(), mid, v.end());
-      c(k) = *mid;
+      c(k) = detail::median(v, detail::EvenCount::kUpperMiddle);
     }
     // Normal equations of min |I - D c - S 1|^2: [c.c c.1; c.1 3] [D S]' = [c.I 1.I]'.
     const double cc = c.squaredNorm(), c1 = c.sum();

@@ -113,7 +113,9 @@ const std::vector<std::string>& scoredLevels() {
   return levels;
 }
 
-bool PairScore::wronglyTrusted(double limit_mm) const { return published && worst_level_mm > limit_mm; }
+bool PairScore::farOff(double limit_mm) const { return worst_level_mm > limit_mm || midline_across_mm > limit_mm; }
+
+bool PairScore::wronglyTrusted(double limit_mm) const { return published && farOff(limit_mm); }
 
 PairScore scorePair(const LocatedAcupoints& result, const AcupointModel& model, const camera::StereoModel& geometry,
                     const BackTruth& truth) {
@@ -177,7 +179,7 @@ ScoreSummary summarise(const std::vector<PairScore>& pairs) {
     ++out.pairs;
     if (!p.published) {
       ++out.refused;
-      out.refused_wrong += p.worst_level_mm > PairScore::kWrongLevelMm ? 1 : 0;
+      out.refused_wrong += p.farOff() ? 1 : 0;
       continue;
     }
     ++out.published;

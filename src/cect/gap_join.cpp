@@ -8,6 +8,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "stats_detail.h"
+
 namespace massage_cell::cect::detail {
 
 namespace {
@@ -126,8 +128,7 @@ bool joinPair(const cv::Mat& labels, const Piece& a, const Piece& b, cv::Mat* ma
   // The band: the columns whose gap is about the typical (median) one; the flanks, where the outlines part, left out.
   std::vector<int> widths;
   for (const ColumnGap& g : gaps) widths.push_back(g.width());
-  std::nth_element(widths.begin(), widths.begin() + static_cast<std::ptrdiff_t>(widths.size() / 2), widths.end());
-  const double width = widths[widths.size() / 2];
+  const double width = median(widths, EvenCount::kUpperMiddle);
   std::vector<ColumnGap> band;
   for (const ColumnGap& g : gaps)
     if (g.width() <= kWidthSpread * width + kWidthSlack) band.push_back(g);

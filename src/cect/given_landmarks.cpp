@@ -27,15 +27,6 @@ std::string pixelText(const cv::Point2f& p) {
   return s.str();
 }
 
-/// The midline's x at row y of the body frame (linear between its points, constant beyond its ends).
-double midlineX(const BackLandmarks& l, double y) {
-  const auto& m = l.midline;
-  const double t = std::clamp(y - m.front().y, 0.0, static_cast<double>(m.size() - 1));
-  const std::size_t i = std::min(static_cast<std::size_t>(t), m.size() - 1);
-  if (i + 1 >= m.size()) return m[i].x;
-  return m[i].x + (t - static_cast<double>(i)) * (m[i + 1].x - m[i].x);
-}
-
 /// A given landmark may lie this far (a fraction of C7 -> L4) beyond the found midline's ends: the silhouette's top
 /// is the neck's base seen from above, which a palpated C7 can lie just above; farther is not this back.
 constexpr double kMaxBeyondMidline = 0.15;
@@ -67,8 +58,8 @@ void fitMidlineThrough(BackLandmarks* landmarks, const std::map<std::string, cv:
   for (const auto& [name, p] : body) knots.push_back(p);
   std::sort(knots.begin(), knots.end(), [](const cv::Point2f& a, const cv::Point2f& b) { return a.y < b.y; });
   const cv::Point2f top = knots.front(), bottom = knots.back();
-  const float top_shift = top.x - static_cast<float>(midlineX(l, top.y));
-  const float bottom_shift = bottom.x - static_cast<float>(midlineX(l, bottom.y));
+  const float top_shift = top.x - midlineAt(l, top.y, Beyond::kClamp).x;
+  const float bottom_shift = bottom.x - midlineAt(l, bottom.y, Beyond::kClamp).x;
   std::size_t k = 0;  // the segment knots[k] .. knots[k + 1] holding the row
   for (std::size_t i = 0; i < l.midline.size(); ++i) {
     cv::Point2f& m = l.midline[i];
@@ -104,7 +95,7 @@ constexpr double kTopBand = 0.03;
 double spineAcross(const BackLandmarks& l, double row, const PointLookup& point) {
   if (!point) return kNaN;
   const double half = std::max(60.0, l.shoulder_width);
-  const double centre = midlineX(l, row);
+  const double centre = midlineAt(l, row, Beyond::kClamp).x;
   std::vector<std::pair<double, double>> samples;  // (x across, depth z)
   for (const double dy : {-6.0, 0.0, 6.0}) {
     for (int k = -25; k <= 25; ++k) {
@@ -166,7 +157,7 @@ std::vector<BackLandmarks::GivenCheck> givenChecks(const BackLandmarks& l, const
     c.level = g.name;
     c.source = g.source;
     c.body = body.at(g.name);
-    c.off_midline = c.body.x - (line ? a + b * c.body.y : midlineX(l, c.body.y));
+    c.off_midline = c.body.x - (line ? a + b * c.body.y : midlineAt(l, c.body.y, Beyond::kClamp).x);
     c.confirmed = g.confirmed;
     c.stale = g.stale;
     if (g.name == "C7" && l.c7_at_neck && !l.c7_given) {
@@ -228,7 +219,7 @@ std::string applyGivenLandmarks(BackLandmarks* landmarks, const std::vector<Give
   l.given_checks = givenChecks(l, given, body, point);
   for (const auto& [name, p] : body) extendMidline(&l, p.y);
   fitMidlineThrough(&l, body);
-  auto onMidline = [&](float row) { return cv::Point2f(static_cast<float>(midlineX(l, row)), row); };
+  auto onMidline = [&](float row) { return cv::Point2f(midlineAt(l, row, Beyond::kClamp).x, row); };
   l.c7 = onMidline(c7_row);
   l.l4 = onMidline(l4_row);
   l.iliac_row = l4_row;

@@ -31,18 +31,12 @@ std::string fixed(double v, int precision) {
   return s.str();
 }
 
-/// The midline point of the body frame's row nearest `row`.
-cv::Point2f midlineNear(const BackLandmarks& l, double row) {
-  const double t = std::clamp(row - l.midline.front().y, 0.0, static_cast<double>(l.midline.size() - 1));
-  return l.midline[static_cast<std::size_t>(std::lround(t))];
-}
-
 /// Median metres per pixel over the midline from C7 to L4 (nine samples), NaN without a scale.
 double midlineMetresPerPixel(const BackLandmarks& l, const PixelScale& scale) {
   if (!scale) return kNaN;
   std::vector<double> s;
   for (int k = 0; k <= 8; ++k) {
-    const double v = scale(toImage(l, midlineNear(l, l.c7.y + k / 8.0 * (l.l4.y - l.c7.y))));
+    const double v = scale(toImage(l, midlineAt(l, l.c7.y + k / 8.0 * (l.l4.y - l.c7.y), Beyond::kClamp)));
     if (std::isfinite(v) && v > 0.0) s.push_back(v);
   }
   return s.size() < 3 ? kNaN : detail::median(s);
@@ -175,7 +169,7 @@ LayoutCheck checkLayout(const BackLandmarks& l, const AcupointModel& model, cons
   // Sizes, where the back's 3D gives a scale.
   const double mpp = midlineMetresPerPixel(l, scale);
   c.length_m = lengthMetres(l, mpp);
-  const double shoulder_mpp = scale ? scale(toImage(l, midlineNear(l, l.shoulder_row))) : kNaN;
+  const double shoulder_mpp = scale ? scale(toImage(l, midlineAt(l, l.shoulder_row, Beyond::kClamp))) : kNaN;
   c.shoulder_width_m = l.shoulder_width * (std::isfinite(shoulder_mpp) && shoulder_mpp > 0.0 ? shoulder_mpp : mpp);
   within(&c, c.length_m, pl.min_length_m, pl.max_length_m, "C7 -> L4", " m", 3);
   // With the back's 3D a size that cannot be measured is no size that passed: too few of the midline's points have

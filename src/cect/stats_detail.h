@@ -1,4 +1,4 @@
-// Statistics shared by CECT's files (src/cect). Private to the library: not installed.
+// Statistics shared by CECT's files (src/cect): the median and the robust fit. Private to the library: not installed.
 #pragma once
 
 #include <algorithm>
@@ -6,6 +6,8 @@
 #include <cstddef>
 #include <limits>
 #include <vector>
+
+#include <Eigen/Dense>
 
 namespace massage_cell::cect::detail {
 
@@ -27,5 +29,35 @@ double median(std::vector<T> v, EvenCount even = EvenCount::kMeanOfMiddle) {
   const double lo = *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid));
   return 0.5 * (lo + hi);
 }
+
+// The robust fits (the body's centre line in trunk.cpp; the acupoint model's midline, parallax line and levels' cubic).
+
+/// Iteratively reweighted least squares of A C = B, one sample a row (B's columns fitted together; a row's residual
+/// is the norm of its row of A C - B): a plain fit, then `passes` refits, each with every row weighted by
+/// weight(r, m), r its residual and m the median of the residuals (the upper middle one of an even count). A weight
+/// multiplies its row: the square root of an IRLS weight (huberWeight). false when a fit is rank-deficient or not
+/// finite; *used, when given: the weights of the last fit.
+template <typename Coefficients, typename Weight>
+bool robustFit(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, int passes, const Weight& weight, Coefficients* C,
+               Eigen::VectorXd* used = nullptr) {
+  const Eigen::Index n = A.rows();
+  Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
+  for (int pass = 0;; ++pass) {
+    const Eigen::MatrixXd Aw = w.asDiagonal() * A, Bw = w.asDiagonal() * B;
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(Aw);
+    if (qr.rank() < A.cols()) return false;
+    *C = qr.solve(Bw);
+    if (!C->allFinite()) return false;
+    if (pass == passes) break;
+    const Eigen::VectorXd r = (A * *C - B).rowwise().norm();
+    const double m = median(std::vector<double>(r.data(), r.data() + n), EvenCount::kUpperMiddle);
+    for (Eigen::Index i = 0; i < n; ++i) w(i) = weight(r(i), m);
+  }
+  if (used) *used = w;
+  return true;
+}
+
+/// Huber's weight of a row with residual r (robustFit's: the square root of k / r beyond k).
+inline double huberWeight(double r, double k) { return r <= k ? 1.0 : std::sqrt(k / r); }
 
 }  // namespace massage_cell::cect::detail

@@ -9,6 +9,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "stats_detail.h"
+
 namespace massage_cell::cect {
 
 std::string TrunkReport::summary() const {
@@ -96,7 +98,9 @@ std::vector<Run> runsOf(const cv::Mat& mask, int y) {
 }
 
 /// The body's centre line x = c0 + c1 y: a robust line through the middles of
-/// each row's longest run. NaN coefficients when fewer than 8 rows hold skin.
+/// each row's longest run (a trimmed fit: three refits, each without the rows
+/// beyond 3 times the median residual, at least 3 px). NaN coefficients when
+/// fewer than 8 rows hold skin.
 cv::Vec2d centreLine(const cv::Mat& mask) {
   std::vector<double> ys, xs;
   for (int y = 0; y < mask.rows; ++y) {
@@ -109,23 +113,16 @@ cv::Vec2d centreLine(const cv::Mat& mask) {
   }
   const double nan = std::numeric_limits<double>::quiet_NaN();
   if (ys.size() < 8) return {nan, nan};
-  std::vector<bool> use(ys.size(), true);
-  cv::Vec2d line(nan, nan);
-  for (int it = 0; it < 4; ++it) {
-    double s = 0, sy = 0, sx = 0, syy = 0, sxy = 0;
-    for (std::size_t i = 0; i < ys.size(); ++i)
-      if (use[i]) s += 1, sy += ys[i], sx += xs[i], syy += ys[i] * ys[i], sxy += xs[i] * ys[i];
-    const double det = s * syy - sy * sy;
-    if (s < 8 || std::abs(det) < 1e-9) break;
-    line = cv::Vec2d((syy * sx - sy * sxy) / det, (s * sxy - sy * sx) / det);
-    std::vector<double> res;
-    for (std::size_t i = 0; i < ys.size(); ++i) res.push_back(std::abs(xs[i] - line[0] - line[1] * ys[i]));
-    std::vector<double> sorted = res;
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
-    const double cut = std::max(3.0, 3.0 * sorted[sorted.size() / 2]);
-    for (std::size_t i = 0; i < ys.size(); ++i) use[i] = res[i] <= cut;
+  const Eigen::Index n = static_cast<Eigen::Index>(ys.size());
+  Eigen::MatrixXd A(n, 2), B(n, 1);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    A.row(i) << 1.0, ys[static_cast<std::size_t>(i)];
+    B(i, 0) = xs[static_cast<std::size_t>(i)];
   }
-  return line;
+  auto trimmed = [](double r, double median) { return r <= std::max(3.0, 3.0 * median) ? 1.0 : 0.0; };
+  Eigen::Vector2d c;
+  if (!detail::robustFit(A, B, 3, trimmed, &c)) return {nan, nan};
+  return {c(0), c(1)};
 }
 
 /// Per row, the run holding the centre line; the other runs leave the mask
@@ -314,8 +311,7 @@ TrunkParams scaledToBody(const TrunkParams& p, const cv::Mat& mask) {
     if (best > 0) widths.push_back(best);
   }
   if (widths.empty()) return p;
-  std::nth_element(widths.begin(), widths.begin() + static_cast<std::ptrdiff_t>(widths.size() / 2), widths.end());
-  const double s = std::clamp(widths[widths.size() / 2] / kBodyWidth, 0.2, 5.0);
+  const double s = std::clamp(detail::median(widths, detail::EvenCount::kUpperMiddle) / kBodyWidth, 0.2, 5.0);
   TrunkParams q = p;
   q.cloth_sigma = p.cloth_sigma * s;
   q.cloth_window = p.cloth_window * s;

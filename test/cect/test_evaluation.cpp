@@ -150,6 +150,25 @@ TEST(CectEvaluation, AFarLevelPublishedIsWronglyTrustedRefusedIsNot) {
   EXPECT_DOUBLE_EQ(sum.placedShare(), 1.0);
 }
 
+TEST(CectEvaluation, ASpineLineFarAcrossPublishedIsWronglyTrustedRefusedIsRightlyRefused) {
+  // The levels at their true rows, the spine line 25 px (50 mm) to the side: no level is off along the body.
+  const cect::PairScore trusted = cect::scorePair(result(25.0, 100.0, 300.0, true), model(), geometry(), truth());
+  const cect::PairScore refused = cect::scorePair(result(25.0, 100.0, 300.0, false), model(), geometry(), truth());
+  EXPECT_NEAR(trusted.worst_level_mm, 0.0, 1e-6);
+  EXPECT_NEAR(trusted.midline_across_mm, 50.0, 1e-6);
+  EXPECT_TRUE(trusted.farOff());
+  EXPECT_TRUE(trusted.wronglyTrusted());
+  EXPECT_FALSE(refused.wronglyTrusted());
+  // 15 px (30 mm) across is within the limit.
+  const cect::PairScore near = cect::scorePair(result(-15.0, 100.0, 300.0, true), model(), geometry(), truth());
+  EXPECT_NEAR(near.midline_across_mm, 30.0, 1e-6);
+  EXPECT_FALSE(near.wronglyTrusted());
+
+  const cect::ScoreSummary sum = cect::summarise({trusted, refused, near});
+  EXPECT_EQ(sum.wrongly_trusted, 1);
+  EXPECT_EQ(sum.refused_wrong, 1);
+}
+
 TEST(CectEvaluation, SpreadIsOfMagnitudesWithTheNearestRankP95) {
   std::vector<double> v;
   for (int i = 1; i <= 20; ++i) v.push_back(i % 2 ? -i : i);

@@ -59,9 +59,13 @@ struct PairScore {
   int valid_in_view = 0;      ///< ... of them published valid (placed and localised)
   int valid_out_of_view = 0;  ///< acupoints published valid though not in view
 
-  /// Published valid with a level more than `limit_mm` off along the body: the failure the checks must prevent.
+  /// The landmarks more than `limit_mm` off: a level along the body (worst_level_mm) or the spine line across it
+  /// (midline_across_mm); false without landmarks.
+  bool farOff(double limit_mm = kWrongLevelMm) const;
+  /// Published valid though farOff(limit_mm): the failure the checks must prevent.
   bool wronglyTrusted(double limit_mm = kWrongLevelMm) const;
-  static constexpr double kWrongLevelMm = 40.0;  ///< issue 44's limit: twice the experts' spread (16-24 mm)
+  /// issue 44's limit, along and across: twice the experts' spread (16-24 mm)
+  static constexpr double kWrongLevelMm = 40.0;
 };
 
 /// Scores `result` (landmarks and points as locateAcupoints gave them) on `geometry`'s rectified left view.
@@ -80,7 +84,7 @@ struct ScoreSummary {
   int pairs = 0;
   int published = 0;        ///< pairs published valid
   int refused = 0;          ///< pairs not published (with a reason)
-  int wrongly_trusted = 0;  ///< published with a level error > PairScore::kWrongLevelMm
+  int wrongly_trusted = 0;  ///< published though PairScore::farOff() (a level or the spine line > kWrongLevelMm)
   int refused_wrong = 0;    ///< refused pairs whose landmarks were indeed that far off (the checks were right)
   std::map<std::string, Spread> levels;  ///< |along| per level over the published pairs
   Spread worst_level;                    ///< per published pair, its worst level
