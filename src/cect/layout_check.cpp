@@ -9,7 +9,9 @@
 // not trusted at all (TrustRules::c7_at_neck, on by default), nor is an L4 inferred from C7 and the shoulder width
 // (TrustRules::l4_measured); with C7 and L4 both given, the
 // shoulder line is no longer used (the cun comes from C7 -> L4), so neither
-// are its checks.
+// are its checks. Given landmarks pass the same gate as measured ones: on the
+// spine line the pair's 3D shows, a given T7 within the population's spread,
+// agreeing with the same landmark measured (or confirmed), not stale.
 #include "massage_cell/cect/layout_check.h"
 
 #include "acupoint_model_detail.h"
