@@ -13,6 +13,7 @@ add_library(massage_cell_can STATIC
   src/can/cia402.cpp
   src/can/object_dictionary.cpp
   src/can/sim_drive.cpp
+  src/can/sim_mechanics.cpp
   src/can/probe.cpp
   src/can/realtime.cpp)
 target_include_directories(massage_cell_can PUBLIC include)

@@ -193,6 +193,28 @@ ArmConfig parseArmConfig(const std::string& yaml_text, const std::string& source
 
 namespace {
 
+void readForce(Reader& r, const YAML::Node& f, ForceConfig* out) {
+  r.checkKeys(f, "force",
+              {"screw_lead", "screw_efficiency", "mass", "coulomb_friction", "viscous_friction", "friction_stiffness",
+               "filter_time_constant", "calibration_travel", "calibration_speeds"});
+  ForceConfig& c = *out;
+  c.enabled = true;
+  c.screw_lead = r.number(f["screw_lead"], "force.screw_lead", 0.0, true);
+  c.screw_efficiency = r.number(f["screw_efficiency"], "force.screw_efficiency", c.screw_efficiency);
+  c.mass = r.number(f["mass"], "force.mass", c.mass);
+  c.coulomb_friction = r.number(f["coulomb_friction"], "force.coulomb_friction", c.coulomb_friction);
+  c.viscous_friction = r.number(f["viscous_friction"], "force.viscous_friction", c.viscous_friction);
+  c.friction_stiffness = r.number(f["friction_stiffness"], "force.friction_stiffness", c.friction_stiffness);
+  c.filter_time_constant = r.number(f["filter_time_constant"], "force.filter_time_constant", c.filter_time_constant);
+  c.calibration_travel = r.number(f["calibration_travel"], "force.calibration_travel", c.calibration_travel);
+  if (const YAML::Node speeds = f["calibration_speeds"]) {
+    if (!speeds.IsSequence()) r.fail("force.calibration_speeds", "expected a list of speeds (m/s)");
+    c.calibration_speeds.clear();
+    for (std::size_t i = 0; i < speeds.size(); ++i)
+      c.calibration_speeds.push_back(r.number(speeds[i], "force.calibration_speeds[" + std::to_string(i) + "]", 0.0));
+  }
+}
+
 ArmConfig armConfig(const std::string& yaml_text, const std::string& source, const std::string& base_dir) {
   Reader r(source);
   YAML::Node root;
@@ -203,8 +225,8 @@ ArmConfig armConfig(const std::string& yaml_text, const std::string& source, con
   }
   r.checkKeys(root, "",
               {"can_config", "axes", "joint_names", "joints", "tool_offset", "workspace", "watchdog_timeout",
-               "bringup_timeout", "position_tolerance", "press", "body", "regions", "default_region", "acupoints",
-               "node"});  // node: the ROS node's settings (read by the node)
+               "bringup_timeout", "position_tolerance", "press", "body", "force", "regions", "default_region",
+               "acupoints", "node"});  // node: the ROS node's settings (read by the node)
   ArmConfig c;
   c.source = source;
   c.can_config_path = resolve(base_dir, r.text(root["can_config"], "can_config", "", true));
@@ -277,6 +299,7 @@ ArmConfig armConfig(const std::string& yaml_text, const std::string& source, con
     c.body.safe_height = r.number(b["safe_height"], "body.safe_height", c.body.safe_height);
     c.body.radius = r.number(b["radius"], "body.radius", c.body.radius);
   }
+  if (const YAML::Node f = root["force"]) readForce(r, f, &c.force);
   const YAML::Node regions = root["regions"];
   if (!regions || !regions.IsMap() || regions.size() == 0)
     r.fail("regions", "missing or empty (region: {max_depth, default_depth})");
@@ -308,6 +331,33 @@ ArmConfig armConfig(const std::string& yaml_text, const std::string& source, con
 ArmConfig loadArmConfig(const std::string& path) {
   return parseArmConfig(readFile(path, "arm configuration"), path, dirOf(path));
 }
+
+namespace {
+
+/// The force section against the drives: the Z axis must report its torque.
+template <typename Fail>
+void validateForce(const ArmConfig& c, const Fail& fail) {
+  const ForceConfig& f = c.force;
+  const can::AxisConfig& z = c.axis(2);
+  if (!z.torque_pdo || !(z.rated_torque > 0.0)) {
+    fail("force", "needs the Z axis '" + z.name + "' to report its torque (torque_pdo: true and rated_torque in " +
+                      c.can_config_path + ")");
+  }
+  if (!(f.screw_lead > 0.0)) fail("force.screw_lead", "must be > 0 m");
+  if (!(f.screw_efficiency > 0.0) || f.screw_efficiency > 1.0) fail("force.screw_efficiency", "must be in (0, 1]");
+  if (!(f.mass >= 0.0) || !(f.coulomb_friction >= 0.0) || !(f.viscous_friction >= 0.0))
+    fail("force", "mass, coulomb_friction and viscous_friction must be >= 0");
+  if (!(f.friction_stiffness > 0.0)) fail("force.friction_stiffness", "must be > 0");
+  if (!(f.filter_time_constant >= 0.0)) fail("force.filter_time_constant", "must be >= 0 s");
+  if (!(f.calibration_travel > 0.0) || c.workspace_max.z() - f.calibration_travel < c.body.safe_height)
+    fail("force.calibration_travel", "must be > 0 and keep the tool above body.safe_height below the top");
+  if (f.calibration_speeds.size() < 2) fail("force.calibration_speeds", "needs two speeds or more");
+  for (double v : f.calibration_speeds)
+    if (!(v > 0.0) || v > c.joints[2].max_velocity)
+      fail("force.calibration_speeds", "each must be > 0 and <= the Z joint's max_velocity");
+}
+
+}  // namespace
 
 void validate(const ArmConfig& c) {
   const std::string& s = c.source;
@@ -374,6 +424,7 @@ void validate(const ArmConfig& c) {
       fail("regions." + name + ".default_depth", "must be > 0 and <= max_depth " + num(l.max_depth));
     }
   }
+  if (c.force.enabled) validateForce(c, fail);
   if (!c.regions.count(c.default_region)) fail("default_region", "'" + c.default_region + "' is not one of regions");
   for (const auto& [point, region] : c.acupoint_regions) {
     if (!c.regions.count(region)) {

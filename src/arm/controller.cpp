@@ -91,6 +91,7 @@ void TapBus::setObserver(Observer observer) {
 Controller::Controller(can::Bus& bus, const can::Clock& clock, ArmConfig config)
     : config_(std::move(config)), clock_(clock), tap_(bus) {
   validate(config_);
+  tool_force_ = std::make_unique<ToolForce>(config_);
   master_ = std::make_unique<can::Master>(tap_, clock_, config_.can);
   for (int i = 0; i < 3; ++i) axes_[i] = std::make_unique<can::Cia402Axis>(*master_, config_.axis(i));
   listener_id_ = master_->addEventListener([this](const can::Event& e) { events_.push_back(e); });
@@ -161,6 +162,7 @@ void Controller::cycle(can::TimePoint now) {
   if (cycle_observer_) cycle_observer_(now);
   if (!started_) return;
   handleEvents();
+  senseForce(now);
   if (mode_ == Mode::kStarting) {
     bool up = true;
     std::string missing;
@@ -323,6 +325,9 @@ void Controller::runQueue(can::TimePoint now) {
     }
     if (!tickAction(*current_, now)) return;
     if (current_ && current_->kind == Action::Kind::kStep && current_->step.press_done) ++presses_done_;
+    if (current_ && current_->kind == Action::Kind::kStep && current_->step.force_calibration &&
+        (queue_.empty() || !queue_.front().step.force_calibration))
+      finishForceCalibration();
     current_.reset();
   }
 }
@@ -370,6 +375,11 @@ bool Controller::startAction(Action& a, can::TimePoint) {
       return true;
     case Action::Kind::kStep:
       if (!a.step.label.empty()) log(a.step.label);
+      if (a.step.force_calibration && !calibrating_force_) tool_force_->startCalibration();
+      calibrating_force_ = a.step.force_calibration;
+      // Leaving the approach point into contact: the tool is still and touches nothing, the force's zero is here.
+      if (a.step.contact && !in_contact_) tool_force_->rezero();
+      in_contact_ = a.step.contact;
       if (a.step.kind == Step::Kind::kMove) startMove(a.step);
       return mode_ != Mode::kFault;
   }
@@ -532,6 +542,7 @@ void Controller::setResult(std::uint64_t id, bool success, const std::string& me
 }
 
 void Controller::finish(bool success, const std::string& message) {
+  in_contact_ = calibrating_force_ = false;
   const auto it = results_.find(command_);
   if (it == results_.end() || it->second.done) return;
   setResult(command_, success, message);
@@ -546,7 +557,42 @@ Accepted Controller::home() {
   Action enable{Action::Kind::kEnableAll};
   Action z{Action::Kind::kHome, 0b100};
   Action xy{Action::Kind::kHome, 0b011};
-  return begin(Mode::kHoming, {enable, z, xy}, "home");
+  std::deque<Action> actions{enable, z, xy};
+  for (Action& a : forceCalibration()) actions.push_back(std::move(a));
+  return begin(Mode::kHoming, std::move(actions), "home");
+}
+
+std::deque<Controller::Action> Controller::forceCalibration() const {
+  std::deque<Action> out;
+  if (!tool_force_->enabled()) return out;
+  Eigen::Vector3d home;
+  for (int i = 0; i < 3; ++i) home[i] = config_.axis(i).home_offset;
+  const Eigen::Vector3d top = config_.toolOf(home), low = top - Eigen::Vector3d(0, 0, config_.force.calibration_travel);
+  for (double speed : config_.force.calibration_speeds) {
+    for (const Eigen::Vector3d& goal : {low, top}) {
+      Action a{Action::Kind::kStep};
+      a.step.tool = goal;
+      a.step.speed = speed;
+      a.step.label = "force calibration: z to " + fmt("%.3f", goal.z()) + " m at " + fmt("%.3f", speed) + " m/s";
+      a.step.force_calibration = true;
+      out.push_back(std::move(a));
+    }
+  }
+  return out;
+}
+
+void Controller::senseForce(can::TimePoint now) {
+  if (!tool_force_->enabled()) return;
+  const bool calibrating = current_ && current_->kind == Action::Kind::kStep && current_->step.force_calibration;
+  tool_force_->update(master_->feedback(config_.axis(2).node_id), axes_[2]->position(), now, calibrating);
+}
+
+void Controller::finishForceCalibration() {
+  const std::string why = tool_force_->finishCalibration();
+  const ForceReading r = tool_force_->reading();
+  log(why.empty() ? "force calibrated: moving mass " + fmt("%.2f", r.baseline.mass) + " kg, friction " +
+                        fmt("%.1f", r.baseline.coulomb) + " N + " + fmt("%.0f", r.baseline.viscous) + " N s/m"
+                  : "force " + why);
 }
 
 Accepted Controller::moveTo(const Eigen::Vector3d& tool, double speed) {
@@ -755,6 +801,7 @@ ArmStatus Controller::status() const {
     s.joints[i] = as.position;
   }
   s.tool = config_.toolOf(s.joints);
+  s.force = tool_force_->reading();
   s.faults = faults_;
   if (current_) {
     switch (current_->kind) {

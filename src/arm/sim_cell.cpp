@@ -6,7 +6,7 @@
 
 namespace massage_cell::arm {
 
-SimCell::SimCell(ArmConfig config) : bus_(can::SteadyClock::instance()) {
+SimCell::SimCell(ArmConfig config) : bus_(can::SteadyClock::instance()), epoch_(can::SteadyClock::instance().now()) {
   master_ep_ = bus_.open("master");
   for (const can::AxisConfig& a : config.can.axes) {
     drive_eps_.push_back(bus_.open("drive " + a.name));
@@ -21,6 +21,24 @@ SimCell::SimCell(ArmConfig config) : bus_(can::SteadyClock::instance()) {
 }
 
 SimCell::~SimCell() { stop(); }
+
+double SimCell::bodyTime() const {
+  return std::chrono::duration<double>(can::SteadyClock::instance().now() - epoch_).count();
+}
+
+void SimCell::setBody(std::shared_ptr<const SimBody> body) {
+  if (!body) {
+    drive(2).setExternalForce({});
+    return;
+  }
+  can::SimDrive* x = &drive(0);
+  can::SimDrive* y = &drive(1);
+  const Eigen::Vector3d offset = controller_->config().tool_offset;
+  drive(2).setExternalForce([this, x, y, offset, body](double z, double vz) {
+    const Eigen::Vector3d tool = Eigen::Vector3d(x->physicalPosition(), y->physicalPosition(), z) + offset;
+    return body->force(tool, vz, bodyTime());
+  });
+}
 
 can::RealtimeStatus SimCell::start(const can::RealtimeOptions& realtime) {
   if (running_) return status_;

@@ -427,6 +427,10 @@ void Cia402Axis::tickMove(TimePoint now, Cia402State s, std::uint16_t word, std:
       const std::int32_t wanted = target_;
       target_ = pos;
       command(cw::kEnableOperation);
+      // Wait for a statusword that answers this very RPDO, even when the controlword did not change (the axis' last
+      // move ended on it): every axis of a synchronised move then takes the same cycles to its rising edge.
+      rpdo_mark_ = master_.rpdosSent(config_.node_id);
+      sent_confirmed_ = false;
       target_ = wanted;
       phase(Phase::kWaitEdgeLow);
       return;

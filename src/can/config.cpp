@@ -138,6 +138,8 @@ AxisConfig parseAxis(const YAML::Node& node, const std::string& path, const std:
   f.read("heartbeat_ms", a.heartbeat_ms, false, 1, 65535);
   f.read("heartbeat_timeout_ms", a.heartbeat_timeout_ms, false, 0, 600000);
   f.readBool("velocity_pdo", a.velocity_pdo);
+  f.readBool("torque_pdo", a.torque_pdo);
+  f.read("rated_torque", a.rated_torque, a.torque_pdo, 1e-6, kBig);
   f.read("profile_velocity", a.profile_velocity, false, 1e-9, kBig);
   f.read("profile_acceleration", a.profile_acceleration, false, 1e-9, kBig);
   f.read("profile_deceleration", a.profile_deceleration, false, 1e-9, kBig);
@@ -166,6 +168,21 @@ AxisConfig parseAxis(const YAML::Node& node, const std::string& path, const std:
     s.read("home_switch", a.sim.home_switch, false, -kBig, kBig);
     s.read("max_velocity", a.sim.max_velocity, false, 1e-9, kBig);
     s.read("device_type", a.sim.device_type, false, 0, 4294967295.0);
+    if (s.has("mechanics")) {
+      Fields m(s.get("mechanics"), s.where("mechanics"), source);
+      SimDriveSettings::Mechanics& k = a.sim.mechanics;
+      m.read("screw_lead", k.screw_lead, true, 1e-6, 1.0);
+      m.read("screw_efficiency", k.screw_efficiency, false, 0.05, 1.0);
+      m.read("moving_mass", k.moving_mass, false, 0.0, 1000.0);
+      m.read("gravity", k.gravity, false, -100.0, 100.0);
+      m.read("coulomb_friction", k.coulomb_friction, false, 0.0, 1e4);
+      m.read("viscous_friction", k.viscous_friction, false, 0.0, 1e6);
+      m.read("friction_stiffness", k.friction_stiffness, false, 1.0, 1e12);
+      m.read("torque_noise", k.torque_noise, false, 0.0, 1000.0);
+      m.read("seed", k.seed, false, 0, 4294967295.0);
+      m.rejectUnknown();
+      if (a.rated_torque <= 0.0) s.fail(s.where("mechanics"), "needs the axis' rated_torque (0x6076)");
+    }
     s.rejectUnknown();
   }
   f.rejectUnknown();

@@ -87,6 +87,7 @@ const char* toString(EventType type) {
 PdoMapping rpdo1Mapping() { return {{0x6040, 0, 16}, {0x607A, 0, 32}}; }
 PdoMapping tpdo1Mapping() { return {{0x6041, 0, 16}, {0x6064, 0, 32}}; }
 PdoMapping tpdo2Mapping() { return {{0x606C, 0, 32}, {0x6061, 0, 8}}; }
+PdoMapping tpdo3Mapping() { return {{0x6077, 0, 16}}; }
 
 std::vector<StartupWrite> canopenStartupWrites(const AxisConfig& a) {
   return canopenStartupWrites(a, CanConfig{}.master_node_id);
@@ -118,6 +119,11 @@ std::vector<StartupWrite> canopenStartupWrites(const AxisConfig& a, std::uint8_t
     map(0x1801, 0x1A01, kTpdoBase[1] + id, tpdo2Mapping());
   } else {
     w.push_back({0x1801, 1, u32(kPdoInvalid | (kTpdoBase[1] + id))});
+  }
+  if (a.torque_pdo) {
+    map(0x1802, 0x1A02, kTpdoBase[2] + id, tpdo3Mapping());
+  } else {
+    w.push_back({0x1802, 1, u32(kPdoInvalid | (kTpdoBase[2] + id))});
   }
   return w;
 }
@@ -259,7 +265,7 @@ void Master::malformed(std::uint8_t id, const std::string& why) {
 void Master::setState(Node& n, NodeState s) {
   if (n.state == s) return;
   n.state = s;
-  if (s != NodeState::kOperational && s != NodeState::kStopped) n.fb.valid = false;
+  if (s != NodeState::kOperational && s != NodeState::kStopped) n.fb.valid = n.fb.has_torque = false;
 }
 
 // --- NMT -----------------------------------------------------------------------
@@ -456,13 +462,15 @@ void Master::process(const TimedFrame& tf) {
       return;
     }
     case CobType::kTpdo: {
-      if (!known || (cob->pdo != 1 && cob->pdo != 2)) break;
+      if (!known || cob->pdo < 1 || cob->pdo > 3) break;
       Node& n = node(id);
       if (n.state != NodeState::kOperational && n.state != NodeState::kStopped && n.state != NodeState::kStarting) {
         ++stats_.ignored;
         return;
       }
-      const Result<std::vector<std::uint64_t>> v = unpackPdo(f, cob->pdo == 1 ? tpdo1Mapping() : tpdo2Mapping());
+      const Result<std::vector<std::uint64_t>> v = unpackPdo(f, cob->pdo == 1   ? tpdo1Mapping()
+                                                                : cob->pdo == 2 ? tpdo2Mapping()
+                                                                                : tpdo3Mapping());
       if (!v) return malformed(id, v.error());
       ++stats_.tpdos;
       if (cob->pdo == 1) {
@@ -471,10 +479,14 @@ void Master::process(const TimedFrame& tf) {
         n.fb.stamp = tf.stamp;
         n.fb.valid = true;
         ++n.fb.count;
-      } else {
+      } else if (cob->pdo == 2) {
         n.fb.velocity = static_cast<std::int32_t>(signExtend((*v)[0], 32));
         n.fb.mode_display = static_cast<std::int8_t>(signExtend((*v)[1], 8));
         n.fb.has_velocity = true;
+      } else {
+        n.fb.torque = static_cast<std::int16_t>(signExtend((*v)[0], 16));
+        n.fb.has_torque = true;
+        n.fb.torque_stamp = tf.stamp;
       }
       return;
     }

@@ -40,12 +40,14 @@ std::uint8_t errorRegisterFor(std::uint16_t code) {
 
 }  // namespace
 
-SimDrive::SimDrive(Bus& bus, const Clock& clock, const AxisConfig& config) : bus_(bus), clock_(clock), config_(config) {
+SimDrive::SimDrive(Bus& bus, const Clock& clock, const AxisConfig& config)
+    : bus_(bus), clock_(clock), config_(config), mechanics_(config.sim.mechanics, config.rated_torque) {
   if (!validNodeId(config_.node_id)) throw std::invalid_argument("SimDrive: node id outside 1..127");
   if (!(config_.counts_per_metre > 0)) throw std::invalid_argument("SimDrive: counts_per_metre must be > 0");
   od_.setWriteHook(
       [this](std::uint16_t i, std::uint8_t s, const std::vector<std::uint8_t>& d) { return checkWrite(i, s, d); });
   actual_ = demand_ = config_.toCounts(config_.sim.start_position);
+  physical_m_ = config_.sim.start_position;
   pp_target_ = actual_;
   switch_pos_ = config_.toCounts(config_.sim.home_switch);
   resetApplication();
@@ -95,8 +97,10 @@ void SimDrive::resetApplication() {
   od_.add(0x6099, 1, A::kReadWrite, 4, std::llround(c.homing_speed * k));
   od_.add(0x6099, 2, A::kReadWrite, 4, std::llround(c.homing_speed * k / 4));
   od_.add(0x609A, 0, A::kReadWrite, 4, std::llround(c.profile_acceleration * k));
-  od_.add(0x6502, 0, A::kReadOnly, 4, (1 << 0) | (1 << 5));  // supported modes: pp, homing
-  od_.add(0x6007, 0, A::kReadWrite, 2, 1, true);             // abort connection option code: fault
+  od_.add(0x6076, 0, A::kConst, 4, std::llround(c.rated_torque * 1000.0));  // mN m
+  od_.add(0x6077, 0, A::kReadOnly, 2, 0, true, true);                       // per mille of 0x6076
+  od_.add(0x6502, 0, A::kReadOnly, 4, (1 << 0) | (1 << 5));                 // supported modes: pp, homing
+  od_.add(0x6007, 0, A::kReadWrite, 2, 1, true);                            // abort connection option code: fault
   // The drive restarts: the position reference (homing) is lost, the motor is off.
   actual_ -= offset_;
   demand_ -= offset_;
@@ -111,6 +115,7 @@ void SimDrive::resetApplication() {
   target_reached_ = true;
   homing_active_ = homing_attained_ = homing_error_ = homed_ = false;
   following_since_s_ = -1.0;
+  mechanics_.reset();
 }
 
 void SimDrive::resetCommunication() {
@@ -807,7 +812,22 @@ bool SimDrive::approach(double target, double vmax, double acc, double dec, doub
   return false;
 }
 
+void SimDrive::updateMechanics(double dt, double previous_actual, double previous_velocity) {
+  const double k = config_.counts_per_metre;
+  const double position = (actual_ - offset_) / k;
+  physical_m_.store(position, std::memory_order_relaxed);
+  if (!mechanics_.enabled()) return;
+  const double v = velocity_ / k, a = (velocity_ - previous_velocity) / k / dt;
+  external_force_ = external_ ? external_(position, v) : 0.0;
+  const double torque = mechanics_.step((actual_ - previous_actual) / k, v, a, external_force_);
+  // The motor carries the load while it is energised (holding brake otherwise: no torque).
+  const bool energised = state_ == Cia402State::kOperationEnabled || state_ == Cia402State::kQuickStopActive ||
+                         state_ == Cia402State::kFaultReactionActive;
+  od_.set(0x6077, 0, mechanics_.torquePerMille(energised ? torque : 0.0));
+}
+
 void SimDrive::step(double dt) {
+  const double previous_actual = actual_, previous_velocity = velocity_;
   sim_time_s_ += dt;
   auto brake = [&](double dec) {
     const double dv = std::min(std::abs(velocity_), dec * dt);
@@ -860,6 +880,7 @@ void SimDrive::step(double dt) {
       break;
   }
   if (!blocked_) actual_ = demand_;
+  updateMechanics(dt, previous_actual, previous_velocity);
   // Following error monitoring (0x6065 window for 0x6066 ms).
   if (state_ == Cia402State::kOperationEnabled || state_ == Cia402State::kQuickStopActive) {
     if (std::abs(demand_ - actual_) > static_cast<double>(od_.get(0x6065, 0))) {
@@ -949,6 +970,21 @@ void SimDrive::powerOff() {
   std::lock_guard<std::mutex> lock(mutex_);
   powered_ = false;
   resetApplication();  // drops the homing reference
+}
+
+void SimDrive::setExternalForce(ExternalForce force) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  external_ = std::move(force);
+}
+
+double SimDrive::externalForce() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return external_force_;
+}
+
+double SimDrive::motorForce() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return mechanics_.motorForce();
 }
 
 void SimDrive::injectFault(std::uint16_t code, std::array<std::uint8_t, 5> manufacturer) {

@@ -70,6 +70,22 @@ struct BodyConfig {
   double radius = 0.05;       ///< m: a surface point speaks for the skin this far around it (in x, y)
 };
 
+/// Force from the Z drive's torque (force_estimate.h, tool_force.h): the nominal drive train, a prior of what the
+/// axis carries without contact (identified when the arm homes: the calibration moves) and the estimate's filter.
+/// Needs the Z axis' torque_pdo and rated_torque (config/can_axes.yaml).
+struct ForceConfig {
+  bool enabled = false;                ///< the config has a force: section
+  double screw_lead = 0.0025;          ///< m per motor revolution (nominal)
+  double screw_efficiency = 0.9;       ///< nominal
+  double mass = 0.0;                   ///< kg, prior (identified at homing)
+  double coulomb_friction = 0.0;       ///< N, prior
+  double viscous_friction = 0.0;       ///< N s/m, prior
+  double friction_stiffness = 1e6;     ///< N/m, nominal (Dahl)
+  double filter_time_constant = 0.02;  ///< s
+  double calibration_travel = 0.02;    ///< m: Z goes down and back up this far after homing, at each speed
+  std::vector<double> calibration_speeds{0.04, 0.015};  ///< m/s (two or more: viscous and coulomb friction apart)
+};
+
 struct ArmConfig {
   std::string source;                                    ///< file it came from (for messages)
   std::string can_config_path;                           ///< resolved path of the CAN configuration
@@ -85,6 +101,7 @@ struct ArmConfig {
   double position_tolerance = 1e-4;  ///< m: a move that ends farther from its goal is a fault
   PressConfig press;
   BodyConfig body;
+  ForceConfig force;
   std::map<std::string, RegionLimits> regions;
   std::string default_region = "midline";  ///< for targets of no known region (the most conservative)
   std::string acupoints_path;              ///< resolved path of the acupoint model (name -> region); may be empty

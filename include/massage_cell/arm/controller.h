@@ -52,6 +52,7 @@
 #include "massage_cell/arm/config.h"
 #include "massage_cell/arm/plan.h"
 #include "massage_cell/arm/profile.h"
+#include "massage_cell/arm/tool_force.h"
 #include "massage_cell/can/cia402.h"
 #include "massage_cell/can/master.h"
 #include "massage_cell/can/realtime.h"
@@ -121,6 +122,7 @@ struct ArmStatus {
   std::uint64_t command = 0;  ///< id of the running (or last) command
   int target = -1;            ///< index of the massage target being worked on
   int presses_done = 0;       ///< of the running (or last) massage
+  ForceReading force;         ///< the tool's force along z (tool_force.h)
 };
 
 /// How the arm is, for diagnostics: ERROR in fault or e-stop, WARN until homed, else OK; `text` says which.
@@ -234,6 +236,10 @@ class Controller {
   Eigen::Vector3d joints() const;
   bool allHomed() const;
   void log(const std::string& text);
+  void senseForce(can::TimePoint now);
+  void finishForceCalibration();
+  /// After homing, with force sensing: Z down and back up by force.calibration_travel at each calibration speed.
+  std::deque<Action> forceCalibration() const;
 
   ArmConfig config_;
   const can::Clock& clock_;
@@ -274,6 +280,10 @@ class Controller {
 
   Log log_;
   CycleObserver cycle_observer_;
+
+  std::unique_ptr<ToolForce> tool_force_;
+  bool calibrating_force_ = false;  ///< a force calibration runs (its first move started, its last not ended)
+  bool in_contact_ = false;         ///< the running step is a contact step (a press below its approach point)
 };
 
 }  // namespace massage_cell::arm

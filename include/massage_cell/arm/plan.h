@@ -72,6 +72,7 @@ struct Step {
   int target = -1;                                 ///< index into the request's targets
   bool press_done = false;  ///< finishing this step completes one press (the retract after a hold)
   Eigen::Vector3d retreat = Eigen::Vector3d::Zero();  ///< where an abort during a contact step retracts to
+  bool force_calibration = false;  ///< a free move after homing whose torque samples identify the Z axis' baseline
 };
 
 /// Empty when `tool` is inside the workspace envelope and its joints inside

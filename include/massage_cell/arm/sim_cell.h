@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "massage_cell/arm/controller.h"
+#include "massage_cell/arm/sim_body.h"
 #include "massage_cell/can/sim_drive.h"
 #include "massage_cell/can/virtual_bus.h"
 
@@ -40,6 +41,13 @@ class SimCell {
   can::VirtualBus& bus() { return bus_; }
   /// The simulated drive of arm joint i (0 = x, 1 = y, 2 = z).
   can::SimDrive& drive(int i) { return *drives_.at(static_cast<std::size_t>(joint_drive_[i])); }
+  /// Puts `body` under the tool (nullptr: none): the Z drive feels its force (SimBody::force at the tool tip of the
+  /// drives' physical positions, breathing on the steady clock from the cell's construction).
+  void setBody(std::shared_ptr<const SimBody> body);
+  /// The true force the body pushes the tool up with now, N (0 without a body).
+  double bodyForce() { return drive(2).externalForce(); }
+  /// Seconds on the body's clock (its breathing phase).
+  double bodyTime() const;
   /// The endpoint the master uses (fault injection: VirtualBus::setBusOff).
   can::VirtualBus::Endpoint& masterEndpoint() { return *master_ep_; }
 
@@ -54,6 +62,7 @@ class SimCell {
   std::vector<std::thread> threads_;
   bool running_ = false;
   can::RealtimeStatus status_;
+  can::TimePoint epoch_;
 };
 
 }  // namespace massage_cell::arm

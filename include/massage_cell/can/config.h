@@ -25,6 +25,21 @@ struct SimDriveSettings {
   double home_switch = 0.0;                            ///< m, where the homing switch / index is
   double max_velocity = 1.0;                           ///< m/s, 0x607F max profile velocity
   std::uint32_t device_type = 0x00020192;              ///< 0x1000: CiA 402 servo drive
+  /// The axis' mechanics as the simulated motor feels them (SimMechanics: its torque, 0x6077): the true values, which
+  /// a force estimate on the master's side only knows approximately. Zero friction, mass and noise: an ideal axis.
+  struct Mechanics {
+    double screw_lead = 0.0;          ///< m per motor revolution (0: no torque is simulated, 0x6077 stays 0)
+    double screw_efficiency = 0.9;    ///< ball screw, 0..1: motor torque = lead F / (2 pi efficiency)
+    double moving_mass = 0.0;         ///< kg the motor accelerates (carriage, tool)
+    double gravity = 0.0;             ///< m/s^2 pulling toward lower positions (a vertical axis: 9.81)
+    double coulomb_friction = 0.0;    ///< N, sliding (nut, seals, guides), against the motion
+    double viscous_friction = 0.0;    ///< N s/m
+    double friction_stiffness = 1e6;  ///< N/m: the friction's pre-sliding stiffness (Dahl): it reaches its sliding
+                                      ///< value after ~coulomb_friction / friction_stiffness of travel, and keeps
+                                      ///< its last value at a standstill (what makes a static force hard to read)
+    double torque_noise = 0.0;        ///< per mille of the rated torque, RMS, on 0x6077
+    std::uint32_t seed = 1;           ///< the noise's
+  } mechanics;
 };
 
 /// One axis: a CANopen node running a CiA 402 drive.
@@ -36,6 +51,8 @@ struct AxisConfig {
   std::uint16_t heartbeat_ms = 100;        ///< producer heartbeat time written to 0x1017
   std::uint32_t heartbeat_timeout_ms = 0;  ///< consumer timeout; 0 = 3 x heartbeat_ms
   bool velocity_pdo = false;               ///< map 0x606C (+ 0x6061) into TPDO2
+  bool torque_pdo = false;                 ///< map 0x6077 torque actual into TPDO3 (every SYNC)
+  double rated_torque = 0.0;               ///< N m, the motor's rated torque (0x6076): 0x6077's 1000 per mille
   // CiA 402 motion
   double profile_velocity = 0.1;         ///< m/s, 0x6081
   double profile_acceleration = 0.5;     ///< m/s^2, 0x6083

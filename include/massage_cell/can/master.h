@@ -8,7 +8,8 @@
 //    (controlword 0x6040 + target position 0x607A) is sent, so synchronous
 //    drives apply it at that SYNC;
 //  - TPDO consumer: TPDO1 = statusword 0x6041 + position actual 0x6064,
-//    TPDO2 (velocity_pdo) = velocity actual 0x606C + mode display 0x6061;
+//    TPDO2 (velocity_pdo) = velocity actual 0x606C + mode display 0x6061,
+//    TPDO3 (torque_pdo) = torque actual 0x6077;
 //  - heartbeat consumer per node (timeout -> event, node lost; heartbeat
 //    back -> event, node back or reconfigured);
 //  - EMCY consumer -> event with the error-code text;
@@ -100,6 +101,9 @@ struct DriveFeedback {
   bool has_velocity = false;
   std::int32_t velocity = 0;  ///< counts/s
   std::int8_t mode_display = 0;
+  bool has_torque = false;  ///< a TPDO3 arrived (AxisConfig::torque_pdo)
+  std::int16_t torque = 0;  ///< 0x6077 torque actual, per mille of the rated torque (AxisConfig::rated_torque)
+  TimePoint torque_stamp{};
   TimePoint stamp{};
   std::uint64_t count = 0;      ///< TPDO1s received
   std::uint16_t emcy_code = 0;  ///< last EMCY error code of the node (0x0000: reset / none)
@@ -122,7 +126,8 @@ struct StartupWrite {
 };
 /// The CANopen part of a node's start-up configuration: 0x1017 heartbeat
 /// producer time, RPDO1 (0x6040 + 0x607A, synchronous), TPDO1 (0x6041 +
-/// 0x6064, every SYNC), TPDO2 (0x606C + 0x6061, every SYNC) or TPDO2 disabled.
+/// 0x6064, every SYNC), TPDO2 (0x606C + 0x6061, every SYNC) or TPDO2 disabled,
+/// TPDO3 (0x6077, every SYNC: torque_pdo) or TPDO3 disabled.
 /// (This form assumes the default master node id, 127.)
 std::vector<StartupWrite> canopenStartupWrites(const AxisConfig& axis);
 /// The same, plus, when axis.master_heartbeat_timeout_ms > 0, the drive's
@@ -132,6 +137,7 @@ std::vector<StartupWrite> canopenStartupWrites(const AxisConfig& axis, std::uint
 /// TPDO mappings the master expects.
 PdoMapping tpdo1Mapping();
 PdoMapping tpdo2Mapping();
+PdoMapping tpdo3Mapping();
 PdoMapping rpdo1Mapping();
 
 class Master {

@@ -28,6 +28,10 @@
 //    limits (0x607D), new set-point / set-point acknowledge handshake,
 //    halt (bit 8), quick stop on 0x6085 with option 0x605A, following error
 //    monitoring (0x6065 window, 0x6066 time) -> fault 0x8611;
+//  - torque actual 0x6077 (per mille of the rated torque 0x6076) from the
+//    axis' mechanics (sim_mechanics.h: mass, gravity, friction, ball screw)
+//    and an external force on the axis (setExternalForce: a body under the
+//    tool), mappable into a TPDO;
 //  - homing mode (0x6098: 1, 2, 17, 18 move to the home switch at
 //    0x6099:01, then the position becomes 0x607C; 33, 34, 35, 37 home in
 //    place); other methods end in a homing error.
@@ -43,6 +47,7 @@
 
 #include <atomic>
 #include <deque>
+#include <functional>
 #include <mutex>
 
 #include "massage_cell/can/bus.h"
@@ -50,6 +55,7 @@
 #include "massage_cell/can/cia402.h"
 #include "massage_cell/can/config.h"
 #include "massage_cell/can/object_dictionary.h"
+#include "massage_cell/can/sim_mechanics.h"
 
 namespace massage_cell::can {
 
@@ -86,6 +92,11 @@ class SimDrive {
   void setSilent(bool silent);
   /// SDO responses leave `delay` after the request.
   void setSdoResponseDelay(Duration delay);
+  /// A force on the axis from outside (N, + toward higher positions) as a function of the axis' physical position
+  /// (m, the frame of sim.start_position / home_switch) and velocity (m/s): a body under the tool. Called in every
+  /// integration step under the drive's lock: it must not call back into this drive. Empty: none.
+  using ExternalForce = std::function<double(double position_m, double velocity_mps)>;
+  void setExternalForce(ExternalForce force);
   /// The next `count` SDO responses are never sent.
   void dropSdoResponses(int count);
   /// The motor cannot move (blocked load): the following error grows until fault 0x8611.
@@ -103,7 +114,12 @@ class SimDrive {
   double velocity() const;        ///< counts/s
   std::int8_t modeDisplay() const;
   bool homed() const;
-  std::uint16_t errorCode() const;                                   ///< 0x603F
+  std::uint16_t errorCode() const;  ///< 0x603F
+  /// The axis' physical position, m (lock-free: what another drive's external force may read).
+  double physicalPosition() const { return physical_m_.load(std::memory_order_relaxed); }
+  /// The true external force of the last step, N (setExternalForce), and the motor's force along the axis, N.
+  double externalForce() const;
+  double motorForce() const;
   std::int64_t object(std::uint16_t index, std::uint8_t sub) const;  ///< OD value (device-internal read)
   Stats stats() const;
   std::uint8_t node() const { return config_.node_id; }
@@ -164,9 +180,15 @@ class SimDrive {
   std::uint16_t composeStatusword() const;
   double countsPerSecond(double metres_per_second) const { return metres_per_second * config_.counts_per_metre; }
 
+  void updateMechanics(double dt, double previous_actual, double previous_velocity);
+
   Bus& bus_;
   const Clock& clock_;
   AxisConfig config_;
+  SimMechanics mechanics_;
+  ExternalForce external_;
+  double external_force_ = 0.0;
+  std::atomic<double> physical_m_{0.0};
   mutable std::mutex mutex_;
   ObjectDictionary od_;
   Stats stats_;

@@ -1,0 +1,85 @@
+// The tool's force along Z (see tool_force.h).
+#include "massage_cell/arm/tool_force.h"
+
+#include <cmath>
+
+namespace massage_cell::arm {
+
+namespace {
+
+ScrewDrive screwOf(const ArmConfig& c) {
+  ScrewDrive d;
+  d.lead = c.force.screw_lead;
+  d.efficiency = c.force.screw_efficiency;
+  d.rated_torque = c.force.enabled ? c.axis(2).rated_torque : 1.0;
+  return d;
+}
+
+AxisBaseline priorOf(const ForceConfig& f) {
+  AxisBaseline b;
+  b.mass = f.mass;
+  b.coulomb = f.coulomb_friction;
+  b.viscous = f.viscous_friction;
+  b.friction_stiffness = f.friction_stiffness;
+  return b;
+}
+
+}  // namespace
+
+ToolForce::ToolForce(const ArmConfig& config)
+    : enabled_(config.force.enabled),
+      estimate_(screwOf(config), priorOf(config.force), config.force.filter_time_constant),
+      problem_(config.force.enabled ? "not calibrated: the arm has not homed" : "no force sensing configured") {}
+
+void ToolForce::update(const can::DriveFeedback& z, double position, can::TimePoint now, bool calibrating) {
+  if (!enabled_) return;
+  if (!z.valid || !z.has_torque) {
+    have_last_ = have_velocity_ = false;
+    return;
+  }
+  if (have_last_ && z.count == last_count_) return;  // no new TPDO this cycle
+  const can::TimePoint stamp = z.stamp.time_since_epoch().count() ? z.stamp : now;
+  double velocity = 0.0, acceleration = 0.0, dt = 0.0;
+  if (have_last_) {
+    dt = std::chrono::duration<double>(stamp - last_stamp_).count();
+    if (!(dt > 0.0)) return;
+    velocity = (position - last_position_) / dt;
+    if (have_velocity_) acceleration = (velocity - last_velocity_) / dt;
+    have_velocity_ = true;
+  }
+  estimate_.update(z.torque, position, velocity, acceleration, dt);
+  if (calibrating && have_velocity_) samples_.push_back({estimate_.motorForce(), velocity, acceleration});
+  have_last_ = true;
+  last_position_ = position, last_velocity_ = velocity, last_stamp_ = stamp, last_count_ = z.count;
+}
+
+std::string ToolForce::finishCalibration() {
+  if (!enabled_) return problem_;
+  std::string why;
+  const AxisBaseline fitted = identifyBaseline(samples_, estimate_.baseline(), &why);
+  samples_.clear();
+  if (!why.empty()) {
+    calibrated_ = false;
+    problem_ = "not calibrated: " + why;
+    return problem_;
+  }
+  estimate_.setBaseline(fitted);
+  calibrated_ = true;
+  problem_.clear();
+  estimate_.rezero();
+  return {};
+}
+
+ForceReading ToolForce::reading() const {
+  ForceReading r;
+  r.source = enabled_ ? "drive torque" : "none";
+  r.calibrated = calibrated_;
+  r.baseline = estimate_.baseline();
+  r.problem = problem_;
+  if (enabled_ && calibrated_ && !have_last_) r.problem = "no torque from the Z drive (TPDO3)";
+  r.valid = enabled_ && calibrated_ && have_last_ && std::isfinite(estimate_.force());
+  r.force = r.valid ? estimate_.force() : 0.0;
+  return r;
+}
+
+}  // namespace massage_cell::arm
