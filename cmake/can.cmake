@@ -13,6 +13,9 @@ add_library(massage_cell_can STATIC
   src/can/cia402.cpp
   src/can/object_dictionary.cpp
   src/can/sim_drive.cpp
+  src/can/sim_drive_comm.cpp
+  src/can/sim_drive_sdo.cpp
+  src/can/sim_drive_motion.cpp
   src/can/sim_mechanics.cpp
   src/can/probe.cpp
   src/can/realtime.cpp)

@@ -148,39 +148,58 @@ class SimDrive {
     bool toggle = false;
   };
 
+  // CiA 301 side (sim_drive_comm.cpp): frames, NMT, PDOs, heartbeat, EMCY, bus filters.
   void send(const can_frame& f);
   void process(const can_frame& f, TimePoint now);
+  int rpdoFor(const can_frame& f) const;  // the RPDO (0..3) with the frame's COB-ID, -1 if none
   void handleNmt(const NmtMessage& m, TimePoint now);
-  void handleSdo(const SdoFrame& r, TimePoint now);
-  void respondSdo(const can_frame& f, TimePoint now);
-  void abortSdo(std::uint16_t index, std::uint8_t sub, std::uint32_t code, TimePoint now);
   void handleRpdo(int n, const can_frame& f);
   void applyRpdo(int n, const std::vector<std::uint64_t>& values);
   void handleSync();
+  std::optional<can_frame> packTpdo(int n) const;
   void sendTpdo(int n);
   void checkChangeTpdos();
   void bootUp(TimePoint now);
   void resetCommunication();
-  void resetApplication();
   std::uint32_t checkWrite(std::uint16_t index, std::uint8_t sub, const std::vector<std::uint8_t>& data) const;
   void afterWrite(std::uint16_t index, std::uint8_t sub);
   PdoMapping mapping(std::uint16_t mapping_index) const;
-  void processControlword();
-  void enterState(Cia402State s);
-  void enterFault(std::uint16_t code, std::array<std::uint8_t, 5> manufacturer);
   void sendEmcy(std::uint16_t code, std::uint8_t reg, std::array<std::uint8_t, 5> manufacturer = {});
   void applyFilters();
+  void sendDueSdoResponses(TimePoint now);
+  void produceHeartbeat(TimePoint now);
   void checkHeartbeatConsumer(TimePoint now);
+  void checkBusRecovery();
+  // SDO server (sim_drive_sdo.cpp).
+  void handleSdo(const SdoFrame& r, TimePoint now);
+  void sdoInitiateUpload(const SdoFrame& r, TimePoint now);
+  void sdoUploadSegment(const SdoFrame& r, TimePoint now);
+  void sdoInitiateDownload(const SdoFrame& r, TimePoint now);
+  void sdoDownloadSegment(const SdoFrame& r, TimePoint now);
+  void respondSdo(const can_frame& f, TimePoint now);
+  void abortSdo(std::uint16_t index, std::uint8_t sub, std::uint32_t code, TimePoint now);
+  // CiA 402 side (sim_drive_motion.cpp): state machine, profile position, homing, motion.
+  void resetApplication();
+  void processControlword();
+  void applyStateCommand(std::uint16_t cw);                       // controlword bits 0..3: transitions
+  void applyOperationBits(std::uint16_t cw, std::uint16_t prev);  // bits 4..8 while operation enabled
+  void acceptSetPoint(std::uint16_t cw);                          // profile position: new set-point
+  void enterState(Cia402State s);
+  void enterFault(std::uint16_t code, std::array<std::uint8_t, 5> manufacturer);
   void startHoming();
   void completeHoming();
-  void advance(TimePoint now);
   void step(double dt);
+  void stepOperationEnabled(double dt);
+  void stepHoming(double dt);
+  void brake(double dec, double dt);
   bool approach(double target, double vmax, double acc, double dec, double dt);  // true when arrived
+  void monitorFollowingError();
   void updateProcessObjects();
   std::uint16_t composeStatusword() const;
   double countsPerSecond(double metres_per_second) const { return metres_per_second * config_.counts_per_metre; }
-
   void updateMechanics(double dt, double previous_actual, double previous_velocity);
+  // sim_drive.cpp
+  void advance(TimePoint now);
 
   Bus& bus_;
   const Clock& clock_;
