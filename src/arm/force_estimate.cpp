@@ -76,14 +76,30 @@ double AxialForceEstimate::update(double torque_permille, double position, doubl
   raw_ = carried - motor_force_;
   const double alpha = tau_ > 0.0 ? dt / (tau_ + dt) : 1.0;
   filtered_ = std::isfinite(filtered_) ? filtered_ + alpha * (raw_ - filtered_) : raw_;
+  if (rezero_updates_ > 0) {
+    // Zeroing after the filter restarted: over kRezeroUpdates updates (the filter's settling), unknown until then.
+    if (--rezero_updates_ > 0) return force_ = NAN;
+    offset_ = filtered_;
+  }
   force_ = filtered_ - offset_;
   return force_;
 }
 
 void AxialForceEstimate::rezero() {
-  if (!std::isfinite(filtered_)) return;
+  if (!std::isfinite(filtered_)) {
+    rezero_updates_ = kRezeroUpdates;
+    return;
+  }
   offset_ = filtered_;
   force_ = 0.0;
+}
+
+void AxialForceEstimate::setBaseline(const AxisBaseline& baseline) {
+  // The friction's state keeps its direction at the new level; what was filtered under the old baseline is dropped
+  // (a zero taken from it would carry the old baseline's error).
+  friction_ = baseline_.coulomb > 0.0 ? friction_ * baseline.coulomb / baseline_.coulomb : 0.0;
+  baseline_ = baseline;
+  filtered_ = force_ = NAN;
 }
 
 }  // namespace massage_cell::arm

@@ -77,6 +77,8 @@ ForceReading ToolForce::reading() const {
   r.baseline = estimate_.baseline();
   r.problem = problem_;
   if (enabled_ && calibrated_ && !have_last_) r.problem = "no torque from the Z drive (TPDO3)";
+  if (enabled_ && calibrated_ && have_last_ && !std::isfinite(estimate_.force()))
+    r.problem = "settling: the estimate's zero is being taken";
   r.valid = enabled_ && calibrated_ && have_last_ && std::isfinite(estimate_.force());
   r.force = r.valid ? estimate_.force() : 0.0;
   return r;

@@ -2,16 +2,21 @@
 // virtual bus (the arm node's can_interface "sim"), real clock, master and
 // drives in their own threads: the controller cycle's jitter at the SYNC
 // rate while the arm keeps moving, the e-stop -> quick-stop frame latency,
-// and the final position error of moves.
+// and the final position error of moves; with --force, the error of the
+// tool's force estimate (the Z drive's torque) against the force a simulated
+// body pushes the tool with, during presses (issue 45).
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <mutex>
 #include <random>
+#include <sstream>
 #include <thread>
 
 #include "cli.h"
+#include "massage_cell/arm/sim_body.h"
 #include "massage_cell/arm/sim_cell.h"
 #include "package_paths.h"
 
@@ -24,6 +29,7 @@ using Ms = std::chrono::duration<double, std::milli>;
 
 const char* const kUsage =
     R"(Usage: arm_bench [--duration S] [--estops N] [--moves N] [--config FILE] [--seed N] [--rt-priority P] [--lock-memory] [--csv]
+       arm_bench --force [--forces N,N,...] [--hold S] [--breathing-mm MM] [--stiffness-scale K] [--config FILE] [--rt-priority P] [--lock-memory] [--csv]
 
 Runs the arm controller on simulated CiA 402 drives (in-process virtual bus,
 real clock; master and drives in their own threads, as the arm node's
@@ -45,6 +51,24 @@ can_interface "sim"), homes it (drives configured to home in place), then:
   --lock-memory mlockall(MCL_CURRENT | MCL_FUTURE) first, as the node's lock_memory
   --csv         print metric,value,unit rows instead of the table
 Targets: cycle jitter p99 <= 2 ms, e-stop -> quick-stop frame <= 10 ms, move error <= 0.1 mm.
+
+--force: instead, the error of the tool's force estimate (from the Z drive's
+torque, ArmStatus::force) against the force a simulated body pushes the tool
+with (SimCell::bodyForce), on the simulated drives: a flat back, skin at
+z = 0.15 m, the default tissue (sim_body.h) breathing. The drives home as the
+config says (not in place: the drives' physical frame is then the arm's, which
+the body needs). Prints the baseline identified by the calibration moves at the
+end of homing against the drive's true mechanics (can_axes.yaml sim.mechanics,
+as the estimate sees them through the nominal screw efficiency), then for each
+target force one press (region lower_back, depth = the tissue's indentation at
+that force, refused beyond the region's max_depth) sampled every controller
+cycle: the estimate at the approach point before contact (the no-contact
+error), its error during the descent from contact, and while holding: the true
+mean force and the error's mean, RMS and max.
+  --forces N,...      target forces, N (default 10,20,40,60)
+  --hold S            s at depth (default 3)
+  --breathing-mm MM   the back's breathing, mm peak to peak over 4 s (default 3; 0: still)
+  --stiffness-scale K the tissue's stiffness x K (default 1; subjects differ by +-50 %: 0.5 .. 1.5)
 )";
 
 struct Options {
@@ -56,6 +80,12 @@ struct Options {
   int rt_priority = 0;
   bool lock_memory = false;
   bool csv = false;
+  // --force
+  bool force = false;
+  std::vector<double> forces{10.0, 20.0, 40.0, 60.0};  ///< N
+  double hold = 3.0;                                   ///< s
+  double breathing_mm = 3.0;                           ///< peak to peak
+  double stiffness_scale = 1.0;
 };
 
 double percentile(std::vector<double> v, double p) {
@@ -129,6 +159,8 @@ class ArmBench {
   }
 
   double periodMs() const { return period_ms_; }
+  arm::SimCell& cell() { return cell_; }
+  arm::Controller& controller() { return c_; }
   const can::RealtimeStatus& realtime() const { return realtime_; }
   void stop() { cell_.stop(); }
 
@@ -222,10 +254,10 @@ class ArmBench {
 };
 
 struct Row {
-  const char* name;
+  std::string name;
   double value;
-  const char* unit;
-  const char* label;
+  std::string unit;
+  std::string label;
 };
 
 void bench(const Options& o) {
@@ -256,16 +288,244 @@ void bench(const Options& o) {
   };
   if (o.csv) {
     std::printf("metric,value,unit\n");
-    for (const Row& r : rows) std::printf("%s,%.4f,%s\n", r.name, r.value, r.unit);
+    for (const Row& r : rows) std::printf("%s,%.4f,%s\n", r.name.c_str(), r.value, r.unit.c_str());
     return;
   }
   std::printf(
       "arm_bench: %.0f s at %.0f Hz SYNC, %d e-stops, %d moves (simulated drives, virtual bus, real clock; %s)\n",
       o.duration, 1000.0 / b.periodMs(), o.estops, o.moves,
       realtime.error.empty() ? realtime.describe().c_str() : "real-time refused: see the warning");
-  for (const Row& r : rows) std::printf("  %-52s %10.4f %s\n", r.label, r.value, r.unit);
+  for (const Row& r : rows) std::printf("  %-52s %10.4f %s\n", r.label.c_str(), r.value, r.unit.c_str());
 }
 
+// --- --force: the force estimate's error during presses on a simulated body ---------------------------------------
+
+std::string format(const char* f, ...) __attribute__((format(printf, 1, 2)));
+std::string format(const char* f, ...) {
+  char buf[512];
+  va_list args;
+  va_start(args, f);
+  std::vsnprintf(buf, sizeof buf, f, args);
+  va_end(args);
+  return buf;
+}
+
+/// Where a controller cycle was in the press (its activity).
+enum class Phase { kOther, kApproach, kDescend, kHold };
+
+struct ForceSample {
+  Phase phase = Phase::kOther;
+  double tool_z = 0.0;    ///< m
+  double estimate = 0.0;  ///< N, ArmStatus::force
+  double truth = 0.0;     ///< N, SimCell::bodyForce
+  double error() const { return estimate - truth; }
+};
+
+/// Runs a massage request to its end, sampling the force estimate and the body's true force once per controller
+/// cycle (status polled at 1 kHz, a sample when its cycle count moved on). Throws when the press is refused or fails,
+/// or the estimate is not valid while the press approaches, descends or holds.
+std::vector<ForceSample> samplePress(ArmBench& b, const arm::PressRequest& request, const std::string& what) {
+  arm::Controller& c = b.controller();
+  const arm::Accepted a = c.massage(request);
+  if (!a) throw std::runtime_error(what + " refused: " + a.error);
+  std::vector<ForceSample> samples;
+  std::uint64_t last_cycle = 0;
+  const auto deadline = Clock::now() + std::chrono::seconds(120);
+  while (!c.result(a.id).done) {
+    if (Clock::now() > deadline) throw std::runtime_error("timed out waiting for " + what);
+    const arm::ArmStatus s = c.status();
+    if (s.cycles != last_cycle) {
+      last_cycle = s.cycles;
+      ForceSample f;
+      f.truth = b.cell().bodyForce();
+      f.tool_z = s.tool.z();
+      f.estimate = s.force.force;
+      if (s.activity.find(": approach") != std::string::npos) f.phase = Phase::kApproach;
+      if (s.activity.find(": descend") != std::string::npos) f.phase = Phase::kDescend;
+      if (s.activity.find(": hold") != std::string::npos) f.phase = Phase::kHold;
+      if (f.phase != Phase::kOther && !s.force.valid)
+        throw std::runtime_error(what + ": the force estimate is not valid (" + s.force.problem + ")");
+      samples.push_back(f);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  const arm::CommandResult r = c.result(a.id);
+  if (!r.success) throw std::runtime_error(what + " failed: " + r.message);
+  return samples;
+}
+
+/// Of the samples `pick` selects: how many, the true and the estimated mean force, the error's mean, RMS and max |e|.
+struct ErrorStats {
+  int n = 0;
+  double truth_mean = NAN, estimate_mean = NAN, mean = NAN, rms = NAN, max = NAN;
+};
+
+template <typename Pick>
+ErrorStats errorStats(const std::vector<ForceSample>& samples, Pick pick) {
+  ErrorStats e;
+  double truth = 0.0, estimate = 0.0, sum = 0.0, sum2 = 0.0, worst = 0.0;
+  for (const ForceSample& f : samples) {
+    if (!pick(f)) continue;
+    ++e.n;
+    truth += f.truth;
+    estimate += f.estimate;
+    sum += f.error();
+    sum2 += f.error() * f.error();
+    worst = std::max(worst, std::abs(f.error()));
+  }
+  if (e.n == 0) return e;
+  e.truth_mean = truth / e.n;
+  e.estimate_mean = estimate / e.n;
+  e.mean = sum / e.n;
+  e.rms = std::sqrt(sum2 / e.n);
+  e.max = worst;
+  return e;
+}
+
+struct Section {
+  std::string title;
+  std::vector<Row> rows;
+};
+
+void forceBench(const Options& o) {
+  const auto began = Clock::now();
+  // The config's homing (switches): only then is the drives' physical frame, where the body lies, the arm's.
+  const arm::ArmConfig config = arm::loadArmConfig(o.config.empty() ? packageFile("config/arm.yaml") : o.config);
+  if (!config.force.enabled)
+    throw std::runtime_error(config.source + " has no force: section: the arm estimates no force");
+  const can::SimDriveSettings::Mechanics& truth = config.axis(2).sim.mechanics;
+  if (!(truth.screw_lead > 0.0))
+    throw std::runtime_error("the Z axis has no sim.mechanics (screw_lead 0): its simulated drive reports no torque");
+  const std::string region = "lower_back";
+  if (!config.regions.count(region)) throw std::runtime_error(config.source + " has no region " + region);
+  const double max_depth = config.regions.at(region).max_depth;
+
+  // A flat back, skin at 15 cm (workspace z >= 0.08, body.safe_height above), under a point of the workspace.
+  const double skin = 0.15;
+  const Eigen::Vector3d point(0.15, 0.10, skin);
+  arm::Tissue tissue;
+  tissue.stiffness *= o.stiffness_scale;
+  arm::Breathing breathing;
+  breathing.amplitude = o.breathing_mm / 1000.0;
+  // The target forces' depths, checked against the region's limit before anything moves.
+  std::vector<std::string> skipped(o.forces.size());
+  for (std::size_t k = 0; k < o.forces.size(); ++k) {
+    const double depth = tissue.indentationAt(o.forces[k]);
+    if (depth > max_depth)
+      skipped[k] = format("%g N needs %.1f mm of this tissue, beyond %s's max_depth %.1f mm: skipped", o.forces[k],
+                          depth * 1000.0, region.c_str(), max_depth * 1000.0);
+  }
+  if (std::all_of(skipped.begin(), skipped.end(), [](const std::string& w) { return !w.empty(); }))
+    throw std::runtime_error(format("no target force fits within %s's max_depth %.1f mm with this tissue (%s)",
+                                    region.c_str(), max_depth * 1000.0, skipped.front().c_str()));
+  for (const std::string& why : skipped)
+    if (!why.empty()) std::fprintf(stderr, "arm_bench: %s\n", why.c_str());
+
+  ArmBench b(config);
+  b.cell().setBody(std::make_shared<const arm::SimBody>(arm::SimBody::flat(skin, tissue, breathing)));
+  b.start(o);
+  // The estimate takes its zero under the identified baseline over a few cycles after homing.
+  const auto settle = Clock::now() + std::chrono::seconds(1);
+  while (!b.controller().status().force.valid && Clock::now() < settle)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // read 20 cycles after the zero, not at it
+  const arm::ForceReading calibrated = b.controller().status().force;
+  if (!calibrated.valid) throw std::runtime_error("no force estimate after homing: " + calibrated.problem);
+  // What the estimate sees of the true mechanics: F = 2 pi eta_nominal T / lead_nominal of T = lead F / (2 pi eta).
+  const double seen =
+      config.force.screw_efficiency * truth.screw_lead / (truth.screw_efficiency * config.force.screw_lead);
+
+  std::vector<Section> sections;
+  sections.push_back(
+      {format("baseline identified at homing vs the true Z mechanics (x %.4f: efficiency %.2f nominal, %.2f true)",
+              seen, config.force.screw_efficiency, truth.screw_efficiency),
+       {{"force_mass_kg", calibrated.baseline.mass, "kg", "moving mass, identified"},
+        {"force_true_mass_kg", truth.moving_mass * seen, "kg",
+         format("moving mass, true (%.2f kg x)", truth.moving_mass)},
+        {"force_coulomb_N", calibrated.baseline.coulomb, "N", "coulomb friction, identified"},
+        {"force_true_coulomb_N", truth.coulomb_friction * seen, "N",
+         format("coulomb friction, true (%.1f N x)", truth.coulomb_friction)},
+        {"force_viscous_Ns_per_m", calibrated.baseline.viscous, "N s/m", "viscous friction, identified"},
+        {"force_true_viscous_Ns_per_m", truth.viscous_friction * seen, "N s/m",
+         format("viscous friction, true (%.0f N s/m x)", truth.viscous_friction)},
+        {"force_after_homing_N", calibrated.force, "N", "estimate after homing (no contact)"}}});
+
+  const double approach_z = skin + config.press.approach_height;
+  std::vector<ForceSample> all_holds;
+  double worst_descent = 0.0, worst_no_contact = 0.0;
+  int pressed = 0;
+  for (std::size_t k = 0; k < o.forces.size(); ++k) {
+    const double target = o.forces[k];
+    const std::string key = "force_" + format("%g", target) + "N_";
+    const double depth = tissue.indentationAt(target);
+    if (!skipped[k].empty()) {
+      sections.push_back(
+          {format("press to %s", skipped[k].c_str()),
+           {{key + "depth_mm", depth * 1000.0, "mm", "depth needed"}, {key + "skipped", 1.0, "", "skipped (1)"}}});
+      continue;
+    }
+    arm::PressRequest request;
+    request.targets.push_back({format("%g N", target), region, point, Eigen::Vector3d::UnitZ()});
+    request.depth = depth;
+    request.hold = o.hold;
+    const std::vector<ForceSample> samples = samplePress(b, request, format("the press to %g N", target));
+    ++pressed;
+    const ErrorStats hold = errorStats(samples, [](const ForceSample& f) { return f.phase == Phase::kHold; });
+    const ErrorStats descent =
+        errorStats(samples, [](const ForceSample& f) { return f.phase == Phase::kDescend && f.truth > 0.0; });
+    // At the approach point, still in the air (before the press re-zeroes the estimate): the no-contact error.
+    const ErrorStats air = errorStats(samples, [&](const ForceSample& f) {
+      return f.phase == Phase::kApproach && std::abs(f.tool_z - approach_z) < 5e-4;
+    });
+    if (hold.n == 0) throw std::runtime_error(format("the press to %g N: no cycle sampled while holding", target));
+    for (const ForceSample& f : samples)
+      if (f.phase == Phase::kHold) all_holds.push_back(f);
+    if (descent.n > 0) worst_descent = std::max(worst_descent, descent.max);
+    if (air.n > 0) worst_no_contact = std::max(worst_no_contact, std::abs(air.mean));
+    sections.push_back({format("press to %g N: depth %.2f mm (%s max_depth %.1f mm), hold %g s, %d cycles held", target,
+                               depth * 1000.0, region.c_str(), max_depth * 1000.0, o.hold, hold.n),
+                        {{key + "depth_mm", depth * 1000.0, "mm", "depth (the tissue's indentation at the force)"},
+                         {key + "no_contact_N", air.mean, "N",
+                          format("estimate at the approach point, no contact (%d cycles)", air.n)},
+                         {key + "descent_error_rms_N", descent.rms, "N",
+                          format("descent from contact: error RMS (%d cycles)", descent.n)},
+                         {key + "descent_error_max_N", descent.max, "N", "descent from contact: error max |e|"},
+                         {key + "true_mean_N", hold.truth_mean, "N", "holding: true force, mean"},
+                         {key + "estimate_mean_N", hold.estimate_mean, "N", "holding: estimate, mean"},
+                         {key + "error_mean_N", hold.mean, "N", "holding: error (estimate - true), mean"},
+                         {key + "error_rms_N", hold.rms, "N", "holding: error RMS"},
+                         {key + "error_max_N", hold.max, "N", "holding: error max |e|"}}});
+  }
+  b.stop();
+  const ErrorStats overall = errorStats(all_holds, [](const ForceSample&) { return true; });
+  const double runtime = std::chrono::duration<double>(Clock::now() - began).count();
+  sections.push_back({"all presses",
+                      {{"force_error_rms_N", overall.rms, "N", "holding: error RMS"},
+                       {"force_error_max_N", overall.max, "N", "holding: error max |e|"},
+                       {"force_descent_error_max_N", worst_descent, "N", "descent from contact: error max |e|"},
+                       {"force_no_contact_max_N", worst_no_contact, "N", "no contact: |estimate| max"},
+                       {"force_presses", static_cast<double>(pressed), "count", "presses"},
+                       {"runtime_s", runtime, "s", "bench runtime (homing included)"}}});
+
+  if (o.csv) {
+    std::printf("metric,value,unit\n");
+    for (const Section& s : sections)
+      for (const Row& r : s.rows) std::printf("%s,%.4f,%s\n", r.name.c_str(), r.value, r.unit.c_str());
+    return;
+  }
+  const can::RealtimeStatus& realtime = b.realtime();
+  std::printf(
+      "arm_bench --force: presses on a simulated back: flat, skin at z %.3f m, pressed at (%.3f, %.3f); tissue "
+      "F = k x^%.1f, k %.3g N/m^%.1f (x %.2f), damping %.1f s/m; breathing %.1f mm p-p / %.0f s; %.0f Hz SYNC "
+      "(simulated drives, virtual bus, real clock; %s)\n",
+      skin, point.x(), point.y(), tissue.exponent, tissue.stiffness, tissue.exponent, o.stiffness_scale, tissue.damping,
+      o.breathing_mm, breathing.period, 1000.0 / b.periodMs(),
+      realtime.error.empty() ? realtime.describe().c_str() : "real-time refused: see the warning");
+  for (const Section& s : sections) {
+    std::printf("  %s\n", s.title.c_str());
+    for (const Row& r : s.rows) std::printf("    %-60s %10.4f %s\n", r.label.c_str(), r.value, r.unit.c_str());
+  }
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -294,7 +554,28 @@ int main(int argc, char** argv) {
         };
         t.flags["--lock-memory"] = [&] { o.lock_memory = true; };
         t.flags["--csv"] = [&] { o.csv = true; };
+        t.flags["--force"] = [&] { o.force = true; };
+        t.values["--forces"] = [&](const std::string& opt, const std::string& v) {
+          o.forces.clear();
+          for (const std::string& item : splitList(v)) {
+            o.forces.push_back(parseDouble(opt, item));
+            require(o.forces.back() > 0.0, "--forces must be > 0 N");
+          }
+          require(!o.forces.empty(), "--forces needs one force or more");
+        };
+        t.values["--hold"] = [&](const std::string& opt, const std::string& v) {
+          o.hold = parseDouble(opt, v);
+          require(o.hold > 0.0, "--hold must be > 0");
+        };
+        t.values["--breathing-mm"] = [&](const std::string& opt, const std::string& v) {
+          o.breathing_mm = parseDouble(opt, v);
+          require(o.breathing_mm >= 0.0 && o.breathing_mm <= 10.0, "--breathing-mm must be 0..10");
+        };
+        t.values["--stiffness-scale"] = [&](const std::string& opt, const std::string& v) {
+          o.stiffness_scale = parseDouble(opt, v);
+          require(o.stiffness_scale > 0.0, "--stiffness-scale must be > 0");
+        };
         return parseArguments(argc, argv, t, kUsage);
       },
-      [&] { bench(o); });
+      [&] { o.force ? forceBench(o) : bench(o); });
 }

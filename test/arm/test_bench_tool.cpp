@@ -1,10 +1,12 @@
 // arm_bench's command line: a short run prints the five metric rows with
-// plausible values; bad options exit 2, a bad configuration 1.
+// plausible values; a short --force run estimates the force a simulated body
+// pushes the tool with; bad options exit 2, a bad configuration 1.
 #include <gtest/gtest.h>
 
 #include <pthread.h>
 #include <sched.h>
 #include <sys/wait.h>
+#include <cmath>
 #include <cstdio>
 #include <map>
 #include <sstream>
@@ -92,6 +94,38 @@ TEST(ArmBenchTool, RtPriorityRunsTheControlThreadsUnderFifoOrSaysWhyNot) {
   }
 }
 
+TEST(ArmBenchTool, ForceRunEstimatesThePressingForce) {
+  const ToolRun r = run("--force --forces 20 --hold 1 --csv");
+  ASSERT_EQ(r.status, 0) << r.out;
+  std::map<std::string, double> values = csvValues(r.out);
+  for (const char* m :
+       {"force_mass_kg", "force_true_mass_kg", "force_coulomb_N", "force_20N_depth_mm", "force_20N_no_contact_N",
+        "force_20N_true_mean_N", "force_20N_error_mean_N", "force_20N_error_rms_N", "force_20N_error_max_N",
+        "force_20N_descent_error_rms_N", "force_error_rms_N", "force_presses"})
+    ASSERT_TRUE(values.count(m)) << m << "\n" << r.out;
+  EXPECT_EQ(values["force_presses"], 1.0) << r.out;
+  // The body pushed back (about the target: breathing moves the skin under the held tool) ...
+  EXPECT_GT(values["force_20N_true_mean_N"], 5.0) << r.out;
+  EXPECT_LT(values["force_20N_true_mean_N"], 40.0) << r.out;
+  // ... and the estimate followed it: an estimate stuck at 0 would be ~20 N RMS off.
+  const double rms = values["force_20N_error_rms_N"];
+  EXPECT_TRUE(std::isfinite(rms)) << r.out;
+  EXPECT_LT(rms, 5.0) << r.out;
+  EXPECT_LE(rms, values["force_20N_error_max_N"] + 1e-3) << r.out;
+  // In the air, before the press re-zeroes it, the estimate reads what the calibration's zero left (finite).
+  EXPECT_TRUE(std::isfinite(values["force_20N_no_contact_N"])) << r.out;
+  // Within lower_back's 12 mm.
+  EXPECT_GT(values["force_20N_depth_mm"], 0.0);
+  EXPECT_LE(values["force_20N_depth_mm"], 12.0);
+}
+
+TEST(ArmBenchTool, ForceRunSkipsAForceDeeperThanTheRegionAllows) {
+  // 200 N would take ~22 mm of the default tissue; nothing else to press: an error, said so.
+  const ToolRun r = run("--force --forces 200 --hold 1 --csv");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("max_depth"), std::string::npos) << r.out;
+}
+
 TEST(ArmBenchTool, BadInput) {
   ToolRun r = run("--duration 0");
   EXPECT_EQ(r.status, 2);
@@ -101,6 +135,11 @@ TEST(ArmBenchTool, BadInput) {
   r = run("--config /nonexistent/arm.yaml --duration 1");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.out.find("/nonexistent/arm.yaml"), std::string::npos) << r.out;
+  r = run("--force --forces 20,-5");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.out.find("--forces must be > 0"), std::string::npos) << r.out;
+  r = run("--force --hold 0");
+  EXPECT_EQ(r.status, 2);
   r = run("--help");
   EXPECT_EQ(r.status, 0);
   EXPECT_NE(r.out.find("Usage: arm_bench"), std::string::npos);

@@ -64,7 +64,9 @@ class AxialForceEstimate {
   /// Nothing touches the tool now: what the estimate reads (filtered) is taken as its zero from here on.
   void rezero();
   double offset() const { return offset_; }
-  void setBaseline(const AxisBaseline& baseline) { baseline_ = baseline; }
+  /// A new baseline (identified): the friction's state is rescaled to it, the filter restarts (a rezero() then takes
+  /// effect once it has settled; the force is unknown, NaN, until then).
+  void setBaseline(const AxisBaseline& baseline);
   const AxisBaseline& baseline() const { return baseline_; }
   const ScrewDrive& drive() const { return drive_; }
   /// The motor force of the last update, N (for identification samples).
@@ -77,6 +79,10 @@ class AxialForceEstimate {
   double friction_ = 0.0;
   double last_position_ = 0.0;
   bool started_ = false;
+  /// A rezero() asked while the filter restarts: taken after this many more updates (5 cycles: 2.5 filter time
+  /// constants at 100 Hz, the noise averaged down).
+  static constexpr int kRezeroUpdates = 5;
+  int rezero_updates_ = 0;
   double raw_ = 0.0, filtered_ = 0.0, force_ = 0.0, offset_ = 0.0, motor_force_ = 0.0;
 };
 
