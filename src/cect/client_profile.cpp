@@ -217,7 +217,7 @@ AcupointModel withCorrections(const AcupointModel& model, const ClientProfile& p
 
 ClientProfile measuredProfile(const ClientProfile& base, const LocatedAcupoints& located, const std::string& client) {
   const BackLandmarks& l = located.landmarks;
-  if (!(l.c7_given && l.l4_given))
+  if (!(l.c7.given() && l.l4.given()))
     throw std::runtime_error(
         "C7 and L4 must both be given (a click, ~set_landmark, --landmark, skin markers) to measure the client's C7 -> "
         "L4");

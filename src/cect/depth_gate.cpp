@@ -6,12 +6,15 @@
 #include <random>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Dense>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
+
+#include "stats_detail.h"  // quantile
 
 namespace massage_cell::cect {
 
@@ -117,9 +120,10 @@ DepthGate farBackground(const cv::Mat& left_rect, const cv::Mat& right_rect, con
       if (d[x] > invalid && d[x] > 0) valid.push_back(d[x]);
   }
   if (valid.size() < 100) return gate;
-  const auto q = valid.begin() + static_cast<std::ptrdiff_t>((1.0 - params.nearest_quantile) * (valid.size() - 1));
-  std::nth_element(valid.begin(), q, valid.end());
-  const double nearest_d = *q / 16.0 * factor - offset;
+  const double nearest_d =
+      detail::quantile(std::move(valid), 1.0 - params.nearest_quantile, detail::QuantileIndex::kFloorOfSpan) / 16.0 *
+          factor -
+      offset;
   if (!(nearest_d > 0.0)) return gate;
   gate.nearest_depth = focal_baseline / nearest_d;
   gate.far_depth = gate.nearest_depth + params.gap;

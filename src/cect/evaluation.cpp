@@ -13,6 +13,8 @@
 #include <cmath>
 #include <limits>
 
+#include "stats_detail.h"  // median, quantile
+
 namespace massage_cell::cect {
 
 namespace {
@@ -96,7 +98,7 @@ double scoreMidline(const BackLandmarks& lm, const camera::StereoModel& geometry
   double sum = 0.0;
   int n = 0;
   for (const cv::Point2f& m : lm.midline) {
-    if (m.y < lm.c7.y || m.y > lm.l4.y) continue;
+    if (m.y < lm.c7.body.y || m.y > lm.l4.body.y) continue;
     const Eigen::Vector3d p = pointAt(toImage(lm, m), reference, geometry, truth, axes);
     const double d = p.allFinite() ? acrossDistance(p, truth.midline, axes) : kNaN;
     if (!std::isfinite(d)) continue;
@@ -156,16 +158,15 @@ Spread spreadOf(const std::vector<double>& values) {
     if (std::isfinite(x)) v.push_back(std::abs(x));
   s.count = static_cast<int>(v.size());
   if (v.empty()) {
-    s.mean = s.p95 = s.max = kNaN;
+    s.mean = s.p95 = s.max = s.median = kNaN;
     return s;
   }
-  std::sort(v.begin(), v.end());
   double sum = 0.0;
   for (double x : v) sum += x;
   s.mean = sum / static_cast<double>(v.size());
-  const auto rank = static_cast<std::size_t>(std::ceil(0.95 * static_cast<double>(v.size())));
-  s.p95 = v[std::clamp<std::size_t>(rank, 1, v.size()) - 1];
-  s.max = v.back();
+  s.p95 = detail::quantile(v, 0.95, detail::QuantileIndex::kNearestRank);
+  s.max = *std::max_element(v.begin(), v.end());
+  s.median = detail::median(v, detail::EvenCount::kUpperMiddle);
   return s;
 }
 

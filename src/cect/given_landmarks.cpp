@@ -147,8 +147,8 @@ bool spineLine(const BackLandmarks& l, double c7_row, double l4_row, const Point
 std::vector<BackLandmarks::GivenCheck> givenChecks(const BackLandmarks& l, const std::vector<GivenLandmark>& given,
                                                    const std::map<std::string, cv::Point2f>& body,
                                                    const PointLookup& point) {
-  const double c7_row = body.count("C7") ? body.at("C7").y : l.c7.y;
-  const double l4_row = body.count("L4") ? body.at("L4").y : l.l4.y;
+  const double c7_row = body.count("C7") ? body.at("C7").y : l.c7.body.y;
+  const double l4_row = body.count("L4") ? body.at("L4").y : l.l4.body.y;
   double a = 0.0, b = 0.0;
   const bool line = spineLine(l, c7_row, l4_row, point, &a, &b);
   std::vector<BackLandmarks::GivenCheck> checks;
@@ -160,12 +160,12 @@ std::vector<BackLandmarks::GivenCheck> givenChecks(const BackLandmarks& l, const
     c.off_midline = c.body.x - (line ? a + b * c.body.y : midlineAt(l, c.body.y, Beyond::kClamp).x);
     c.confirmed = g.confirmed;
     c.stale = g.stale;
-    if (g.name == "C7" && l.c7_at_neck && !l.c7_given) {
-      c.measured_row = l.c7.y;
-      c.measured_from = "the neck's base";
-    } else if (g.name == "L4" && l.waist_measured && !l.l4_given) {
-      c.measured_row = l.l4.y;
-      c.measured_from = "the waist";
+    if (g.name == "C7" && l.c7.atNeckBase()) {
+      c.measured_row = l.c7.body.y;
+      c.measured_from = kFromNeckBase;
+    } else if (g.name == "L4" && l.l4.source == LandmarkSource::kMeasured) {  // measured: at the waist
+      c.measured_row = l.l4.body.y;
+      c.measured_from = kFromWaist;
     }
     checks.push_back(c);
   }
@@ -199,10 +199,11 @@ std::string applyGivenLandmarks(BackLandmarks* landmarks, const std::vector<Give
     if (const std::string problem = checkGivenLandmarkName(g.name); !problem.empty()) return problem;
     if (body.count(g.name)) return "landmark " + g.name + " given twice";
     if (!std::isfinite(g.pixel.x) || !std::isfinite(g.pixel.y)) return "landmark " + g.name + ": pixel not finite";
+    if (!isGiven(g.source)) return "landmark " + g.name + ": its source is not a way to give one";
     const cv::Point2f p(
         static_cast<float>(from_image(0, 0) * g.pixel.x + from_image(0, 1) * g.pixel.y + from_image(0, 2)),
         static_cast<float>(from_image(1, 0) * g.pixel.x + from_image(1, 1) * g.pixel.y + from_image(1, 2)));
-    const double reach = kMaxBeyondMidline * std::abs(l.l4.y - l.c7.y);
+    const double reach = kMaxBeyondMidline * std::abs(l.l4.body.y - l.c7.body.y);
     if (p.y < l.midline.front().y - reach || p.y > l.midline.back().y + reach)
       return "landmark " + g.name + " at " + pixelText(g.pixel) + " is not on the back's rows (the back spans rows " +
              pixelText(cv::Point2f(l.midline.front().y, l.midline.back().y)) + " of its frame)";
@@ -210,8 +211,8 @@ std::string applyGivenLandmarks(BackLandmarks* landmarks, const std::vector<Give
     image[g.name] = g.pixel;
   }
   const auto c7 = body.find("C7"), t7 = body.find("T7"), l4 = body.find("L4");
-  const float c7_row = c7 != body.end() ? c7->second.y : l.c7.y;
-  const float l4_row = l4 != body.end() ? l4->second.y : l.l4.y;
+  const float c7_row = c7 != body.end() ? c7->second.y : l.c7.body.y;
+  const float l4_row = l4 != body.end() ? l4->second.y : l.l4.body.y;
   if (!(l4_row > c7_row)) return "landmark L4 is not below C7 (toward the feet)";
   if (t7 != body.end() && !(t7->second.y > c7_row && t7->second.y < l4_row))
     return "landmark T7 at " + pixelText(image.at("T7")) +
@@ -220,17 +221,24 @@ std::string applyGivenLandmarks(BackLandmarks* landmarks, const std::vector<Give
   for (const auto& [name, p] : body) extendMidline(&l, p.y);
   fitMidlineThrough(&l, body);
   auto onMidline = [&](float row) { return cv::Point2f(midlineAt(l, row, Beyond::kClamp).x, row); };
-  l.c7 = onMidline(c7_row);
-  l.l4 = onMidline(l4_row);
+  l.c7.body = onMidline(c7_row);
+  l.l4.body = onMidline(l4_row);
   l.iliac_row = l4_row;
   l.given_levels.clear();
-  if (t7 != body.end()) l.given_levels.push_back({"T7", t7->second.y});
   l.along.clear();
   l.given.clear();
   for (const GivenLandmark& g : given) {
-    if (g.name == "C7") l.c7_given = true;
-    if (g.name == "L4") l.l4_given = true;
-    l.given.push_back(g.name + (g.source.empty() ? std::string() : " (" + g.source + ")"));
+    Landmark& m = g.name == "C7" ? l.c7 : g.name == "L4" ? l.l4 : l.given_levels.emplace_back();
+    m.level = g.name;
+    m.source = g.source;
+    m.detail.clear();
+    if (g.name != "C7" && g.name != "L4") m.body = onMidline(body.at(g.name).y);
+    m.raw_pixel = g.raw_pixel;
+    cv::Point3d p;
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    m.point = point && point(toImage(l, m.body), &p) ? cv::Point3f(p) : cv::Point3f(nan, nan, nan);
+    const std::string how = givenHowName(g.source);
+    l.given.push_back(g.name + (how.empty() ? std::string() : " (" + how + ")"));
   }
   return {};
 }
@@ -346,7 +354,7 @@ BackMotion backMotion(const BackView& from, const BackView& to) {
   return m;
 }
 
-std::string GivenLandmarkSet::set(const std::string& name, const cv::Point2f& raw_pixel, const std::string& source,
+std::string GivenLandmarkSet::set(const std::string& name, const cv::Point2f& raw_pixel, LandmarkSource source,
                                   cv::Size image_size, bool confirmed, const BackView& view) {
   if (const std::string problem = checkGivenLandmarkName(name); !problem.empty()) return problem;
   if (!std::isfinite(raw_pixel.x) || !std::isfinite(raw_pixel.y)) return "landmark " + name + ": pixel not finite";
@@ -398,6 +406,7 @@ std::vector<GivenLandmark> GivenLandmarkSet::forPair(const camera::StereoModel& 
   std::vector<GivenLandmark> out;
   for (const auto& [name, k] : landmarks_) {
     GivenLandmark g = k.given;
+    g.raw_pixel = g.pixel;
     g.pixel = geometry.toRectified(decimation.toDecimated(g.pixel));
     out.push_back(g);
   }
@@ -408,8 +417,9 @@ std::string GivenLandmarkSet::describe() const {
   std::string s;
   for (const auto& [name, k] : landmarks_) {
     const GivenLandmark& g = k.given;
-    s += (s.empty() ? "" : ", ") + name + (g.source.empty() ? "" : " (" + g.source + ")") + " at raw " +
-         pixelText(g.pixel) + (g.confirmed ? " confirmed" : "") + (g.stale.empty() ? "" : " stale: " + g.stale);
+    s += (s.empty() ? "" : ", ") + name + (givenHowName(g.source).empty() ? "" : " (" + givenHowName(g.source) + ")") +
+         " at raw " + pixelText(g.pixel) + (g.confirmed ? " confirmed" : "") +
+         (g.stale.empty() ? "" : " stale: " + g.stale);
   }
   return s.empty() ? "none" : s;
 }

@@ -234,25 +234,28 @@ BackLandmarks landmarksOf(const Midline& mid, double top, double bottom, const W
     // Caudal tangent (s, 1); the subject's left is the tangent turned by +90 deg in image coordinates.
     l.lateral.emplace_back(static_cast<float>(-1.0 / norm), static_cast<float>(s / norm));
   }
-  l.c7 = cv::Point2f(static_cast<float>(mid.x(lv.c7_row)), static_cast<float>(lv.c7_row));
-  l.l4 = cv::Point2f(static_cast<float>(mid.x(lv.l4_row)), static_cast<float>(lv.l4_row));
+  l.c7.body = cv::Point2f(static_cast<float>(mid.x(lv.c7_row)), static_cast<float>(lv.c7_row));
+  l.l4.body = cv::Point2f(static_cast<float>(mid.x(lv.l4_row)), static_cast<float>(lv.l4_row));
   l.shoulder_row = shoulder_row;
   l.shoulder_width = shoulder_width;
   l.waist_row = lv.waist_row;
   l.iliac_row = lv.l4_row;
   l.top_row = anchor;
-  l.c7_measured = !lv.c7_from_shoulders;
-  l.c7_at_neck = p.ineck >= 0;
-  l.waist_measured = p.no_waist.empty();
+  // C7 at a neck's base is always measured: c7_from_shoulders only where no neck's base was found.
+  l.c7.source = lv.c7_from_shoulders ? LandmarkSource::kInferred : LandmarkSource::kMeasured;
+  l.c7.detail = lv.c7_from_shoulders ? kFromShoulderLine : p.ineck >= 0 ? kFromNeckBase : kFromBackTop;
+  const bool waist = p.no_waist.empty();
+  l.l4.source = waist ? LandmarkSource::kMeasured : LandmarkSource::kInferred;
+  l.l4.detail = waist ? kFromWaist : kFromShoulderWidth;
   l.measured.push_back(p.ineck >= 0           ? "C7 at the neck's base"
                        : lv.c7_from_shoulders ? "the shoulder line"
                                               : "C7 at the back's top");
-  if (l.waist_measured) l.measured.push_back("the waist");
-  if (!l.c7_measured)
+  if (waist) l.measured.push_back("the waist");
+  if (lv.c7_from_shoulders)
     l.inferred.push_back(
         p.no_neck ? "C7 from the shoulder line (the neck is out of view)"
                   : "C7 from the shoulder line (the back's top is not the neck's base: hair or something over it)");
-  if (!l.waist_measured) l.inferred.push_back("L4 from C7 and the shoulder width (" + p.no_waist + ")");
+  if (!waist) l.inferred.push_back("L4 from C7 and the shoulder width (" + p.no_waist + ")");
   return l;
 }
 
@@ -340,8 +343,8 @@ cv::Matx23d turnAbout(const std::vector<cv::Point2f>& contour, double angle, cv:
 /// The midline's tilt between C7 and L4 (radians; + when it runs toward the
 /// frame's right going down): the turn that would bring it onto the columns.
 double midlineTilt(const BackLandmarks& l) {
-  const double dy = static_cast<double>(l.l4.y) - l.c7.y;
-  return dy > 0 ? std::atan2(static_cast<double>(l.l4.x) - l.c7.x, dy) : 0.0;
+  const double dy = static_cast<double>(l.l4.body.y) - l.c7.body.y;
+  return dy > 0 ? std::atan2(static_cast<double>(l.l4.body.x) - l.c7.body.x, dy) : 0.0;
 }
 
 /// The tilt of the mask's long axis against the columns (radians, as

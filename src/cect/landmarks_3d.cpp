@@ -65,7 +65,7 @@ double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left
   }
   auto dot = [](const cv::Point3d& a, const cv::Point3d& b) { return a.x * b.x + a.y * b.y + a.z * b.z; };
   std::vector<double> ys, shifts;
-  const double y0 = std::min(l.c7.y, l.l4.y), y1 = std::max(l.c7.y, l.l4.y);
+  const double y0 = std::min(l.c7.body.y, l.l4.body.y), y1 = std::max(l.c7.body.y, l.l4.body.y);
   for (const cv::Point2f& m : l.midline) {
     if (m.y < y0 || m.y > y1) continue;  // the torso between C7 and L4
     const int y = cvRound(m.y);
@@ -125,8 +125,8 @@ double correctMidlineParallax(BackLandmarks* landmarks, const Segmentation& left
     m.x += shiftAt(m.y);
     mean += shiftAt(m.y);
   }
-  l.c7.x += shiftAt(l.c7.y);
-  l.l4.x += shiftAt(l.l4.y);
+  l.c7.body.x += shiftAt(l.c7.body.y);
+  l.l4.body.x += shiftAt(l.l4.body.y);
   return mean / static_cast<double>(l.midline.size());
 }
 
@@ -134,7 +134,8 @@ double correctWaistParallax(BackLandmarks* landmarks, const AcupointModel& model
                             const PointLookup& image_point) {
   BackLandmarks& l = *landmarks;
   if (!l.valid || l.midline.size() < 10 || left.mask.empty() || !image_point) return kNaN;
-  if (!l.c7_measured || !l.waist_measured) return kNaN;  // C7 and L4 do not hang on the top and the waist
+  if (l.c7.source != LandmarkSource::kMeasured || l.l4.source != LandmarkSource::kMeasured)
+    return kNaN;  // C7 and L4 do not hang on the top and the waist
   const double c = model.c7_below_top, q = model.waist_fraction;
   if (!(c + q > 0.0)) return kNaN;
   const cv::Mat mask = maskInBodyFrame(l, left.mask);
@@ -172,7 +173,7 @@ double correctWaistParallax(BackLandmarks* landmarks, const AcupointModel& model
   // the distance along it, between C7 and L4).
   double spine_row = kNaN, prev_d = kNaN, prev_y = kNaN;
   for (const cv::Point2f& m : l.midline) {
-    if (m.y < l.c7.y || m.y > l.l4.y) continue;
+    if (m.y < l.c7.body.y || m.y > l.l4.body.y) continue;
     Eigen::Vector3d p;
     if (!point(m, &p)) continue;
     const double d = (p - rims).dot(axis);
@@ -184,14 +185,14 @@ double correctWaistParallax(BackLandmarks* landmarks, const AcupointModel& model
     prev_y = m.y;
   }
   if (!std::isfinite(spine_row)) return kNaN;
-  const double length = static_cast<double>(l.l4.y) - l.c7.y;
+  const double length = static_cast<double>(l.l4.body.y) - l.c7.body.y;
   const double move = (spine_row - l.waist_row) - model.waist_rim_offset * length;
   const double waist = l.waist_row + move;
   const double new_length = (waist - l.top_row) / (c + q);
   if (!(new_length > 0.0)) return kNaN;
   const double c7_row = l.top_row + c * new_length, l4_row = c7_row + new_length;
-  l.c7 = midlineAt(l, c7_row);
-  l.l4 = midlineAt(l, l4_row);
+  l.c7.body = midlineAt(l, c7_row);
+  l.l4.body = midlineAt(l, l4_row);
   l.waist_row = waist;
   l.iliac_row = l4_row;
   l.along.clear();  // measured from the old C7: measureLevelsIn3D again
@@ -201,7 +202,7 @@ double correctWaistParallax(BackLandmarks* landmarks, const AcupointModel& model
 double measureLevelsIn3D(BackLandmarks* landmarks, const PointLookup& image_point) {
   BackLandmarks& l = *landmarks;
   if (!l.valid || l.midline.size() < 10 || !image_point) return kNaN;
-  const double length_rows = static_cast<double>(l.l4.y) - l.c7.y;
+  const double length_rows = static_cast<double>(l.l4.body.y) - l.c7.body.y;
   if (!(length_rows > 10.0)) return kNaN;
   // The 3D points of the midline from just above C7 to a quarter of C7 -> L4
   // below L4 (the model's lowest levels), as functions of u = 0 at C7, 1 at L4.
@@ -210,7 +211,7 @@ double measureLevelsIn3D(BackLandmarks* landmarks, const PointLookup& image_poin
   std::vector<Eigen::Vector3d> ps;
   int near_c7 = 0, near_l4 = 0;
   for (const cv::Point2f& m : l.midline) {
-    const double u = (m.y - l.c7.y) / length_rows;
+    const double u = (m.y - l.c7.body.y) / length_rows;
     if (u < u_lo || u > u_hi) continue;
     cv::Point3d p;
     if (!image_point(toImage(l, m), &p)) continue;
@@ -241,7 +242,7 @@ double measureLevelsIn3D(BackLandmarks* landmarks, const PointLookup& image_poin
   std::vector<double> along(l.midline.size(), kNaN);
   double last = -std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < l.midline.size(); ++i) {
-    const double u = (l.midline[i].y - l.c7.y) / length_rows;
+    const double u = (l.midline[i].y - l.c7.body.y) / length_rows;
     if (u < u_min || u > u_max) continue;
     along[i] = (P(u) - c7).dot(axis);
     if (!(along[i] > last)) return kNaN;  // not monotonic: not a back lying along its axis

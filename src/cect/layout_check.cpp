@@ -38,7 +38,8 @@ double midlineMetresPerPixel(const BackLandmarks& l, const PixelScale& scale) {
   if (!scale) return kNaN;
   std::vector<double> s;
   for (int k = 0; k <= 8; ++k) {
-    const double v = scale(toImage(l, midlineAt(l, l.c7.y + k / 8.0 * (l.l4.y - l.c7.y), Beyond::kClamp)));
+    const double v =
+        scale(toImage(l, midlineAt(l, l.c7.body.y + k / 8.0 * (l.l4.body.y - l.c7.body.y), Beyond::kClamp)));
     if (std::isfinite(v) && v > 0.0) s.push_back(v);
   }
   return s.size() < 3 ? kNaN : detail::median(s);
@@ -47,11 +48,11 @@ double midlineMetresPerPixel(const BackLandmarks& l, const PixelScale& scale) {
 /// C7 -> L4 in metres: along the body in 3D when measured (measureLevelsIn3D), else the rows by the scale.
 double lengthMetres(const BackLandmarks& l, double metres_per_pixel) {
   if (l.along.size() == l.midline.size() && !l.along.empty()) {
-    const double t = std::clamp(l.l4.y - l.midline.front().y, 0.0f, static_cast<float>(l.midline.size() - 1));
+    const double t = std::clamp(l.l4.body.y - l.midline.front().y, 0.0f, static_cast<float>(l.midline.size() - 1));
     const double along = l.along[static_cast<std::size_t>(std::lround(t))];
     if (std::isfinite(along) && along > 0.0) return along;
   }
-  return (l.l4.y - l.c7.y) * metres_per_pixel;
+  return (l.l4.body.y - l.c7.body.y) * metres_per_pixel;
 }
 
 void within(LayoutCheck* c, double value, double lo, double hi, const std::string& what, const std::string& unit,
@@ -71,10 +72,10 @@ std::string across(double pixels, double cun_px, double mpp) {
 /// population's spread refused.
 void checkGivenLevels(LayoutCheck* c, const BackLandmarks& l, const AcupointModel& model) {
   const AcupointModel::Plausibility& pl = model.plausibility;
-  for (const BackLandmarks::GivenLevel& g : l.given_levels) {
+  for (const Landmark& g : l.given_levels) {
     const auto expected = model.level_fraction.find(g.level);
     if (expected == model.level_fraction.end()) continue;
-    const double at = fractionAtRow(l, g.row), off = std::abs(at - expected->second);
+    const double at = fractionAtRow(l, g.body.y), off = std::abs(at - expected->second);
     const std::string where =
         g.level + " (given) lies at " + fixed(at, 2) + " of C7 -> L4, the model's " + fixed(expected->second, 2);
     if (off > pl.given_level_limit)
@@ -98,12 +99,13 @@ void checkGivenOnSpine(LayoutCheck* c, const BackLandmarks& l, const AcupointMod
     const double mpp = std::isfinite(here) && here > 0.0 ? here : midline_mpp;
     const bool metric = std::isfinite(cun_m) && std::isfinite(mpp) && mpp > 0.0;
     // Without a scale the cun in pixels as cunMetres takes it: from C7 -> L4 with both given, else the shoulders.
-    const double cun_px = metric                     ? cun_m / mpp
-                          : l.c7_given && l.l4_given ? model.cun_per_shoulder_width / model.length_per_shoulder_width *
-                                                           (static_cast<double>(l.l4.y) - l.c7.y)
-                                                     : model.cun_per_shoulder_width * l.shoulder_width;
+    const double cun_px = metric ? cun_m / mpp
+                          : l.c7.given() && l.l4.given()
+                              ? model.cun_per_shoulder_width / model.length_per_shoulder_width *
+                                    (static_cast<double>(l.l4.body.y) - l.c7.body.y)
+                              : model.cun_per_shoulder_width * l.shoulder_width;
     if (!(cun_px > 0.0) || std::abs(g.off_midline) <= limit * cun_px) continue;
-    c->problems.push_back("the given " + g.level + " (" + g.source + ") lies " +
+    c->problems.push_back("the given " + g.level + " (" + givenHowName(g.source) + ") lies " +
                           across(g.off_midline, cun_px, metric ? mpp : kNaN) + " to the subject's " +
                           (g.off_midline > 0.0 ? "right" : "left") + " of the back's midline (a spine lies within " +
                           fixed(limit, 1) + " cun of it): not on the spine");
@@ -113,19 +115,18 @@ void checkGivenOnSpine(LayoutCheck* c, const BackLandmarks& l, const AcupointMod
 /// Each given landmark the pair also measured: within given_disagreement_sigmas of both sigmas along the body, or
 /// confirmed.
 void checkGivenAgainstMeasured(LayoutCheck* c, const BackLandmarks& l, const AcupointModel& model, double mpp) {
-  const AcupointModel::LayoutSigma& s = model.layout_sigma;
-  const double length_rows = static_cast<double>(l.l4.y) - l.c7.y;
+  const double length_rows = static_cast<double>(l.l4.body.y) - l.c7.body.y;
   for (const BackLandmarks::GivenCheck& g : l.given_checks) {
     if (!std::isfinite(g.measured_row) || g.confirmed) continue;
     const double sigma =
-        g.level == "C7" ? std::hypot(s.c7_measured, s.c7_given) : std::hypot(s.l4_measured, s.l4_given);
+        std::hypot(layoutSigma(model, g.level, LandmarkSource::kMeasured), layoutSigma(model, g.level, g.source));
     const double apart = std::abs(g.body.y - g.measured_row) / length_rows;
     if (apart <= model.plausibility.given_disagreement_sigmas * sigma) continue;
     const cv::Point2f given = toImage(l, g.body), measured = toImage(l, midlineAt(l, g.measured_row));
     const std::string distance =
         std::isfinite(mpp) ? fixed(apart * length_rows * mpp * 1000.0, 0) + " mm" : fixed(apart, 2) + " of C7 -> L4";
-    c->problems.push_back("the given " + g.level + " (" + g.source + ") at pixel (" + fixed(given.x, 0) + ", " +
-                          fixed(given.y, 0) + ") and " + g.level + " measured at " + g.measured_from + " at (" +
+    c->problems.push_back("the given " + g.level + " (" + givenHowName(g.source) + ") at pixel (" + fixed(given.x, 0) +
+                          ", " + fixed(given.y, 0) + ") and " + g.level + " measured at " + g.measured_from + " at (" +
                           fixed(measured.x, 0) + ", " + fixed(measured.y, 0) + ") lie " + distance +
                           " apart along the body (more than " + fixed(model.plausibility.given_disagreement_sigmas, 1) +
                           " sigma of both): confirm the given one");
@@ -152,22 +153,23 @@ LayoutCheck checkLayout(const BackLandmarks& l, const AcupointModel& model, cons
   }
   if (!rules.configuration_problem.empty()) c.problems.push_back(rules.configuration_problem);
   const AcupointModel::Plausibility& pl = model.plausibility;
-  const double length_rows = static_cast<double>(l.l4.y) - l.c7.y;
+  const double length_rows = static_cast<double>(l.l4.body.y) - l.c7.body.y;
   if (!(length_rows > 0.0)) {
     c.trusted = false;
     c.problems.push_back("L4 is not below C7");
     return c;
   }
-  if (rules.c7_at_neck && !l.c7_given && !l.c7_at_neck)
-    c.problems.push_back(
-        std::string("C7 not measured: ") +
-        (l.c7_measured ? "no neck's base in view, the back's top taken for it" : "taken from the shoulder line") +
-        "; give C7 (a palpated landmark: a click, ~set_landmark, --landmark, a skin marker)");
-  if (rules.l4_measured && !l.l4_given && !l.waist_measured)
+  if (rules.c7_at_neck && !l.c7.given() && !l.c7.atNeckBase())
+    c.problems.push_back(std::string("C7 not measured: ") +
+                         (l.c7.source == LandmarkSource::kMeasured
+                              ? "no neck's base in view, the back's top taken for it"
+                              : "taken from the shoulder line") +
+                         "; give C7 (a palpated landmark: a click, ~set_landmark, --landmark, a skin marker)");
+  if (rules.l4_measured && l.l4.source == LandmarkSource::kInferred)
     c.problems.push_back(
         "L4 not measured: no waist in view, only inferred from C7 and the shoulder width; give L4 (the iliac crests' "
         "line: a click, ~set_landmark, --landmark, a skin marker)");
-  const bool both_given = l.c7_given && l.l4_given;
+  const bool both_given = l.c7.given() && l.l4.given();
   // Sizes, where the back's 3D gives a scale.
   const double mpp = midlineMetresPerPixel(l, scale);
   c.length_m = lengthMetres(l, mpp);
@@ -186,7 +188,7 @@ LayoutCheck checkLayout(const BackLandmarks& l, const AcupointModel& model, cons
   if (!both_given)
     within(&c, c.shoulder_width_m, pl.min_shoulder_width_m, pl.max_shoulder_width_m, "the shoulder width", " m", 3);
   // Proportions, where they are not the model's own.
-  const bool l4_independent = (l.waist_measured || l.l4_given) && !both_given;
+  const bool l4_independent = l.l4.source != LandmarkSource::kInferred && !both_given;
   if (l4_independent && l.shoulder_width > 0.0) {
     c.length_per_shoulder_width = length_rows / l.shoulder_width;
     const double expected = model.length_per_shoulder_width, tol = pl.proportion_tolerance * expected;
@@ -194,15 +196,15 @@ LayoutCheck checkLayout(const BackLandmarks& l, const AcupointModel& model, cons
   }
   for (const BackLandmarks::GivenCheck& g : l.given_checks) {
     if (!g.stale.empty())
-      c.problems.push_back("the given " + g.level + " (" + g.source + ") is stale: " + g.stale +
+      c.problems.push_back("the given " + g.level + " (" + givenHowName(g.source) + ") is stale: " + g.stale +
                            "; confirm the landmarks again (~confirm_landmarks, a click, ~set_landmark)");
   }
   checkGivenLevels(&c, l, model);
   checkGivenOnSpine(&c, l, model, scale, mpp);
   checkGivenAgainstMeasured(&c, l, model, mpp);
-  const bool c7_independent = (l.c7_measured || l.c7_given) && !both_given;
+  const bool c7_independent = l.c7.source != LandmarkSource::kInferred && !both_given;
   if (c7_independent) {
-    c.shoulder_below_c7 = (l.shoulder_row - l.c7.y) / length_rows;
+    c.shoulder_below_c7 = (l.shoulder_row - l.c7.body.y) / length_rows;
     within(&c, c.shoulder_below_c7, pl.min_shoulder_below_c7, pl.max_shoulder_below_c7,
            "the shoulder line below C7 (of C7 -> L4)", "", 2);
   }

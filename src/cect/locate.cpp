@@ -71,7 +71,7 @@ std::vector<GivenLandmark> givenWithMarkers(const LocateOptions& options, const 
     given.erase(std::remove_if(given.begin(), given.end(),
                                [&](const GivenLandmark& g) { return g.name == m.landmark && !g.stale.empty(); }),
                 given.end());
-    if (!gives(given, m.landmark)) given.push_back({m.landmark, m.left, "marker"});
+    if (!gives(given, m.landmark)) given.push_back({m.landmark, m.left, LandmarkSource::kGivenMarker});
   }
   return given;
 }

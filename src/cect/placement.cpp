@@ -47,7 +47,7 @@ double interpolateAlong(const BackLandmarks& l, double y) {
 /// kMaxOutOfView of C7->L4 away: the scale varies slowly along the back, and
 /// the point is then placed (off the image, where the localisation reports it).
 double midlineScale(const BackLandmarks& l, double y, const PixelScale& scale) {
-  const double length = std::abs(l.l4.y - l.c7.y);
+  const double length = std::abs(l.l4.body.y - l.c7.body.y);
   const double step = std::max(1.0, kScaleWindow / 3.0 * length);
   auto window = [&](double yc) {
     std::vector<double> s;
@@ -69,10 +69,10 @@ double midlineScale(const BackLandmarks& l, double y, const PixelScale& scale) {
 /// The body frame's row at a fraction of C7 -> L4: along the body's axis in 3D when measured (measureLevelsIn3D),
 /// else in rows.
 double rowAtFraction(const BackLandmarks& l, double fraction) {
-  const double by_rows = l.c7.y + fraction * (l.l4.y - l.c7.y);
+  const double by_rows = l.c7.body.y + fraction * (l.l4.body.y - l.c7.body.y);
   if (l.along.size() != l.midline.size()) return by_rows;
   // along[] is increasing where finite; C7 is at 0 and L4 at its length.
-  const double l4_along = interpolateAlong(l, l.l4.y);
+  const double l4_along = interpolateAlong(l, l.l4.body.y);
   if (!(l4_along > 0.0)) return by_rows;
   const double target = fraction * l4_along;
   std::size_t prev = l.along.size();
@@ -94,7 +94,7 @@ template <typename AtGiven>
 Knots givenKnots(const BackLandmarks& l, const AcupointModel& model, double at_c7, const AtGiven& at_given,
                  double at_l4) {
   Knots knots{{0.0, at_c7}};
-  for (const BackLandmarks::GivenLevel& g : l.given_levels) {
+  for (const Landmark& g : l.given_levels) {
     const auto it = model.level_fraction.find(g.level);
     if (it != model.level_fraction.end() && it->second > 0.0 && it->second < 1.0)
       knots.emplace_back(it->second, at_given(g));
@@ -119,7 +119,7 @@ double between(const Knots& knots, double x) {
 double levelRow(const BackLandmarks& l, const AcupointModel& model, double fraction) {
   if (l.given_levels.empty() || !(fraction > 0.0 && fraction < 1.0)) return rowAtFraction(l, fraction);
   const Knots knots = givenKnots(
-      l, model, 0.0, [&l](const BackLandmarks::GivenLevel& g) { return fractionAtRow(l, g.row); }, 1.0);
+      l, model, 0.0, [&l](const Landmark& g) { return fractionAtRow(l, g.body.y); }, 1.0);
   return rowAtFraction(l, between(knots, fraction));
 }
 
@@ -132,9 +132,9 @@ PixelScale bodyScale(const BackLandmarks& l, const PixelScale& image_scale) {
 /// C7 -> L4 in metres: along the body in 3D where measured (measureLevelsIn3D), else the rows by the midline's median
 /// metres per pixel; NaN without either.
 double c7ToL4Metres(const BackLandmarks& l, const PixelScale& body_scale) {
-  const double along = interpolateAlong(l, l.l4.y);
+  const double along = interpolateAlong(l, l.l4.body.y);
   if (std::isfinite(along) && along > 0.0) return along;
-  return (l.l4.y - l.c7.y) * midlineScale(l, 0.5 * (l.c7.y + l.l4.y), body_scale);
+  return (l.l4.body.y - l.c7.body.y) * midlineScale(l, 0.5 * (l.c7.body.y + l.l4.body.y), body_scale);
 }
 
 }  // namespace
@@ -142,8 +142,8 @@ double c7ToL4Metres(const BackLandmarks& l, const PixelScale& body_scale) {
 namespace detail {
 
 double fractionAtRow(const BackLandmarks& l, double row) {
-  const double by_rows = (row - l.c7.y) / (l.l4.y - l.c7.y);
-  const double along = interpolateAlong(l, row), l4_along = interpolateAlong(l, l.l4.y);
+  const double by_rows = (row - l.c7.body.y) / (l.l4.body.y - l.c7.body.y);
+  const double along = interpolateAlong(l, row), l4_along = interpolateAlong(l, l.l4.body.y);
   return std::isfinite(along) && l4_along > 0.0 ? along / l4_along : by_rows;
 }
 
@@ -161,44 +161,53 @@ std::string describeLandmarks(const BackLandmarks& landmarks) {
   return "used: " + join(used) + "; measured: " + join(landmarks.measured) + "; inferred: " + join(landmarks.inferred);
 }
 
-namespace {
-
-/// How a given landmark was given ("marker", "clicked"): the "(...)" of its entry in `given`.
-std::string givenHow(const BackLandmarks& landmarks, const std::string& name) {
-  for (const std::string& g : landmarks.given) {
-    if (g.rfind(name + " (", 0) == 0 && g.back() == ')') return g.substr(name.size() + 2, g.size() - name.size() - 3);
+std::string sourceName(LandmarkSource source) {
+  switch (source) {
+    case LandmarkSource::kMeasured:
+      return "measured";
+    case LandmarkSource::kInferred:
+      return "inferred";
+    default:
+      return "given";
   }
-  return "given";
 }
 
-}  // namespace
+std::string givenHowName(LandmarkSource source) {
+  switch (source) {
+    case LandmarkSource::kGivenService:
+      return "service";
+    case LandmarkSource::kGivenClick:
+      return "clicked";
+    case LandmarkSource::kGivenMarker:
+      return "marker";
+    case LandmarkSource::kGivenOption:
+      return "--landmark";
+    default:
+      return {};
+  }
+}
+
+double layoutSigma(const AcupointModel& model, const std::string& level, LandmarkSource source) {
+  const AcupointModel::LayoutSigma& s = model.layout_sigma;
+  const bool given = isGiven(source);
+  if (level == "C7") return given ? s.c7_given : source == LandmarkSource::kMeasured ? s.c7_measured : s.c7_inferred;
+  if (level == "L4") return given ? s.l4_given : source == LandmarkSource::kMeasured ? s.l4_measured : s.l4_inferred;
+  return given ? s.level_given : kNaN;
+}
 
 std::vector<LayoutLandmark> layoutLandmarks(const BackLandmarks& l) {
   if (!l.valid) return {};
-  LayoutLandmark c7{"C7", toImage(l, l.c7), "", ""}, l4{"L4", toImage(l, l.l4), "", ""};
-  if (l.c7_given) {
-    c7.source = "given", c7.detail = givenHow(l, "C7");
-  } else if (l.c7_measured) {
-    c7.source = "measured", c7.detail = l.c7_at_neck ? "the neck's base" : "the back's top";
-  } else {
-    c7.source = "inferred", c7.detail = "the shoulder line";
-  }
-  if (l.l4_given) {
-    l4.source = "given", l4.detail = givenHow(l, "L4");
-  } else if (l.waist_measured) {
-    l4.source = "measured", l4.detail = "the waist";
-  } else {
-    l4.source = "inferred", l4.detail = "C7 and the shoulder width";
-  }
-  std::vector<LayoutLandmark> out{c7};
-  for (const BackLandmarks::GivenLevel& g : l.given_levels)
-    out.push_back({g.level, toImage(l, midlineAt(l, g.row)), "given", givenHow(l, g.level)});
-  out.push_back(l4);
+  std::vector<LayoutLandmark> out{{l.c7, toImage(l, l.c7.body)}};
+  for (const Landmark& g : l.given_levels) out.push_back({g, toImage(l, midlineAt(l, g.body.y))});
+  out.push_back({l.l4, toImage(l, l.l4.body)});
   return out;
 }
 
-std::string describeLandmark(const LayoutLandmark& l) {
-  return l.name + " " + l.source + (l.detail.empty() || l.detail == l.source ? "" : " (" + l.detail + ")");
+std::string landmarkDetail(const Landmark& l) { return l.given() ? givenHowName(l.source) : l.detail; }
+
+std::string describeLandmark(const Landmark& l) {
+  const std::string source = sourceName(l.source), detail = landmarkDetail(l);
+  return l.level + " " + source + (detail.empty() || detail == source ? "" : " (" + detail + ")");
 }
 
 cv::Point2f toImage(const BackLandmarks& landmarks, const cv::Point2f& body_pixel) {
@@ -219,15 +228,14 @@ Eigen::Matrix3d layoutCovariance(const BackLandmarks& landmarks, const AcupointM
                                  double metres_per_pixel) {
   const auto it = model.level_fraction.find(level);
   if (it == model.level_fraction.end() || !landmarks.valid || !(metres_per_pixel > 0.0)) return Eigen::Matrix3d::Zero();
-  const cv::Point2f c7 = toImage(landmarks, landmarks.c7), l4 = toImage(landmarks, landmarks.l4);
+  const cv::Point2f c7 = toImage(landmarks, landmarks.c7.body), l4 = toImage(landmarks, landmarks.l4.body);
   const double length_px = std::hypot(l4.x - c7.x, l4.y - c7.y);
   if (!(length_px > 0.0)) return Eigen::Matrix3d::Zero();
   const AcupointModel::LayoutSigma& ls = model.layout_sigma;
-  const double at_c7 = landmarks.c7_given ? ls.c7_given : landmarks.c7_measured ? ls.c7_measured : ls.c7_inferred;
-  const double at_l4 = landmarks.l4_given ? ls.l4_given : landmarks.waist_measured ? ls.l4_measured : ls.l4_inferred;
   // Linear in the level between two of C7, a given level and L4 (beyond C7 and L4, the nearer one's).
   const Knots knots = givenKnots(
-      landmarks, model, at_c7, [&ls](const BackLandmarks::GivenLevel&) { return ls.level_given; }, at_l4);
+      landmarks, model, layoutSigma(model, landmarks.c7), [&model](const Landmark& g) { return layoutSigma(model, g); },
+      layoutSigma(model, landmarks.l4));
   const double sigma = between(knots, std::clamp(it->second, 0.0, 1.0));
   const double length = length_px * metres_per_pixel;
   const double along = sigma * length, across = ls.across * length;
@@ -239,7 +247,7 @@ Eigen::Matrix3d layoutCovariance(const BackLandmarks& landmarks, const AcupointM
 double cunMetres(const BackLandmarks& landmarks, const AcupointModel& model, const PixelScale& image_scale) {
   if (!landmarks.valid || landmarks.midline.empty() || !image_scale) return kNaN;
   const PixelScale scale = bodyScale(landmarks, image_scale);
-  if (landmarks.c7_given && landmarks.l4_given) {
+  if (landmarks.c7.given() && landmarks.l4.given()) {
     // The therapist's C7 and L4 fix the back's length, and the cun follows from it by the model's proportions; the
     // silhouette's widest row is misread where arms, hands or the cradle join the shoulders.
     const double length = c7ToL4Metres(landmarks, scale);
@@ -261,7 +269,7 @@ double cunMetres(const BackLandmarks& landmarks, const AcupointModel& model, con
     }
     return median(s);
   };
-  const double length = std::abs(landmarks.l4.y - landmarks.c7.y);
+  const double length = std::abs(landmarks.l4.body.y - landmarks.c7.body.y);
   const double step = std::max(1.0, kScaleWindow / 3.0 * length);
   double mpp = across(landmarks.shoulder_row);
   for (double d = step; !std::isfinite(mpp) && d <= kMaxOutOfView * length; d += step)

@@ -573,15 +573,14 @@ SkinModel skinModel(const Detection& d, const SegmentationParams& params, const 
   std::vector<float> distance(s.su.size());
   for (std::size_t i = 0; i < s.su.size(); ++i)
     distance[i] = static_cast<float>(std::hypot(s.su[i] - mu_s[0], s.sv[i] - mu_s[1]) / contrast);
-  const auto at = distance.begin() + static_cast<std::ptrdiff_t>(kSkinOtherQuantile * (distance.size() - 1) + 0.5);
-  std::nth_element(distance.begin(), at, distance.end());
-  if (*at > kMaxSkinOtherDistance) {
+  const double other = detail::quantile(std::move(distance), kSkinOtherQuantile, detail::QuantileIndex::kRoundedOfSpan);
+  if (other > kMaxSkinOtherDistance) {
     char buf[256];
     std::snprintf(buf, sizeof(buf),
                   "no back in view: the skin-coloured region is multi-coloured (%.0f %% of its core lies %.2f or more "
                   "of its contrast to the surroundings from its chroma, skin less than %.2f: a second material of "
                   "skin's colour, a sheet or towel?)",
-                  100.0 * (1.0 - kSkinOtherQuantile), *at, kMaxSkinOtherDistance);
+                  100.0 * (1.0 - kSkinOtherQuantile), other, kMaxSkinOtherDistance);
     m.problem = buf;
     return m;
   }

@@ -1,4 +1,5 @@
-// Statistics shared by CECT's files (src/cect): the median and the robust fit. Private to the library: not installed.
+// Statistics shared by CECT's files (src/cect): the median, quantiles and the robust fit. Private to the library: not
+// installed.
 #pragma once
 
 #include <algorithm>
@@ -28,6 +29,37 @@ double median(std::vector<T> v, EvenCount even = EvenCount::kMeanOfMiddle) {
   if (v.size() % 2 == 1 || even == EvenCount::kUpperMiddle) return hi;
   const double lo = *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid));
   return 0.5 * (lo + hi);
+}
+
+/// Which sample quantile() takes of n sorted values (0-based index; q in [0, 1]). The callers keep the convention
+/// their thresholds were tuned with.
+enum class QuantileIndex {
+  kNearestRank,    ///< ceil(q n) - 1, within 0..n-1: the nearest rank (evaluation.h's Spread, cect_eval's p95)
+  kFloorOfSpan,    ///< floor(q (n - 1)) (the depth gate's nearest surfaces)
+  kRoundedOfSpan,  ///< floor(q (n - 1) + 0.5): q (n - 1) rounded half up (the skin model's second material)
+};
+
+/// The q-quantile of v's finite values, a sample chosen by `index`; NaN when none is finite.
+template <typename T>
+double quantile(std::vector<T> v, double q, QuantileIndex index = QuantileIndex::kNearestRank) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](T x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const double n = static_cast<double>(v.size());
+  double k = 0.0;
+  switch (index) {
+    case QuantileIndex::kNearestRank:
+      k = std::ceil(q * n) - 1.0;
+      break;
+    case QuantileIndex::kFloorOfSpan:
+      k = std::floor(q * (n - 1.0));
+      break;
+    case QuantileIndex::kRoundedOfSpan:
+      k = std::floor(q * (n - 1.0) + 0.5);
+      break;
+  }
+  const auto at = static_cast<std::size_t>(std::clamp(k, 0.0, n - 1.0));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(at), v.end());
+  return static_cast<double>(v[at]);
 }
 
 // The robust fits (the body's centre line in trunk.cpp; the acupoint model's midline, parallax line and levels' cubic).

@@ -200,9 +200,9 @@ cv::Mat drawAcupoints(const CectFrame& frame, const std::vector<TrackedAcupoint>
   }
   for (const LayoutLandmark& l : landmarks) {
     const cv::Point centre(cvRound((l.pixel.x + 0.5) * scale - 0.5), cvRound((l.pixel.y + 0.5) * scale - 0.5));
-    const cv::Scalar colour = l.source == "given"      ? cv::Scalar(255, 0, 255)
-                              : l.source == "measured" ? cv::Scalar(255, 255, 0)
-                                                       : cv::Scalar(160, 160, 160);
+    const cv::Scalar colour = l.landmark.given()                               ? cv::Scalar(255, 0, 255)
+                              : l.landmark.source == LandmarkSource::kMeasured ? cv::Scalar(255, 255, 0)
+                                                                               : cv::Scalar(160, 160, 160);
     cv::drawMarker(image, centre, colour, cv::MARKER_CROSS, 14, 2, cv::LINE_AA);
     // Named to the left of the cross: the midline's acupoints (GV) are named to their right.
     const std::string text = describeLandmark(l);

@@ -73,9 +73,9 @@ std::vector<massage_cell::BackLandmark> landmarkMsgs(const cect::BackLandmarks& 
   std::vector<massage_cell::BackLandmark> out;
   for (const cect::LayoutLandmark& l : cect::layoutLandmarks(landmarks)) {
     massage_cell::BackLandmark m;
-    m.name = l.name;
-    m.source = l.source;
-    m.detail = l.detail;
+    m.name = l.landmark.level;
+    m.source = cect::sourceName(l.landmark.source);
+    m.detail = cect::landmarkDetail(l.landmark);
     const cv::Point2f raw = cect::cameraPixel(l.pixel, geometry, decimation);
     m.u = raw.x;
     m.v = raw.y;

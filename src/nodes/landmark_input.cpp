@@ -55,7 +55,8 @@ bool LandmarkInput::setLandmark(massage_cell::SetLandmark::Request& request,
     return true;
   }
   if (!request.point.header.frame_id.empty()) {
-    response.success = give(request.name, &request.point, nullptr, "service", request.confirm, &response.message);
+    response.success = give(request.name, &request.point, nullptr, cect::LandmarkSource::kGivenService, request.confirm,
+                            &response.message);
     return true;
   }
   if (request.u == 0.0 && request.v == 0.0) {
@@ -69,7 +70,8 @@ bool LandmarkInput::setLandmark(massage_cell::SetLandmark::Request& request,
     const cv::Point2f raw(static_cast<float>(request.u), static_cast<float>(request.v));
     rect = view.frame->geometry().toRectified(view.decimation.toDecimated(raw));
   }
-  response.success = give(request.name, nullptr, &rect, "service", request.confirm, &response.message);
+  response.success =
+      give(request.name, nullptr, &rect, cect::LandmarkSource::kGivenService, request.confirm, &response.message);
   return true;
 }
 
@@ -104,7 +106,7 @@ bool LandmarkInput::confirmLandmarks(std_srvs::Trigger::Request& /*request*/, st
 
 void LandmarkInput::onClickedPoint(const geometry_msgs::PointStamped::ConstPtr& point) {
   std::string message;
-  if (give(clickName(), point.get(), nullptr, "clicked", false, &message))
+  if (give(clickName(), point.get(), nullptr, cect::LandmarkSource::kGivenClick, false, &message))
     ROS_INFO_STREAM_NAMED(log_name_, message);
   else
     ROS_WARN_STREAM_NAMED(log_name_, "ignored the clicked point: " << message);
@@ -118,7 +120,7 @@ void LandmarkInput::onDebugImageClick(const geometry_msgs::PointStamped::ConstPt
                        static_cast<float>((pixel->point.y + 0.5) / k - 0.5));
   }
   std::string message;
-  if (give(clickName(), nullptr, &rect, "clicked", false, &message))
+  if (give(clickName(), nullptr, &rect, cect::LandmarkSource::kGivenClick, false, &message))
     ROS_INFO_STREAM_NAMED(log_name_, message);
   else
     ROS_WARN_STREAM_NAMED(log_name_, "ignored the click on the debug image: " << message);
@@ -148,7 +150,7 @@ bool LandmarkInput::onSkin(const View& view, const cv::Point2f& pixel, const Eig
 }
 
 bool LandmarkInput::give(const std::string& requested, const geometry_msgs::PointStamped* point,
-                         const cv::Point2f* rect, const std::string& source, bool confirm, std::string* message) {
+                         const cv::Point2f* rect, cect::LandmarkSource source, bool confirm, std::string* message) {
   const View view = latest_();
   if (!view.frame) {
     *message = "no stereo pair analysed yet: a landmark needs the camera's view";

@@ -61,7 +61,7 @@ class LandmarkInput {
   /// point in any frame (`point`, on the measured skin) or at a rectified pixel of the latest pair (`rect`). False with
   /// `message` saying why; else `message` says what was set.
   bool give(const std::string& name, const geometry_msgs::PointStamped* point, const cv::Point2f* rect,
-            const std::string& source, bool confirm, std::string* message);
+            cect::LandmarkSource source, bool confirm, std::string* message);
   /// The name set for the next click (~click_landmark, then deleted), or empty.
   std::string clickName();
   /// Whether the 3D point `p` (left camera) at rectified `pixel` lies on the skin `view` measured there.

@@ -198,23 +198,8 @@ tools::Scenario scenarioFor(const Options& o, const Condition& c, int subject) {
 struct Stats {
   int queried = 0;
   std::vector<double> errors_mm;  ///< localised points only
-  double mean() const {
-    if (errors_mm.empty()) return std::nan("");
-    double s = 0;
-    for (double e : errors_mm) s += e;
-    return s / static_cast<double>(errors_mm.size());
-  }
-  double max() const {
-    return errors_mm.empty() ? std::nan("") : *std::max_element(errors_mm.begin(), errors_mm.end());
-  }
-  /// The q-quantile of the errors (nearest rank).
-  double quantile(double q) const {
-    if (errors_mm.empty()) return std::nan("");
-    std::vector<double> v = errors_mm;
-    const auto k = static_cast<std::size_t>(std::min(v.size() - 1.0, std::max(0.0, std::ceil(q * v.size()) - 1.0)));
-    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-    return v[k];
-  }
+  /// Mean, p95 (nearest rank) and max of the errors (cect/evaluation.h); NaN each when none.
+  cect::Spread spread() const { return cect::spreadOf(errors_mm); }
   double accRate() const {
     if (queried == 0) return std::nan("");
     return static_cast<double>(std::count_if(errors_mm.begin(), errors_mm.end(), [](double e) { return e < 10.0; })) /
@@ -275,18 +260,25 @@ const std::vector<std::pair<double, std::string>>& borderBands() {
 
 struct PairResult {
   std::map<std::string, Stats> stats;      ///< "cect/acupoints", "sgbm/random", ...
-  Stats model;                             ///< placed vs anatomical acupoints
   std::map<std::string, Stats> per_point;  ///< CECT on each acupoint (by name)
   std::map<std::string, Stats> border;     ///< --by-border: "cect/<band>", "sgbm/<band>"
   double cect_ms = 0.0, sgbm_ms = 0.0;
-  std::string failure;         ///< CECT's reason when the frame was not usable
-  int in_view = 0;             ///< acupoints in view (the simulator's truth)
-  int placed_in_view = 0;      ///< ... of them placed and localised
-  int placed_out_of_view = 0;  ///< acupoints placed and localised though not in view
-  cect::PairScore score;       ///< the landmarks and the layout against the anatomy (cect/evaluation.h)
-  cect::LayoutCheck check;     ///< the layout's plausibility as the chain judged it
-  std::string landmarks;       ///< describeLandmarks
+  std::string failure;  ///< CECT's reason when the frame was not usable
+  /// The landmarks, the layout (placed vs anatomical acupoints) and the acupoints in view against the anatomy
+  /// (cect/evaluation.h)
+  cect::PairScore score;
+  cect::LayoutCheck check;  ///< the layout's plausibility as the chain judged it
+  std::string landmarks;    ///< describeLandmarks
 };
+
+/// A pair's layout error as Stats: every placed acupoint in view (published valid or not), its pixel's surface point
+/// against the anatomical acupoint (PairScore::layout_mm), of the acupoints in view.
+Stats layoutStats(const cect::PairScore& score) {
+  Stats st;
+  st.queried = score.in_view;
+  for (const auto& [name, mm] : score.layout_mm) st.errors_mm.push_back(mm);
+  return st;
+}
 
 /// --pictures: one pair's picture (see the usage).
 void writePicture(const Options& o, const Condition& c, int subject, const cect::CectFrame& f,
@@ -504,30 +496,18 @@ void scoreByBorder(const Options& o, const sim::StereoFrame& frame, const camera
     std::tie(res->border["cect/" + band], res->border["sgbm/" + band]) = scorer.score(qs, static_cast<int>(qs.size()));
 }
 
-/// The acupoints in view (the simulator's truth): how many the chain gave, the layout's error there (the placed
-/// pixel's surface point against the anatomical acupoint), and the queries at their true pixels.
-std::vector<Query> scorePlacement(const cect::LocatedAcupoints& result,
-                                  const std::map<std::string, sim::PointTruth>& seen,
-                                  const std::map<std::string, Eigen::Vector3d>& anatomical,
-                                  const camera::StereoModel& geometry, const Scorer& scorer, PairResult* res) {
+/// The depth scorer's queries at the true pixels of the model's acupoints in view (the simulator's truth), in the
+/// order of the chain's points.
+std::vector<Query> trueAcupointQueries(const cect::LocatedAcupoints& result,
+                                       const std::map<std::string, sim::PointTruth>& seen,
+                                       const camera::StereoModel& geometry) {
   std::vector<Query> given;
   for (const cect::LocatedAcupoint& a : result.points) {
     const auto t = seen.find(a.name);
-    if (t == seen.end()) continue;
-    if (!t->second.in_view) {
-      res->placed_out_of_view += a.valid ? 1 : 0;
-      continue;
-    }
-    ++res->in_view;
-    res->placed_in_view += a.valid ? 1 : 0;
+    if (t == seen.end() || !t->second.in_view) continue;
     const cv::Point2f raw(static_cast<float>(t->second.left_pixel.x()), static_cast<float>(t->second.left_pixel.y()));
     given.push_back(Query{geometry.toRectified(raw), nullptr, {}});
-    const auto it = anatomical.find(a.name);
-    Eigen::Vector3d gt;
-    if (!a.placed || it == anatomical.end() || !scorer.truth(a.rectified, &gt)) continue;
-    res->model.errors_mm.push_back(1000.0 * (gt - it->second).norm());
   }
-  res->model.queried = res->in_view;
   return given;
 }
 
@@ -555,7 +535,8 @@ std::vector<cect::GivenLandmark> clickedLandmarks(const RenderedPair& r, const c
     if (std::find(names.begin(), names.end(), name) == names.end()) continue;
     const Eigen::Vector3d p = levels.at(name) + radius * Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.0);
     const Eigen::Vector3d q = geometry.project(p);
-    out.push_back({name, cv::Point2f(static_cast<float>(q.x()), static_cast<float>(q.y())), "clicked"});
+    out.push_back(
+        {name, cv::Point2f(static_cast<float>(q.x()), static_cast<float>(q.y())), cect::LandmarkSource::kGivenClick});
   }
   return out;
 }
@@ -631,13 +612,13 @@ PairResult evaluatePair(const Options& o, const Condition& c, int subject, const
   std::tie(res.stats["cect/random"], res.stats["sgbm/random"]) = scorer.score(rnd, static_cast<int>(rnd.size()));
   if (o.by_border) scoreByBorder(o, frame, geometry, scorer, &res);
 
-  // Model placement against the anatomical acupoints.
+  // The landmarks and the model's placement against the anatomy; the depth at the true acupoint pixels.
   auto turned = r.back->acupoints();
   for (auto& [name, point] : turned) point = r.turn * point;
   const auto anatomical = sim::toCameraFrame(turned, r.pair.left);
   const auto seen = sim::acupointTruth(turned, r.pair, frame);
-  const std::vector<Query> given = scorePlacement(result, seen, anatomical, geometry, scorer, &res);
   res.score = cect::scorePair(result, model, geometry, backTruth(r, seen, anatomical, scorer));
+  const std::vector<Query> given = trueAcupointQueries(result, seen, geometry);
   std::tie(res.stats["cect/given"], res.stats["sgbm/given"]) = scorer.score(given, static_cast<int>(given.size()));
   std::tie(res.stats["cect/near_arms"], res.stats["sgbm/near_arms"]) =
       scorer.score(near_arms, static_cast<int>(near_arms.size()));
@@ -655,20 +636,14 @@ std::string fmt(double v, int prec = 2) {
   return s.str();
 }
 
-double medianOf(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
 /// One condition's line of the closing table.
 struct SummaryRow {
   std::string condition;
-  int in_view = 0, placed_in_view = 0, placed_out_of_view = 0;
+  int in_view = 0, valid_in_view = 0, valid_out_of_view = 0;  ///< over every pair (published or not)
   Stats layout, given, sgbm_given, near_arms;
   double cect_ms = 0.0;
   cect::ScoreSummary landmarks;
-  double placedShare() const { return in_view ? 100.0 * placed_in_view / in_view : std::nan(""); }
+  double placedShare() const { return in_view ? 100.0 * valid_in_view / in_view : std::nan(""); }
 };
 
 /// The closing table: per condition, the acupoints in view and placed, the
@@ -683,13 +658,14 @@ void printSummary(const std::vector<SummaryRow>& rows) {
             << "sgbm<1cm" << std::setw(10) << "arms mm" << std::setw(10) << "arms<1cm" << std::setw(8) << "ms"
             << "\n";
   for (const SummaryRow& r : rows) {
+    const cect::Spread layout = r.layout.spread(), given = r.given.spread();
     std::cout << std::left << std::setw(18) << r.condition << std::right << std::setw(8) << r.in_view << std::setw(9)
-              << fmt(r.placedShare(), 1) << std::setw(8) << r.placed_out_of_view << std::setw(12)
-              << fmt(r.layout.mean(), 1) << std::setw(10) << fmt(r.layout.quantile(0.95), 1) << std::setw(11)
-              << fmt(r.given.mean()) << std::setw(10) << fmt(r.given.quantile(0.95)) << std::setw(8)
-              << fmt(100.0 * r.given.accRate(), 1) << "%" << std::setw(9) << fmt(100.0 * r.sgbm_given.accRate(), 1)
-              << "%" << std::setw(10) << fmt(r.near_arms.mean()) << std::setw(9)
-              << fmt(100.0 * r.near_arms.accRate(), 1) << "%" << std::setw(8) << fmt(r.cect_ms, 1) << "\n";
+              << fmt(r.placedShare(), 1) << std::setw(8) << r.valid_out_of_view << std::setw(12) << fmt(layout.mean, 1)
+              << std::setw(10) << fmt(layout.p95, 1) << std::setw(11) << fmt(given.mean) << std::setw(10)
+              << fmt(given.p95) << std::setw(8) << fmt(100.0 * r.given.accRate(), 1) << "%" << std::setw(9)
+              << fmt(100.0 * r.sgbm_given.accRate(), 1) << "%" << std::setw(10) << fmt(r.near_arms.spread().mean)
+              << std::setw(9) << fmt(100.0 * r.near_arms.accRate(), 1) << "%" << std::setw(8) << fmt(r.cect_ms, 1)
+              << "\n";
   }
 }
 
@@ -699,7 +675,7 @@ void printLandmarkSummary(const std::vector<SummaryRow>& rows) {
   std::cout
       << "\nLandmarks against the anatomy (published pairs; mean / p95 mm along the body; spine line mean mm across;\n"
          "layout = their acupoints against the anatomical ones, mean / p95 mm; refused = pairs not published;\n"
-         "wrong = published with a level more than "
+         "wrong = published with a level along the body or the spine line across it more than "
       << fmt(cect::PairScore::kWrongLevelMm, 0) << " mm off)\n"
       << std::left << std::setw(18) << "condition" << std::right << std::setw(14) << "C7" << std::setw(14) << "T7"
       << std::setw(14) << "L4" << std::setw(8) << "spine" << std::setw(14) << "layout" << std::setw(10) << "refused"
@@ -751,8 +727,10 @@ std::vector<Condition> conditionsOf(const Options& o) {
 /// One condition's pairs added up.
 struct ConditionResult {
   std::map<std::string, Stats> total, per_point, border;
-  Stats model_total;
-  int in_view = 0, placed_in_view = 0, placed_out_of_view = 0;
+  /// The layout and the acupoints in view over every pair, published or not (the pairs' PairScores added up;
+  /// ScoreSummary's are over the published pairs)
+  Stats layout;
+  int in_view = 0, valid_in_view = 0, valid_out_of_view = 0;
   std::vector<double> cect_ms, sgbm_ms;
   std::vector<std::string> failures;
   std::vector<cect::PairScore> scores;  ///< per pair: landmarks, layout, trust
@@ -769,16 +747,17 @@ ConditionResult evaluateCondition(const Options& o, const Condition& c, const ce
       if (o.csv) {
         const auto slash = key.find('/');
         std::cout << c.name << "," << s << "," << key.substr(0, slash) << "," << key.substr(slash + 1) << ","
-                  << fmt(st.mean(), 3) << "," << fmt(st.max(), 3) << "," << fmt(st.accRate(), 4) << "\n";
+                  << fmt(st.spread().mean, 3) << "," << fmt(st.spread().max, 3) << "," << fmt(st.accRate(), 4) << "\n";
       }
     }
-    cr.model_total.add(r.model);
+    const Stats layout = layoutStats(r.score);
+    cr.layout.add(layout);
     if (o.csv)
-      std::cout << c.name << "," << s << ",model,layout," << fmt(r.model.mean(), 3) << "," << fmt(r.model.max(), 3)
-                << "," << fmt(r.model.accRate(), 4) << "\n";
-    cr.in_view += r.in_view;
-    cr.placed_in_view += r.placed_in_view;
-    cr.placed_out_of_view += r.placed_out_of_view;
+      std::cout << c.name << "," << s << ",model,layout," << fmt(layout.spread().mean, 3) << ","
+                << fmt(layout.spread().max, 3) << "," << fmt(layout.accRate(), 4) << "\n";
+    cr.in_view += r.score.in_view;
+    cr.valid_in_view += r.score.valid_in_view;
+    cr.valid_out_of_view += r.score.valid_out_of_view;
     for (const auto& [name, st] : r.per_point) cr.per_point[name].add(st);
     for (const auto& [key, st] : r.border) cr.border[key].add(st);
     cr.scores.push_back(r.score);
@@ -814,7 +793,8 @@ void printLandmarks(const std::string& condition, const cect::ScoreSummary& l) {
   std::cout << " spine line across " << spreadText(l.midline_across) << "\n"
             << std::setw(18) << ""
             << "refused " << l.refused << " of " << l.pairs << " pairs (" << l.refused_wrong << " of them > "
-            << fmt(cect::PairScore::kWrongLevelMm, 0) << " mm off); wrongly trusted (published, a level > "
+            << fmt(cect::PairScore::kWrongLevelMm, 0)
+            << " mm off); wrongly trusted (published, a level along the body or the spine line across it > "
             << fmt(cect::PairScore::kWrongLevelMm, 0) << " mm off) " << l.wrongly_trusted << "\n";
 }
 
@@ -823,35 +803,38 @@ void printLandmarks(const std::string& condition, const cect::ScoreSummary& l) {
 SummaryRow printCondition(const Condition& c, ConditionResult& cr) {
   for (const auto& [key, st] : cr.total) {
     const auto slash = key.find('/');
+    const cect::Spread e = st.spread();
     std::cout << std::left << std::setw(18) << c.name << std::setw(8) << key.substr(0, slash) << std::setw(11)
               << key.substr(slash + 1) << std::right << std::setw(8) << st.queried << std::setw(8) << validShare(st)
-              << std::setw(9) << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(9)
-              << fmt(st.quantile(0.95)) << std::setw(8) << fmt(100.0 * st.accRate(), 1) << "%\n";
+              << std::setw(9) << fmt(e.mean) << std::setw(9) << fmt(e.max) << std::setw(9) << fmt(e.p95) << std::setw(8)
+              << fmt(100.0 * st.accRate(), 1) << "%\n";
   }
+  const cect::Spread layout = cr.layout.spread(), cect_ms = cect::spreadOf(cr.cect_ms),
+                     sgbm_ms = cect::spreadOf(cr.sgbm_ms);
   std::cout << std::left << std::setw(18) << c.name << "model placement vs anatomical acupoints: mean "
-            << fmt(cr.model_total.mean(), 1) << " mm, max " << fmt(cr.model_total.max(), 1) << " mm; CECT "
-            << fmt(medianOf(cr.cect_ms), 1) << " ms median (max "
-            << fmt(*std::max_element(cr.cect_ms.begin(), cr.cect_ms.end()), 1) << "), SGBM "
-            << fmt(medianOf(cr.sgbm_ms), 1) << " ms; " << c.subjects.size() << " subjects\n";
+            << fmt(layout.mean, 1) << " mm, max " << fmt(layout.max, 1) << " mm; CECT " << fmt(cect_ms.median, 1)
+            << " ms median (max " << fmt(cect_ms.max, 1) << "), SGBM " << fmt(sgbm_ms.median, 1) << " ms; "
+            << c.subjects.size() << " subjects\n";
   const Stats& g = cr.total["cect/given"];
   const Stats& sg = cr.total["sgbm/given"];
-  SummaryRow row{c.name, cr.in_view, cr.placed_in_view,          cr.placed_out_of_view, cr.model_total,
-                 g,      sg,         cr.total["cect/near_arms"], medianOf(cr.cect_ms),  cect::summarise(cr.scores)};
+  const cect::Spread ge = g.spread();
+  SummaryRow row{c.name, cr.in_view, cr.valid_in_view,           cr.valid_out_of_view, cr.layout,
+                 g,      sg,         cr.total["cect/near_arms"], cect_ms.median,       cect::summarise(cr.scores)};
   printLandmarks(c.name, row.landmarks);
   std::cout << std::left << std::setw(18) << c.name << "acupoints in view " << cr.in_view << ": "
-            << fmt(row.placedShare(), 1) << " % placed (" << cr.placed_out_of_view
-            << " placed though out of view); layout vs anatomical mean " << fmt(cr.model_total.mean(), 1) << " mm, p95 "
-            << fmt(cr.model_total.quantile(0.95), 1) << " mm\n"
+            << fmt(row.placedShare(), 1) << " % placed (" << cr.valid_out_of_view
+            << " placed though out of view); layout vs anatomical mean " << fmt(layout.mean, 1) << " mm, p95 "
+            << fmt(layout.p95, 1) << " mm\n"
             << std::setw(18) << ""
-            << "at the true acupoint pixels: CECT mean " << fmt(g.mean()) << " mm, p95 " << fmt(g.quantile(0.95))
-            << ", " << fmt(100.0 * g.accRate(), 1) << " % within 1 cm; SGBM mean " << fmt(sg.mean()) << " mm, "
+            << "at the true acupoint pixels: CECT mean " << fmt(ge.mean) << " mm, p95 " << fmt(ge.p95) << ", "
+            << fmt(100.0 * g.accRate(), 1) << " % within 1 cm; SGBM mean " << fmt(sg.spread().mean) << " mm, "
             << fmt(100.0 * sg.accRate(), 1) << " % within 1 cm\n";
   for (const auto& f : cr.failures) std::cout << "  CECT failed on " << f << "\n";
   const Stats& a = cr.total["cect/acupoints"];
   const Stats& r = cr.total["cect/random"];
   std::cout << std::left << std::setw(18) << c.name << "CECT's disparity sigma: acupoints median "
-            << fmt(medianOf(a.sigma_px)) << " px, " << fmt(100.0 * a.within2Sigma(), 1)
-            << " % of their errors within 2 sigma; random points " << fmt(medianOf(r.sigma_px)) << " px, "
+            << fmt(cect::spreadOf(a.sigma_px).median) << " px, " << fmt(100.0 * a.within2Sigma(), 1)
+            << " % of their errors within 2 sigma; random points " << fmt(cect::spreadOf(r.sigma_px).median) << " px, "
             << fmt(100.0 * r.within2Sigma(), 1) << " %\n";
   return row;
 }
@@ -869,9 +852,9 @@ void printBorderBands(const std::map<std::string, Stats>& border) {
       if (it == border.end()) continue;
       const Stats& st = it->second;
       std::cout << "  " << std::left << std::setw(10) << band << std::setw(8) << method << std::right << std::setw(8)
-                << st.queried << std::setw(8) << validShare(st) << std::setw(9) << fmt(st.mean()) << std::setw(9)
-                << fmt(st.max()) << std::setw(8) << fmt(100.0 * st.accRate(), 1) << "%" << std::setw(10)
-                << fmt(medianOf(st.sigma_px)) << std::setw(8) << fmt(100.0 * st.within2Sigma(), 1)
+                << st.queried << std::setw(8) << validShare(st) << std::setw(9) << fmt(st.spread().mean) << std::setw(9)
+                << fmt(st.spread().max) << std::setw(8) << fmt(100.0 * st.accRate(), 1) << "%" << std::setw(10)
+                << fmt(cect::spreadOf(st.sigma_px).median) << std::setw(8) << fmt(100.0 * st.within2Sigma(), 1)
                 << (st.z.empty() ? " " : "%") << "\n";
     }
 }
@@ -887,8 +870,8 @@ void printPerPoint(const std::map<std::string, Stats>& per_point, const cect::Ac
     if (it == per_point.end()) continue;
     const Stats& st = it->second;
     std::cout << "  " << std::left << std::setw(14) << name << std::right << std::setw(8) << st.queried << std::setw(8)
-              << validShare(st) << std::setw(9) << fmt(st.mean()) << std::setw(9) << fmt(st.max()) << std::setw(8)
-              << fmt(100.0 * st.accRate(), 1) << "%  " << st.commonestMiss() << "\n";
+              << validShare(st) << std::setw(9) << fmt(st.spread().mean) << std::setw(9) << fmt(st.spread().max)
+              << std::setw(8) << fmt(100.0 * st.accRate(), 1) << "%  " << st.commonestMiss() << "\n";
   }
 }
 

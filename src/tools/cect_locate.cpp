@@ -252,8 +252,8 @@ LandmarkSummary summarise(const cect::LocatedAcupoints& located, const ToRaw& to
   s.inferred = lm.inferred;
   s.given = lm.given;
   auto image = [&](const cv::Point2f& body) { return to_raw(cect::toImage(lm, body)); };
-  s.points = {{"c7", image(lm.c7)},
-              {"l4", image(lm.l4)},
+  s.points = {{"c7", image(lm.c7.body)},
+              {"l4", image(lm.l4.body)},
               {"shoulder_line", image(midlinePoint(lm, lm.shoulder_row))},
               {"waist_line", image(midlinePoint(lm, lm.waist_row))},
               {"iliac_line", image(midlinePoint(lm, lm.iliac_row))}};
@@ -756,7 +756,7 @@ tools::OptionTable optionTable(Options& o) {
     o.landmarks.push_back({name,
                            cv::Point2f(static_cast<float>(tools::parseDouble(opt + " " + name, uv[0])),
                                        static_cast<float>(tools::parseDouble(opt + " " + name, uv[1]))),
-                           "--landmark", uv.size() == 3});
+                           cect::LandmarkSource::kGivenOption, uv.size() == 3});
   };
   return t;
 }

@@ -22,14 +22,14 @@ cect::BackLandmarks straightBack() {
     l.midline.emplace_back(320.0f, static_cast<float>(y));
     l.lateral.emplace_back(-1.0f, 0.0f);
   }
-  l.c7 = {320.0f, 100.0f};
-  l.l4 = {320.0f, 300.0f};
+  l.c7.body = {320.0f, 100.0f};
+  l.l4.body = {320.0f, 300.0f};
   l.shoulder_row = 130;
   l.shoulder_width = 180;
   l.waist_row = 260;
   l.measured = {"C7 at the neck's base", "the waist"};
-  l.c7_at_neck = true;
-  l.waist_measured = true;
+  l.c7.detail = cect::kFromNeckBase;
+  l.l4.source = cect::LandmarkSource::kMeasured;
   return l;
 }
 

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "../../src/cect/stats_detail.h"  // the library's private statistics (one quantile for CECT and its tools)
 #include "massage_cell/cect/evaluation.h"
 
 using namespace massage_cell;
@@ -67,8 +68,8 @@ cect::LocatedAcupoints result(double dx, double c7_row, double l4_row, bool publ
     lm.midline.emplace_back(static_cast<float>(kCx + dx), static_cast<float>(y));
     lm.lateral.emplace_back(-1.0f, 0.0f);
   }
-  lm.c7 = cv::Point2f(static_cast<float>(kCx + dx), static_cast<float>(c7_row));
-  lm.l4 = cv::Point2f(static_cast<float>(kCx + dx), static_cast<float>(l4_row));
+  lm.c7.body = cv::Point2f(static_cast<float>(kCx + dx), static_cast<float>(c7_row));
+  lm.l4.body = cv::Point2f(static_cast<float>(kCx + dx), static_cast<float>(l4_row));
   const cect::AcupointModel m = model();
   for (const cect::AcupointSpec& spec : m.points) {
     cect::LocatedAcupoint a;
@@ -182,6 +183,21 @@ TEST(CectEvaluation, SpreadIsOfMagnitudesWithTheNearestRankP95) {
 }
 
 }  // namespace
+
+TEST(CectStatistics, OneQuantileWithEachCallersIndexConvention) {
+  using cect::detail::quantile;
+  using Index = cect::detail::QuantileIndex;
+  const std::vector<double> v{5, 1, 4, std::nan(""), 2, 3};  // the NaN is left out: n = 5
+  EXPECT_EQ(quantile(v, 0.95, Index::kNearestRank), 5.0);    // ceil(0.95 * 5) - 1 = 4
+  EXPECT_EQ(quantile(v, 0.95, Index::kFloorOfSpan), 4.0);    // floor(0.95 * 4) = 3
+  EXPECT_EQ(quantile(v, 0.95, Index::kRoundedOfSpan), 5.0);  // floor(3.8 + 0.5) = 4
+  EXPECT_EQ(quantile(v, 0.4, Index::kNearestRank), 2.0);     // ceil(2) - 1 = 1
+  EXPECT_EQ(quantile(v, 0.4, Index::kRoundedOfSpan), 3.0);   // floor(1.6 + 0.5) = 2
+  EXPECT_EQ(quantile(v, 0.0, Index::kNearestRank), 1.0);     // clamped to the first
+  EXPECT_EQ(quantile(v, 1.0, Index::kFloorOfSpan), 5.0);
+  EXPECT_TRUE(std::isnan(quantile(std::vector<double>{std::nan("")}, 0.5)));
+  EXPECT_EQ(cect::detail::median(v), 3.0);
+}
 
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);

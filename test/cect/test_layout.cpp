@@ -26,13 +26,13 @@ cect::BackLandmarks back(double l4_row = 300.0, double lean = 0.0) {
   auto at = [&](double row) {
     return cv::Point2f(static_cast<float>(320.0 + lean * (row - 40)), static_cast<float>(row));
   };
-  l.c7 = at(100);
-  l.l4 = at(l4_row);
+  l.c7.body = at(100);
+  l.l4.body = at(l4_row);
   l.shoulder_row = 130;
   l.shoulder_width = 180;
   l.waist_row = 100 + 0.8 * (l4_row - 100);
   l.measured = {"C7 at the neck's base", "the waist"};
-  l.c7_at_neck = true;
+  l.c7.detail = cect::kFromNeckBase;
   return l;
 }
 
@@ -51,14 +51,15 @@ TEST(GivenLandmarks, TheLevelsAndTheMidlinePassThroughTheGivenPixels) {
   cect::BackLandmarks l = back();
   l.along.assign(l.midline.size(), 0.0);
   const std::string problem =
-      cect::applyGivenLandmarks(&l, {{"C7", {330.0f, 110.0f}, "clicked"}, {"L4", {310.0f, 290.0f}, "service"}});
+      cect::applyGivenLandmarks(&l, {{"C7", {330.0f, 110.0f}, cect::LandmarkSource::kGivenClick},
+                                     {"L4", {310.0f, 290.0f}, cect::LandmarkSource::kGivenService}});
   ASSERT_EQ(problem, "");
-  EXPECT_NEAR(l.c7.x, 330.0, 1e-3);
-  EXPECT_NEAR(l.c7.y, 110.0, 1e-3);
-  EXPECT_NEAR(l.l4.x, 310.0, 1e-3);
-  EXPECT_NEAR(l.l4.y, 290.0, 1e-3);
-  EXPECT_TRUE(l.c7_given);
-  EXPECT_TRUE(l.l4_given);
+  EXPECT_NEAR(l.c7.body.x, 330.0, 1e-3);
+  EXPECT_NEAR(l.c7.body.y, 110.0, 1e-3);
+  EXPECT_NEAR(l.l4.body.x, 310.0, 1e-3);
+  EXPECT_NEAR(l.l4.body.y, 290.0, 1e-3);
+  EXPECT_TRUE(l.c7.given());
+  EXPECT_TRUE(l.l4.given());
   EXPECT_TRUE(l.along.empty());  // measured from the old C7
   // The midline: through both, linear between (T7 at 36 % of the way), constant beyond.
   const cect::AcupointModel m = model();
@@ -83,7 +84,8 @@ TEST(GivenLandmarks, BothGivenMakeTheSpineLineStraightBetweenThem) {
     if (std::abs(u) < 1.0) m.x += static_cast<float>(15.0 * (1.0 - u * u));
   }
   const float above = l.midline.front().x, below = l.midline.back().x;  // rows 40 and 420: outside the bow
-  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", {326.0f, 100.0f}, "marker"}, {"L4", {314.0f, 300.0f}, "marker"}}),
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", {326.0f, 100.0f}, cect::LandmarkSource::kGivenMarker},
+                                           {"L4", {314.0f, 300.0f}, cect::LandmarkSource::kGivenMarker}}),
             "");
   double worst = 0.0;
   for (std::size_t i = 0; i < l.midline.size(); ++i) {
@@ -110,8 +112,8 @@ TEST(GivenLandmarks, AGivenT7SpacesTheLevelsOnEachSideOfItByTheModel) {
   m.level_fraction["T12"] = 0.68;
   m.level_fraction["L5"] = 1.1;
   cect::BackLandmarks l = back();
-  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"T7", {326.0f, 190.0f}, "marker"}}), "");
-  EXPECT_FALSE(l.c7_given || l.l4_given);
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"T7", {326.0f, 190.0f}, cect::LandmarkSource::kGivenMarker}}), "");
+  EXPECT_FALSE(l.c7.given() || l.l4.given());
   ASSERT_EQ(l.given_levels.size(), 1u);
   EXPECT_EQ(l.given_levels[0].level, "T7");
   EXPECT_NEAR(cect::levelPixel(l, m, "T7").y, 190.0, 1e-3);
@@ -124,12 +126,12 @@ TEST(GivenLandmarks, AGivenT7SpacesTheLevelsOnEachSideOfItByTheModel) {
   EXPECT_NEAR(cect::levelPixel(l, m, "T3").x, 326.0, 1e-3);
   const std::vector<cect::LayoutLandmark> named = cect::layoutLandmarks(l);
   ASSERT_EQ(named.size(), 3u);
-  EXPECT_EQ(named[0].name, "C7");
-  EXPECT_EQ(named[1].name, "T7");
-  EXPECT_EQ(named[1].source, "given");
-  EXPECT_EQ(named[1].detail, "marker");
+  EXPECT_EQ(named[0].landmark.level, "C7");
+  EXPECT_EQ(named[1].landmark.level, "T7");
+  EXPECT_EQ(cect::sourceName(named[1].landmark.source), "given");
+  EXPECT_EQ(cect::landmarkDetail(named[1].landmark), "marker");
   EXPECT_NEAR(named[1].pixel.y, 190.0, 1e-3);
-  EXPECT_EQ(named[2].name, "L4");
+  EXPECT_EQ(named[2].landmark.level, "L4");
   // Its layout uncertainty along the body is the given one's at T7, between C7's and L4's elsewhere.
   const double at_t7 = std::sqrt(cect::layoutCovariance(l, m, "T7", 0.002)(1, 1));
   const double at_t12 = std::sqrt(cect::layoutCovariance(l, m, "T12", 0.002)(1, 1));
@@ -139,8 +141,9 @@ TEST(GivenLandmarks, AGivenT7SpacesTheLevelsOnEachSideOfItByTheModel) {
 
 TEST(GivenLandmarks, ThreeGivenMakeTheSpineLineStraightBetweenEachPair) {
   cect::BackLandmarks l = back();
-  ASSERT_EQ(cect::applyGivenLandmarks(
-                &l, {{"C7", {320.0f, 100.0f}, ""}, {"L4", {320.0f, 300.0f}, ""}, {"T7", {330.0f, 170.0f}, ""}}),
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", {320.0f, 100.0f}, cect::LandmarkSource::kGiven},
+                                           {"L4", {320.0f, 300.0f}, cect::LandmarkSource::kGiven},
+                                           {"T7", {330.0f, 170.0f}, cect::LandmarkSource::kGiven}}),
             "");
   for (std::size_t i = 0; i < l.midline.size(); ++i) {
     const cv::Point2f& m = l.midline[i];
@@ -156,28 +159,66 @@ TEST(GivenLandmarks, ThreeGivenMakeTheSpineLineStraightBetweenEachPair) {
       << cect::describeLandmarks(l);
 }
 
+TEST(GivenLandmarks, TheRecordSaysWhereEachLandmarkCameFrom) {
+  // C7 given by a skin marker (with its raw pixel and, from the back's 3D, its point), L4 as the pair measured it.
+  cect::BackLandmarks l = back();
+  cect::GivenLandmark marker("C7", {324.0f, 104.0f}, cect::LandmarkSource::kGivenMarker);
+  marker.raw_pixel = {650.0f, 210.0f};
+  const cect::PointLookup point = [](const cv::Point2f& q, cv::Point3d* p) {
+    *p = cv::Point3d(q.x * 0.002, q.y * 0.002, 1.0);
+    return true;
+  };
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {marker}, point), "");
+  EXPECT_EQ(l.c7.level, "C7");
+  EXPECT_EQ(l.c7.source, cect::LandmarkSource::kGivenMarker);
+  EXPECT_TRUE(l.c7.given());
+  EXPECT_TRUE(l.c7.detail.empty());
+  EXPECT_EQ(l.c7.raw_pixel, cv::Point2f(650.0f, 210.0f));
+  EXPECT_NEAR(l.c7.point.y, 104.0 * 0.002, 1e-6);
+  EXPECT_EQ(l.l4.source, cect::LandmarkSource::kMeasured);
+  EXPECT_FALSE(l.l4.given());
+  EXPECT_EQ(l.l4.detail, "the waist");
+  EXPECT_TRUE(std::isnan(l.l4.raw_pixel.x));
+  EXPECT_DOUBLE_EQ(cect::layoutSigma(model(), l.c7), model().layout_sigma.c7_given);
+  EXPECT_DOUBLE_EQ(cect::layoutSigma(model(), l.l4), model().layout_sigma.l4_measured);
+  const std::string used = "used: C7 given (marker), L4 measured (the waist);";
+  EXPECT_NE(cect::describeLandmarks(l).find(used), std::string::npos) << cect::describeLandmarks(l);
+  // The description reads the record, not the printed list of given landmarks ...
+  l.given = {"C7 (clicked)", "L4 (service)"};
+  EXPECT_NE(cect::describeLandmarks(l).find(used), std::string::npos) << cect::describeLandmarks(l);
+  // ... and follows it.
+  l.c7.source = cect::LandmarkSource::kGivenClick;
+  l.l4.source = cect::LandmarkSource::kInferred;
+  l.l4.detail = cect::kFromShoulderWidth;
+  EXPECT_NE(cect::describeLandmarks(l).find("used: C7 given (clicked), L4 inferred (C7 and the shoulder width);"),
+            std::string::npos)
+      << cect::describeLandmarks(l);
+}
+
 TEST(GivenLandmarks, OneGivenShiftsTheMidlineAndKeepsTheOther) {
   cect::BackLandmarks l = back();
-  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", {324.0f, 92.0f}, ""}}), "");
-  EXPECT_NEAR(l.c7.y, 92.0, 1e-3);
-  EXPECT_NEAR(l.l4.y, 300.0, 1e-3);
-  EXPECT_NEAR(l.l4.x, 324.0, 1e-3);
-  EXPECT_TRUE(l.c7_given);
-  EXPECT_FALSE(l.l4_given);
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", {324.0f, 92.0f}, cect::LandmarkSource::kGiven}}), "");
+  EXPECT_NEAR(l.c7.body.y, 92.0, 1e-3);
+  EXPECT_NEAR(l.l4.body.y, 300.0, 1e-3);
+  EXPECT_NEAR(l.l4.body.x, 324.0, 1e-3);
+  EXPECT_TRUE(l.c7.given());
+  EXPECT_FALSE(l.l4.given());
 }
 
 TEST(GivenLandmarks, APalpatedC7JustAboveTheSilhouettesTopExtendsTheMidline) {
   cect::BackLandmarks l = back(300.0, 0.05);  // the midline leans 0.05 px a row; its top is row 40
   const std::size_t before = l.midline.size();
-  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", {317.0f, 20.0f}, ""}}), "");  // 20 rows above its top
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", {317.0f, 20.0f}, cect::LandmarkSource::kGiven}}),
+            "");  // 20 rows above its top
   EXPECT_EQ(l.midline.size(), before + 20);
   EXPECT_NEAR(l.midline.front().y, 20.0, 1e-3);
-  EXPECT_NEAR(l.c7.x, 317.0, 1e-3);
-  EXPECT_NEAR(l.c7.y, 20.0, 1e-3);
+  EXPECT_NEAR(l.c7.body.x, 317.0, 1e-3);
+  EXPECT_NEAR(l.c7.body.y, 20.0, 1e-3);
   EXPECT_EQ(l.lateral.size(), l.midline.size());
   // Farther than 15 % of C7 -> L4 (200 rows: 30 rows) beyond the back is not this back's C7.
   cect::BackLandmarks far = back();
-  EXPECT_NE(cect::applyGivenLandmarks(&far, {{"C7", {320.0f, 5.0f}, ""}}).find("not on the back's rows"),
+  EXPECT_NE(cect::applyGivenLandmarks(&far, {{"C7", {320.0f, 5.0f}, cect::LandmarkSource::kGiven}})
+                .find("not on the back's rows"),
             std::string::npos);
 }
 
@@ -186,8 +227,8 @@ TEST(GivenLandmarks, InATurnedBodyFrameTheGivenImagePixelIsKept) {
   const double a = 10.0 * M_PI / 180.0;  // body frame -> image: a rotation by 10 degrees and a shift
   l.to_image = cv::Matx23d(std::cos(a), -std::sin(a), 40.0, std::sin(a), std::cos(a), -20.0);
   const cv::Point2f c7_image = cect::toImage(l, cv::Point2f(318.0f, 104.0f));
-  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", c7_image, ""}}), "");
-  const cv::Point2f back_again = cect::toImage(l, l.c7);
+  ASSERT_EQ(cect::applyGivenLandmarks(&l, {{"C7", c7_image, cect::LandmarkSource::kGiven}}), "");
+  const cv::Point2f back_again = cect::toImage(l, l.c7.body);
   EXPECT_NEAR(back_again.x, c7_image.x, 1e-3);
   EXPECT_NEAR(back_again.y, c7_image.y, 1e-3);
 }
@@ -197,27 +238,38 @@ TEST(GivenLandmarks, BadLandmarksAreRefusedNamingTheProblemAndChangeNothing) {
   auto problem = [&](const std::vector<cect::GivenLandmark>& given) {
     cect::BackLandmarks l = before;
     const std::string p = cect::applyGivenLandmarks(&l, given);
-    EXPECT_EQ(l.c7, before.c7);
-    EXPECT_EQ(l.l4, before.l4);
+    EXPECT_EQ(l.c7.body, before.c7.body);
+    EXPECT_EQ(l.l4.body, before.l4.body);
     EXPECT_EQ(l.midline, before.midline);
-    EXPECT_FALSE(l.c7_given || l.l4_given);
+    EXPECT_FALSE(l.c7.given() || l.l4.given());
     return p;
   };
-  EXPECT_NE(problem({{"T3", {320.0f, 150.0f}, ""}}).find("unknown landmark 'T3' (one of: C7, T7, L4)"),
+  EXPECT_NE(problem({{"T3", {320.0f, 150.0f}, cect::LandmarkSource::kGiven}})
+                .find("unknown landmark 'T3' (one of: C7, T7, L4)"),
             std::string::npos);
-  EXPECT_NE(problem({{"T7", {320.0f, 320.0f}, ""}}).find("landmark T7 at (320.0, 320.0) is not between C7 and L4"),
+  EXPECT_NE(problem({{"T7", {320.0f, 320.0f}, cect::LandmarkSource::kGiven}})
+                .find("landmark T7 at (320.0, 320.0) is not between C7 and L4"),
             std::string::npos);
-  EXPECT_NE(problem({{"C7", {320.0f, 180.0f}, ""}, {"T7", {320.0f, 170.0f}, ""}}).find("not between C7 and L4"),
+  EXPECT_NE(problem({{"C7", {320.0f, 180.0f}, cect::LandmarkSource::kGiven},
+                     {"T7", {320.0f, 170.0f}, cect::LandmarkSource::kGiven}})
+                .find("not between C7 and L4"),
             std::string::npos);
-  EXPECT_NE(problem({{"C7", {320.0f, 100.0f}, ""}, {"C7", {320.0f, 110.0f}, ""}}).find("given twice"),
+  EXPECT_NE(problem({{"C7", {320.0f, 100.0f}, cect::LandmarkSource::kGiven},
+                     {"C7", {320.0f, 110.0f}, cect::LandmarkSource::kGiven}})
+                .find("given twice"),
             std::string::npos);
-  EXPECT_NE(problem({{"L4", {320.0f, 480.0f}, ""}}).find("not on the back's rows"), std::string::npos);
+  EXPECT_NE(problem({{"L4", {320.0f, 480.0f}, cect::LandmarkSource::kGiven}}).find("not on the back's rows"),
+            std::string::npos);
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  EXPECT_NE(problem({{"L4", {nan, 200.0f}, ""}}).find("not finite"), std::string::npos);
-  EXPECT_NE(problem({{"C7", {320.0f, 250.0f}, ""}, {"L4", {320.0f, 200.0f}, ""}}).find("not below C7"),
+  EXPECT_NE(problem({{"L4", {nan, 200.0f}, cect::LandmarkSource::kGiven}}).find("not finite"), std::string::npos);
+  EXPECT_NE(problem({{"C7", {320.0f, 250.0f}, cect::LandmarkSource::kGiven},
+                     {"L4", {320.0f, 200.0f}, cect::LandmarkSource::kGiven}})
+                .find("not below C7"),
             std::string::npos);
   cect::BackLandmarks none;
-  EXPECT_NE(cect::applyGivenLandmarks(&none, {{"C7", {320.0f, 100.0f}, ""}}).find("no landmarks"), std::string::npos);
+  EXPECT_NE(
+      cect::applyGivenLandmarks(&none, {{"C7", {320.0f, 100.0f}, cect::LandmarkSource::kGiven}}).find("no landmarks"),
+      std::string::npos);
   cect::BackLandmarks l = before;
   EXPECT_EQ(cect::applyGivenLandmarks(&l, {}), "");  // nothing given: nothing to do
   EXPECT_EQ(cect::checkGivenLandmarkName("L4"), "");
@@ -229,7 +281,7 @@ TEST(LayoutCheck, AGivenT7OffTheModelsProportionsIsUsedAndNotedBeyondThePopulati
   // disagreement noted; one at row 220 (0.60, T10's place and more) is refused.
   const auto checked = [](float row) {
     cect::BackLandmarks l = back();
-    EXPECT_EQ(cect::applyGivenLandmarks(&l, {{"T7", {320.0f, row}, "marker"}}), "");
+    EXPECT_EQ(cect::applyGivenLandmarks(&l, {{"T7", {320.0f, row}, cect::LandmarkSource::kGivenMarker}}), "");
     return cect::checkLayout(l, model(), kScale);
   };
   const cect::LayoutCheck agrees = checked(175.0f);
@@ -255,8 +307,8 @@ TEST(LayoutCheck, GivenLandmarksBesideTheSpineAreNotTrusted) {
   // px (4 mm) off pass.
   const auto checked = [](float dx, const cect::PixelScale& scale) {
     cect::BackLandmarks l = back();
-    EXPECT_EQ(cect::applyGivenLandmarks(
-                  &l, {{"C7", {320.0f + dx, 100.0f}, "clicked"}, {"L4", {320.0f + dx, 300.0f}, "clicked"}}),
+    EXPECT_EQ(cect::applyGivenLandmarks(&l, {{"C7", {320.0f + dx, 100.0f}, cect::LandmarkSource::kGivenClick},
+                                             {"L4", {320.0f + dx, 300.0f}, cect::LandmarkSource::kGivenClick}}),
               "");
     return cect::checkLayout(l, model(), scale);
   };
@@ -277,7 +329,7 @@ TEST(LayoutCheck, GivenLandmarksBesideTheSpineAreNotTrusted) {
       << photo.reason();
   // One given T7 beside the spine moves the whole midline with it: refused too.
   cect::BackLandmarks t7 = back();
-  ASSERT_EQ(cect::applyGivenLandmarks(&t7, {{"T7", {360.0f, 172.0f}, "clicked"}}), "");
+  ASSERT_EQ(cect::applyGivenLandmarks(&t7, {{"T7", {360.0f, 172.0f}, cect::LandmarkSource::kGivenClick}}), "");
   EXPECT_NE(cect::checkLayout(t7, model(), kScale).reason().find("the given T7 (clicked) lies 80 mm"),
             std::string::npos);
 }
@@ -291,23 +343,25 @@ TEST(LayoutCheck, AGivenLandmarkFarFromTheSameOneMeasuredWaitsForConfirmation) {
     EXPECT_EQ(cect::applyGivenLandmarks(&l, given), "");
     return cect::checkLayout(l, model(), kScale);
   };
-  const cect::LayoutCheck apart = checked({{"C7", {320.0f, 120.0f}, "clicked"}});
+  const cect::LayoutCheck apart = checked({{"C7", {320.0f, 120.0f}, cect::LandmarkSource::kGivenClick}});
   EXPECT_FALSE(apart.trusted);
   EXPECT_NE(apart.reason().find("the given C7 (clicked) at pixel (320, 120) and C7 measured at the neck's base at "
                                 "(320, 100) lie 40 mm apart along the body (more than 3.0 sigma of both): confirm the "
                                 "given one"),
             std::string::npos)
       << apart.reason();
-  EXPECT_TRUE(checked({{"C7", {320.0f, 120.0f}, "clicked", true}}).trusted) << "confirmed";
-  EXPECT_TRUE(checked({{"C7", {320.0f, 105.0f}, "clicked"}}).trusted);
+  EXPECT_TRUE(checked({{"C7", {320.0f, 120.0f}, cect::LandmarkSource::kGivenClick, true}}).trusted) << "confirmed";
+  EXPECT_TRUE(checked({{"C7", {320.0f, 105.0f}, cect::LandmarkSource::kGivenClick}}).trusted);
   // L4 55 rows (110 mm) above the waist's: refused; 20 rows (40 mm, within 3 x hypot(0.075, 0.012)) agrees.
-  EXPECT_NE(checked({{"L4", {320.0f, 245.0f}, "service"}}).reason().find("L4 measured at the waist"),
+  EXPECT_NE(checked({{"L4", {320.0f, 245.0f}, cect::LandmarkSource::kGivenService}})
+                .reason()
+                .find("L4 measured at the waist"),
             std::string::npos);
-  EXPECT_TRUE(checked({{"L4", {320.0f, 280.0f}, "service"}}).trusted);
+  EXPECT_TRUE(checked({{"L4", {320.0f, 280.0f}, cect::LandmarkSource::kGivenService}}).trusted);
   // A C7 the pair did not measure at a neck's base has nothing to disagree with.
   cect::BackLandmarks top = back();
-  top.c7_at_neck = false;
-  ASSERT_EQ(cect::applyGivenLandmarks(&top, {{"C7", {320.0f, 120.0f}, "clicked"}}), "");
+  top.c7.detail = cect::kFromBackTop;
+  ASSERT_EQ(cect::applyGivenLandmarks(&top, {{"C7", {320.0f, 120.0f}, cect::LandmarkSource::kGivenClick}}), "");
   EXPECT_EQ(cect::checkLayout(top, model(), kScale).reason().find("confirm"), std::string::npos);
 }
 
@@ -371,9 +425,10 @@ TEST(LayoutCheck, ProportionsTheModelImposedAreNotCheckedAgainstThemselves) {
   // L4 inferred from the shoulder width (no waist): the length over the shoulder width is the model's by
   // construction, so only the sizes are checked; C7 from the shoulder line likewise.
   cect::BackLandmarks l = back(200.0);
-  l.waist_measured = false;
-  l.c7_measured = false;
-  l.c7_at_neck = false;
+  l.l4.source = cect::LandmarkSource::kInferred;
+  l.l4.detail = cect::kFromShoulderWidth;
+  l.c7.source = cect::LandmarkSource::kInferred;
+  l.c7.detail = cect::kFromShoulderLine;
   const cect::AcupointModel m = model();
   const cect::LayoutCheck c =
       cect::checkLayout(l, m, cect::PixelScale(), {false, false});  // the proportions alone here
@@ -381,38 +436,40 @@ TEST(LayoutCheck, ProportionsTheModelImposedAreNotCheckedAgainstThemselves) {
   EXPECT_TRUE(std::isnan(c.length_per_shoulder_width));
   EXPECT_TRUE(std::isnan(c.shoulder_below_c7));
   // ... but a given L4 is the therapist's, and the proportion is checked again.
-  l.l4_given = true;
+  l.l4.source = cect::LandmarkSource::kGiven;
   EXPECT_FALSE(cect::checkLayout(l, m, cect::PixelScale(), {false, false}).trusted);
 }
 
 TEST(LayoutCheck, AC7NotMeasuredAtANecksBaseIsNotTrustedUnlessGiven) {
   cect::BackLandmarks top = back();
-  top.c7_at_neck = false;  // the back's top taken for the neck's base
+  top.c7.detail = cect::kFromBackTop;  // the back's top taken for the neck's base
   const cect::LayoutCheck c = cect::checkLayout(top, model(), kScale);
   EXPECT_FALSE(c.trusted);
   EXPECT_NE(c.reason().find("C7 not measured: no neck's base in view, the back's top taken for it; give C7"),
             std::string::npos)
       << c.reason();
   cect::BackLandmarks shoulders = top;
-  shoulders.c7_measured = false;
+  shoulders.c7.source = cect::LandmarkSource::kInferred;
+  shoulders.c7.detail = cect::kFromShoulderLine;
   EXPECT_NE(
       cect::checkLayout(shoulders, model(), kScale).reason().find("C7 not measured: taken from the shoulder line"),
       std::string::npos);
-  top.c7_given = true;  // a therapist's C7
+  top.c7.source = cect::LandmarkSource::kGiven;  // a therapist's C7
   EXPECT_TRUE(cect::checkLayout(top, model(), kScale).trusted);
   EXPECT_TRUE(cect::checkLayout(shoulders, model(), kScale, {false, true}).trusted);
 }
 
 TEST(LayoutCheck, AnL4InferredFromTheShoulderWidthIsNotTrustedUnlessGiven) {
   cect::BackLandmarks l = back();
-  l.waist_measured = false;  // arms along the flanks: no waist, L4 from C7 and the shoulder width
+  l.l4.source = cect::LandmarkSource::kInferred;
+  l.l4.detail = cect::kFromShoulderWidth;  // arms along the flanks: no waist, L4 from C7 and the shoulder width
   const cect::LayoutCheck c = cect::checkLayout(l, model(), kScale);
   EXPECT_FALSE(c.trusted);
   EXPECT_NE(c.reason().find("L4 not measured: no waist in view, only inferred from C7 and the shoulder width; give L4"),
             std::string::npos)
       << c.reason();
   EXPECT_TRUE(cect::checkLayout(l, model(), kScale, {true, false}).trusted) << "the rule off";
-  l.l4_given = true;  // a therapist's L4, or a skin marker
+  l.l4.source = cect::LandmarkSource::kGiven;  // a therapist's L4, or a skin marker
   EXPECT_TRUE(cect::checkLayout(l, model(), kScale).trusted) << cect::checkLayout(l, model(), kScale).reason();
 }
 
@@ -423,11 +480,11 @@ TEST(LayoutCheck, WithC7AndL4GivenTheShoulderLineIsNotChecked) {
   l.shoulder_width = 300;
   l.shoulder_row = 230;
   EXPECT_FALSE(cect::checkLayout(l, model(), kScale).trusted);
-  l.c7_given = l.l4_given = true;
+  l.c7.source = l.l4.source = cect::LandmarkSource::kGiven;
   const cect::LayoutCheck c = cect::checkLayout(l, model(), kScale);
   EXPECT_TRUE(c.trusted) << c.reason();
   // ... but the length still is.
-  l.l4 = cv::Point2f(320.0f, 180.0f);
+  l.l4.body = cv::Point2f(320.0f, 180.0f);
   EXPECT_NE(cect::checkLayout(l, model(), kScale).reason().find("C7 -> L4 0.160 m"), std::string::npos);
 }
 
@@ -466,7 +523,7 @@ int main(int argc, char** argv) {
 
 TEST(LayoutCheck, AStaleGivenLandmarkIsNotTrusted) {
   cect::BackLandmarks l = back();
-  cect::GivenLandmark c7("C7", {320.0f, 100.0f}, "clicked");
+  cect::GivenLandmark c7("C7", {320.0f, 100.0f}, cect::LandmarkSource::kGivenClick);
   c7.stale = "the back moved 30 mm and turned 0.0 deg since it was given (more than 20 mm or 5 deg)";
   ASSERT_EQ(cect::applyGivenLandmarks(&l, {c7}), "");
   const cect::LayoutCheck c = cect::checkLayout(l, model(), kScale);

@@ -107,11 +107,11 @@ TEST(RealBacks, ArmsTouchingTheTrunkAreCutAtTheirCreasesAndC7AndL4Found) {
     const cect::LocatedAcupoints a = cect::locateAcupoints(f, model(), inferred_l4);
     ASSERT_TRUE(a.valid) << a.reason;
     const cect::BackLandmarks& l = a.landmarks;
-    const double c7 = cect::toImage(l, l.c7).y, l4 = cect::toImage(l, l.l4).y;
+    const double c7 = cect::toImage(l, l.c7.body).y, l4 = cect::toImage(l, l.l4.body).y;
     const double c7_gt = gtRow(r, g, "C7"), l4_gt = gtRow(r, g, "L4");
     std::cout << "subject " << index << ": C7 row " << c7 << " (truth " << c7_gt << "), L4 row " << l4 << " (truth "
               << l4_gt << "); " << cect::describeLandmarks(l) << "; " << trunk.summary() << "\n";
-    EXPECT_FALSE(l.waist_measured) << "the creased flanks' waist is not the trunk's";
+    EXPECT_NE(l.l4.source, cect::LandmarkSource::kMeasured) << "the creased flanks' waist is not the trunk's";
     EXPECT_NEAR(c7, c7_gt, 0.03 * (l4_gt - c7_gt));
     EXPECT_NEAR(l4, l4_gt, 0.06 * (l4_gt - c7_gt));
     EXPECT_GE(a.validCount(), 80);
@@ -148,15 +148,15 @@ TEST(RealBacks, SkinMarkersGiveC7AndL4AndTheirDotsAreTheBack) {
     ASSERT_TRUE(a.valid) << a.reason;
     ASSERT_EQ(a.markers.found.size(), 3u) << a.markers.describe();  // the kit's C7, L4 and its optional T7
     const cect::BackLandmarks& l = a.landmarks;
-    EXPECT_TRUE(l.c7_given && l.l4_given) << cect::describeLandmarks(l);
+    EXPECT_TRUE(l.c7.given() && l.l4.given()) << cect::describeLandmarks(l);
     ASSERT_EQ(l.given_levels.size(), 1u) << cect::describeLandmarks(l);
     EXPECT_NEAR(cect::levelPixel(l, model(), "T7").y, gtRow(r, g, "T7"),
                 0.01 * (gtRow(r, g, "L4") - gtRow(r, g, "C7")));
     EXPECT_NE(cect::describeLandmarks(l).find("C7 given (marker)"), std::string::npos) << cect::describeLandmarks(l);
     const double c7_gt = gtRow(r, g, "C7"), l4_gt = gtRow(r, g, "L4");
     const double length = l4_gt - c7_gt;
-    EXPECT_NEAR(cect::toImage(l, l.c7).y, c7_gt, 0.01 * length);  // automatic: 3 % and 6 % (above)
-    EXPECT_NEAR(cect::toImage(l, l.l4).y, l4_gt, 0.01 * length);
+    EXPECT_NEAR(cect::toImage(l, l.c7.body).y, c7_gt, 0.01 * length);  // automatic: 3 % and 6 % (above)
+    EXPECT_NEAR(cect::toImage(l, l.l4.body).y, l4_gt, 0.01 * length);
     // The dots are not skin's colour but are on the back: the points at them are measured.
     for (const cect::SkinMarkerDetection& m : a.markers.found)
       EXPECT_EQ(f.left().mask.at<std::uint8_t>(cvRound(m.left.y), cvRound(m.left.x)), 255) << m.landmark;
@@ -182,7 +182,7 @@ TEST(RealBacks, SkinMarkersGiveC7AndL4AndTheirDotsAreTheBack) {
     EXPECT_TRUE(a2.markers.problems.empty()) << a2.markers.describe();
     ASSERT_EQ(a2.markers.absent.size(), 1u) << a2.markers.describe();
     EXPECT_EQ(a2.markers.absent[0], "T7 (magenta dot)");
-    EXPECT_TRUE(a2.landmarks.c7_given && a2.landmarks.l4_given && a2.landmarks.given_levels.empty());
+    EXPECT_TRUE(a2.landmarks.c7.given() && a2.landmarks.l4.given() && a2.landmarks.given_levels.empty());
   }
   // Without the kit the same pair's dots stay out of the skin (their colour is no skin's).
   const Rendered r = render(1, 0.0, sim::ArmPose::kAlongTrunk, sim::HairColour::kBrown, "", stickers);
@@ -191,7 +191,7 @@ TEST(RealBacks, SkinMarkersGiveC7AndL4AndTheirDotsAreTheBack) {
   ASSERT_TRUE(plain.valid()) << plain.reason();
   const cect::LocatedAcupoints none = cect::locateAcupoints(plain, model());
   EXPECT_TRUE(none.markers.found.empty() && none.markers.problems.empty()) << "no kit, no markers";
-  EXPECT_FALSE(none.landmarks.c7_given || none.landmarks.l4_given);
+  EXPECT_FALSE(none.landmarks.c7.given() || none.landmarks.l4.given());
 }
 
 TEST(RealBacks, ArmsHeldAwayLeaveTheTrunksWaist) {
@@ -203,9 +203,9 @@ TEST(RealBacks, ArmsHeldAwayLeaveTheTrunksWaist) {
   const cect::LocatedAcupoints a = cect::locateAcupoints(f, model());
   ASSERT_TRUE(a.valid) << a.reason;
   const cect::BackLandmarks& l = a.landmarks;
-  EXPECT_TRUE(l.waist_measured) << cect::describeLandmarks(l);
+  EXPECT_EQ(l.l4.source, cect::LandmarkSource::kMeasured) << cect::describeLandmarks(l);
   const double c7_gt = gtRow(r, g, "C7"), l4_gt = gtRow(r, g, "L4");
-  EXPECT_NEAR(cect::toImage(l, l.l4).y, l4_gt, 0.06 * (l4_gt - c7_gt)) << cect::describeLandmarks(l);
+  EXPECT_NEAR(cect::toImage(l, l.l4.body).y, l4_gt, 0.06 * (l4_gt - c7_gt)) << cect::describeLandmarks(l);
 }
 
 TEST(RealBacks, AStrapAcrossTheBackLeavesItWholeAndItsLayoutAsWithout) {
@@ -229,9 +229,9 @@ TEST(RealBacks, AStrapAcrossTheBackLeavesItWholeAndItsLayoutAsWithout) {
   const cect::LocatedAcupoints a0 = cect::locateAcupoints(f0, model()), a = cect::locateAcupoints(f, model());
   ASSERT_TRUE(a0.valid && a.valid) << a0.reason << " / " << a.reason;
   const double c7_gt = gtRow(plain, g, "C7"), l4_gt = gtRow(plain, g, "L4");
-  EXPECT_NEAR(cect::toImage(a.landmarks, a.landmarks.c7).y, cect::toImage(a0.landmarks, a0.landmarks.c7).y,
+  EXPECT_NEAR(cect::toImage(a.landmarks, a.landmarks.c7.body).y, cect::toImage(a0.landmarks, a0.landmarks.c7.body).y,
               0.02 * (l4_gt - c7_gt));
-  EXPECT_NEAR(cect::toImage(a.landmarks, a.landmarks.l4).y, cect::toImage(a0.landmarks, a0.landmarks.l4).y,
+  EXPECT_NEAR(cect::toImage(a.landmarks, a.landmarks.l4.body).y, cect::toImage(a0.landmarks, a0.landmarks.l4.body).y,
               0.02 * (l4_gt - c7_gt));
 }
 
@@ -390,7 +390,7 @@ TEST(RealBacks, GivenLandmarksFollowTheBackAndGoStaleWhenTheSubjectSlides) {
 
   cect::GivenLandmarkSet set;
   const cv::Point2f c7(330.0f, 60.0f);
-  ASSERT_EQ(set.set("C7", c7, "clicked", {640, 480}, false, here), "");
+  ASSERT_EQ(set.set("C7", c7, cect::LandmarkSource::kGivenClick, {640, 480}, false, here), "");
   auto given = [&](const cect::BackView& v) { return set.forPair(v.geometry, full).at(0); };
   set.follow(near);
   EXPECT_EQ(given(near).stale, "");

@@ -171,8 +171,9 @@ TEST(DrawAcupoints, TheLayoutsLandmarksAreDrawnWithTheirSources) {
   r.P[3] = -25.0;
   const cv::Mat grey(240, 320, CV_8UC3, cv::Scalar(90, 90, 90));
   const cect::CectFrame frame = cect::CectFrame::analyse(grey, grey, camera::StereoModel(c, r), {});
-  const std::vector<cect::LayoutLandmark> landmarks{{"C7", {200.0f, 40.0f}, "given", "clicked"},
-                                                    {"L4", {200.0f, 200.0f}, "measured", "the waist"}};
+  const std::vector<cect::LayoutLandmark> landmarks{
+      {{"C7", cect::LandmarkSource::kGivenClick}, {200.0f, 40.0f}},
+      {{"L4", cect::LandmarkSource::kMeasured, cect::kFromWaist}, {200.0f, 200.0f}}};
   const cv::Mat image = cect::drawAcupoints(frame, {}, 960, landmarks);
   ASSERT_EQ(image.cols, 960);
   // Magenta-ish (blue and red, no green) and cyan-ish (blue and green, no red) pixels around a point; anti-aliased

@@ -87,6 +87,38 @@ const massage_cell::Acupoint* findPoint(const AcupointArray& msg, const std::str
 
 Eigen::Vector3d vec(const geometry_msgs::Point& p) { return Eigen::Vector3d(p.x, p.y, p.z); }
 
+/// The third node (/landmarks) as the landmark tests drive it; CectNode::connectToLandmarksNode connects it. Neither
+/// copied nor moved: its subscriptions hold it.
+struct LandmarksNode {
+  LandmarksNode() : ns("/landmarks"), input(ns) {}
+  LandmarksNode(const LandmarksNode&) = delete;
+  LandmarksNode& operator=(const LandmarksNode&) = delete;
+
+  /// `pair` published with a new stamp: the node's acupoints for it (null when none came within 15 s).
+  AcupointArrayConstPtr layoutOf(const StereoPair& pair) {
+    const ros::Time stamp = input.publish(pair);
+    if (!spinUntil([&] { return !outputs.empty() && outputs.back()->header.stamp == stamp; }, 15.0)) return nullptr;
+    return outputs.back();
+  }
+  /// ~set_landmark with `name` at the raw left pixel (u, v): the node's response (the call itself must go through).
+  SetLandmark::Response setLandmark(const std::string& name, double u, double v) {
+    SetLandmark call;
+    call.request.name = name;
+    call.request.u = u;
+    call.request.v = v;
+    EXPECT_TRUE(set_client.call(call));
+    return call.response;
+  }
+
+  StereoPair good;  ///< the bag's first pair
+  ros::NodeHandle ns;
+  PairPublisher input;
+  std::vector<AcupointArrayConstPtr> outputs;  ///< the node's acupoints, as they came
+  ros::Subscriber acupoints, diagnostics;
+  NodeStatus status;
+  ros::ServiceClient set_client, clear_client;  ///< ~set_landmark, ~clear_landmarks
+};
+
 class CectNode : public StereoNodeTest {
  protected:
   CectNode() : StereoNodeTest(0.03) {}
@@ -97,6 +129,22 @@ class CectNode : public StereoNodeTest {
     names_ = massage_cell::cect::loadAcupointModel(acupoints_path).names();
     ASSERT_FALSE(names_.empty());
   }
+
+  /// The landmark tests' first step: `node` holds the bag's first pair and is connected to the third node
+  /// (/landmarks): the node subscribed to its pair input and sending diagnostics, its acupoints collected, its
+  /// ~set_landmark and ~clear_landmarks there. No pair published yet.
+  void connectToLandmarksNode(LandmarksNode* node) {
+    ASSERT_NO_FATAL_FAILURE(readFirstPair(bag_path_, &node->good));
+    node->acupoints = node->ns.subscribe<AcupointArray>(
+        "acupoints", 10, [node](const AcupointArrayConstPtr& m) { node->outputs.push_back(m); });
+    node->diagnostics = watchDiagnostics(nh_, "landmarks/cect", kDiagnostics, node->status);
+    ASSERT_NO_FATAL_FAILURE(waitForNode(node->input, node->status, "/landmarks"));
+    node->set_client = node->ns.serviceClient<SetLandmark>("cect/set_landmark");
+    node->clear_client = node->ns.serviceClient<std_srvs::Trigger>("cect/clear_landmarks");
+    ASSERT_TRUE(node->set_client.waitForExistence(ros::Duration(5.0)));
+    ASSERT_TRUE(node->clear_client.waitForExistence(ros::Duration(5.0)));
+  }
+
   std::vector<std::string> names_;
 };
 
@@ -478,37 +526,14 @@ cv::Point2d placedPixel(const AcupointArray& msg, const std::string& name) {
 }
 
 TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
-  StereoPair good;
-  ASSERT_NO_FATAL_FAILURE(readFirstPair(bag_path_, &good));
-  ros::NodeHandle ns("/landmarks");
-  PairPublisher input(ns);
-  std::vector<AcupointArrayConstPtr> outputs;
-  ros::Subscriber sub =
-      ns.subscribe<AcupointArray>("acupoints", 10, [&](const AcupointArrayConstPtr& m) { outputs.push_back(m); });
-  ros::Publisher clicks = ns.advertise<geometry_msgs::PointStamped>("clicked_point", 5);
-  ros::Publisher image_clicks = ns.advertise<geometry_msgs::PointStamped>("cect/debug_image_mouse_left", 5);
-  NodeStatus status;
-  ros::Subscriber diag = watchDiagnostics(nh_, "landmarks/cect", kDiagnostics, status);
-  ASSERT_NO_FATAL_FAILURE(waitForNode(input, status, "/landmarks"));
-  ros::ServiceClient set_client = ns.serviceClient<SetLandmark>("cect/set_landmark");
-  ros::ServiceClient clear_client = ns.serviceClient<std_srvs::Trigger>("cect/clear_landmarks");
-  ASSERT_TRUE(set_client.waitForExistence(ros::Duration(5.0)));
-  ASSERT_TRUE(clear_client.waitForExistence(ros::Duration(5.0)));
+  LandmarksNode node;
+  ASSERT_NO_FATAL_FAILURE(connectToLandmarksNode(&node));
+  const StereoPair& good = node.good;
+  ros::Publisher clicks = node.ns.advertise<geometry_msgs::PointStamped>("clicked_point", 5);
+  ros::Publisher image_clicks = node.ns.advertise<geometry_msgs::PointStamped>("cect/debug_image_mouse_left", 5);
   ASSERT_TRUE(spinUntil([&] { return clicks.getNumSubscribers() > 0 && image_clicks.getNumSubscribers() > 0; }, 5.0));
-  auto layoutOf = [&](const ros::Time& stamp) -> AcupointArrayConstPtr {
-    if (!spinUntil([&] { return !outputs.empty() && outputs.back()->header.stamp == stamp; }, 15.0)) return nullptr;
-    return outputs.back();
-  };
-  auto setLandmark = [&](const std::string& name, double u, double v) {
-    SetLandmark call;
-    call.request.name = name;
-    call.request.u = u;
-    call.request.v = v;
-    EXPECT_TRUE(set_client.call(call));
-    return call.response;
-  };
 
-  ros::ServiceClient save_client = ns.serviceClient<SaveClientProfile>("cect/save_client_profile");
+  ros::ServiceClient save_client = node.ns.serviceClient<SaveClientProfile>("cect/save_client_profile");
   ASSERT_TRUE(save_client.waitForExistence(ros::Duration(5.0)));
   const std::string profile_path = "/tmp/test_cect_node_profile_" + std::to_string(::getpid()) + ".yaml";
   std::remove(profile_path.c_str());
@@ -521,7 +546,7 @@ TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
   };
 
   // Before any pair there is no view to place a landmark in, nor a layout to save.
-  SetLandmark::Response early = setLandmark("C7", 160.0, 60.0);
+  SetLandmark::Response early = node.setLandmark("C7", 160.0, 60.0);
   EXPECT_FALSE(early.success);
   EXPECT_NE(early.message.find("no stereo pair analysed yet"), std::string::npos) << early.message;
   SaveClientProfile::Response early_save = saveProfile(profile_path);
@@ -529,22 +554,22 @@ TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
   EXPECT_NE(early_save.message.find("no pair analysed yet"), std::string::npos) << early_save.message;
 
   // 1. The automatic layout.
-  const AcupointArrayConstPtr automatic = layoutOf(input.publish(good));
+  const AcupointArrayConstPtr automatic = node.layoutOf(good);
   ASSERT_TRUE(automatic) << "no acupoints for a good pair";
   const cv::Point2d gv14 = placedPixel(*automatic, "GV14"), gv3 = placedPixel(*automatic, "GV3");
   ASSERT_TRUE(std::isfinite(gv14.x) && std::isfinite(gv3.x)) << "GV14 and GV3 placed";
 
   // 2. C7 given 8 px toward the feet by ~set_landmark: GV14 (at C7) moves there, GV3 (at L4) stays.
-  SetLandmark::Response c7 = setLandmark("C7", gv14.x, gv14.y + 8.0);
+  SetLandmark::Response c7 = node.setLandmark("C7", gv14.x, gv14.y + 8.0);
   ASSERT_TRUE(c7.success) << c7.message;
   EXPECT_NE(c7.message.find("C7 (service)"), std::string::npos) << c7.message;
-  SetLandmark::Response unknown = setLandmark("T3", gv14.x, gv14.y);
+  SetLandmark::Response unknown = node.setLandmark("T3", gv14.x, gv14.y);
   EXPECT_FALSE(unknown.success);
   EXPECT_NE(unknown.message.find("unknown landmark 'T3'"), std::string::npos) << unknown.message;
-  SetLandmark::Response outside = setLandmark("L4", -100.0, -100.0);
+  SetLandmark::Response outside = node.setLandmark("L4", -100.0, -100.0);
   EXPECT_FALSE(outside.success);
   EXPECT_NE(outside.message.find("outside"), std::string::npos) << outside.message;
-  AcupointArrayConstPtr given = layoutOf(input.publish(good));
+  AcupointArrayConstPtr given = node.layoutOf(good);
   ASSERT_TRUE(given);
   EXPECT_NEAR(placedPixel(*given, "GV14").x, gv14.x, 0.6);
   EXPECT_NEAR(placedPixel(*given, "GV14").y, gv14.y + 8.0, 0.6);
@@ -567,7 +592,7 @@ TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
   clicks.publish(click);
   bool moved = false;
   for (int k = 0; k < 5 && !moved; ++k) {  // the click and a pair may cross
-    given = layoutOf(input.publish(good));
+    given = node.layoutOf(good);
     ASSERT_TRUE(given);
     moved = std::abs(placedPixel(*given, "GV3").y - expected_v) < 1.0;
   }
@@ -618,7 +643,7 @@ TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
   image_clicks.publish(pixel);
   moved = false;
   for (int i = 0; i < 5 && !moved; ++i) {
-    given = layoutOf(input.publish(good));
+    given = node.layoutOf(good);
     ASSERT_TRUE(given);
     moved = std::abs(placedPixel(*given, "GV14").y - (gv14.y - 4.0)) < 0.6;
   }
@@ -626,11 +651,11 @@ TEST_F(CectNode, GivenLandmarksMoveTheLayout) {
 
   // 6. ~clear_landmarks: the automatic layout again.
   std_srvs::Trigger clear;
-  ASSERT_TRUE(clear_client.call(clear));
+  ASSERT_TRUE(node.clear_client.call(clear));
   EXPECT_TRUE(clear.response.success);
   EXPECT_NE(clear.response.message.find("C7 (clicked)"), std::string::npos) << clear.response.message;
   EXPECT_NE(clear.response.message.find("L4 (clicked)"), std::string::npos) << clear.response.message;
-  const AcupointArrayConstPtr cleared = layoutOf(input.publish(good));
+  const AcupointArrayConstPtr cleared = node.layoutOf(good);
   ASSERT_TRUE(cleared);
   EXPECT_NEAR(placedPixel(*cleared, "GV14").y, gv14.y, 0.3);
   EXPECT_NEAR(placedPixel(*cleared, "GV3").y, gv3.y, 0.3);
@@ -651,35 +676,17 @@ StereoPair slid(StereoPair pair, int rows) {
 }
 
 TEST_F(CectNode, AClientWhoMovesMakesTheGivenLandmarksStale) {
-  StereoPair good;
-  ASSERT_NO_FATAL_FAILURE(readFirstPair(bag_path_, &good));
-  ros::NodeHandle ns("/landmarks");
-  PairPublisher input(ns);
-  std::vector<AcupointArrayConstPtr> outputs;
-  ros::Subscriber sub =
-      ns.subscribe<AcupointArray>("acupoints", 10, [&](const AcupointArrayConstPtr& m) { outputs.push_back(m); });
-  NodeStatus status;
-  ros::Subscriber diag = watchDiagnostics(nh_, "landmarks/cect", kDiagnostics, status);
-  ASSERT_NO_FATAL_FAILURE(waitForNode(input, status, "/landmarks"));
-  ros::ServiceClient set_client = ns.serviceClient<SetLandmark>("cect/set_landmark");
-  ros::ServiceClient clear_client = ns.serviceClient<std_srvs::Trigger>("cect/clear_landmarks");
-  ros::ServiceClient confirm_client = ns.serviceClient<std_srvs::Trigger>("cect/confirm_landmarks");
+  LandmarksNode node;
+  ASSERT_NO_FATAL_FAILURE(connectToLandmarksNode(&node));
+  const StereoPair& good = node.good;
+  ros::ServiceClient confirm_client = node.ns.serviceClient<std_srvs::Trigger>("cect/confirm_landmarks");
   ASSERT_TRUE(confirm_client.waitForExistence(ros::Duration(5.0)));
-  auto layoutOf = [&](const StereoPair& pair) -> AcupointArrayConstPtr {
-    const ros::Time stamp = input.publish(pair);
-    if (!spinUntil([&] { return !outputs.empty() && outputs.back()->header.stamp == stamp; }, 15.0)) return nullptr;
-    return outputs.back();
-  };
   auto give = [&](const std::string& name, const cv::Point2d& at) {
-    SetLandmark call;
-    call.request.name = name;
-    call.request.u = at.x;
-    call.request.v = at.y;
-    EXPECT_TRUE(set_client.call(call));
-    EXPECT_TRUE(call.response.success) << call.response.message;
+    const SetLandmark::Response response = node.setLandmark(name, at.x, at.y);
+    EXPECT_TRUE(response.success) << response.message;
   };
   // The metres per pixel at the back: f 250 px, the back ~0.8 m away -> ~3.2 mm; 3 cm ~ 9 rows, 5 mm ~ 2 rows.
-  const AcupointArrayConstPtr automatic = layoutOf(good);
+  const AcupointArrayConstPtr automatic = node.layoutOf(good);
   ASSERT_TRUE(automatic);
   const massage_cell::Acupoint* gv14 = findPoint(*automatic, "GV14");
   ASSERT_TRUE(gv14 && gv14->valid) << (gv14 ? gv14->reason : "");
@@ -690,7 +697,7 @@ TEST_F(CectNode, AClientWhoMovesMakesTheGivenLandmarksStale) {
   // 0. Requests that name no place, or a place off the skin, are refused with the reason.
   SetLandmark nothing;
   nothing.request.name = "L4";
-  ASSERT_TRUE(set_client.call(nothing));
+  ASSERT_TRUE(node.set_client.call(nothing));
   EXPECT_FALSE(nothing.response.success);
   EXPECT_NE(nothing.response.message.find("no point and no pixel"), std::string::npos) << nothing.response.message;
   SetLandmark deep;
@@ -698,7 +705,7 @@ TEST_F(CectNode, AClientWhoMovesMakesTheGivenLandmarksStale) {
   deep.request.point.header.frame_id = kOptical;
   deep.request.point.point = gv14->position;
   deep.request.point.point.z += 0.69;  // 0.69 m below the skin, on the same ray
-  ASSERT_TRUE(set_client.call(deep));
+  ASSERT_TRUE(node.set_client.call(deep));
   EXPECT_FALSE(deep.response.success);
   EXPECT_NE(deep.response.message.find("from the skin measured at its pixel"), std::string::npos)
       << deep.response.message;
@@ -708,7 +715,7 @@ TEST_F(CectNode, AClientWhoMovesMakesTheGivenLandmarksStale) {
   const cv::Point2d beside(0.10 / mpp, 0.0);
   give("C7", placedPixel(*automatic, "GV14") + beside);
   give("L4", placedPixel(*automatic, "GV3") + beside);
-  AcupointArrayConstPtr refused = layoutOf(good);
+  AcupointArrayConstPtr refused = node.layoutOf(good);
   ASSERT_TRUE(refused);
   EXPECT_FALSE(findPoint(*refused, "GV14")->valid);
   EXPECT_NE(findPoint(*refused, "GV14")->reason.find("the given C7 (service) lies"), std::string::npos)
@@ -717,16 +724,16 @@ TEST_F(CectNode, AClientWhoMovesMakesTheGivenLandmarksStale) {
             std::string::npos);
   give("C7", placedPixel(*automatic, "GV14"));
   give("L4", placedPixel(*automatic, "GV3"));
-  AcupointArrayConstPtr given = layoutOf(good);
+  AcupointArrayConstPtr given = node.layoutOf(good);
   ASSERT_TRUE(given);
   ASSERT_TRUE(findPoint(*given, "GV14")->valid) << findPoint(*given, "GV14")->reason;
   // 2. Breathing-sized: the client moved 5 mm: the landmarks follow the back.
-  given = layoutOf(slid(good, small_move));
+  given = node.layoutOf(slid(good, small_move));
   ASSERT_TRUE(given);
   EXPECT_TRUE(findPoint(*given, "GV14")->valid) << findPoint(*given, "GV14")->reason;
   EXPECT_NEAR(placedPixel(*given, "GV14").y, placedPixel(*automatic, "GV14").y + small_move, 1.0) << "followed";
   // 3. The client slid 3 cm: no layout is trusted, each point saying why, until the landmarks are confirmed again.
-  given = layoutOf(slid(good, large_move));
+  given = node.layoutOf(slid(good, large_move));
   ASSERT_TRUE(given);
   EXPECT_FALSE(findPoint(*given, "GV14")->valid);
   EXPECT_NE(findPoint(*given, "GV14")->reason.find("is stale: the back moved"), std::string::npos)
@@ -734,19 +741,19 @@ TEST_F(CectNode, AClientWhoMovesMakesTheGivenLandmarksStale) {
   EXPECT_EQ(std::count_if(given->acupoints.begin(), given->acupoints.end(),
                           [](const massage_cell::Acupoint& a) { return a.valid; }),
             0);
-  given = layoutOf(slid(good, large_move));  // still not trusted on the next pair
+  given = node.layoutOf(slid(good, large_move));  // still not trusted on the next pair
   ASSERT_TRUE(given);
   EXPECT_FALSE(findPoint(*given, "GV14")->valid);
   std_srvs::Trigger confirm;
   ASSERT_TRUE(confirm_client.call(confirm));
   EXPECT_TRUE(confirm.response.success) << confirm.response.message;
-  given = layoutOf(slid(good, large_move));
+  given = node.layoutOf(slid(good, large_move));
   ASSERT_TRUE(given);
   EXPECT_TRUE(findPoint(*given, "GV14")->valid) << "confirmed: " << findPoint(*given, "GV14")->reason;
   EXPECT_NEAR(placedPixel(*given, "GV14").y, placedPixel(*automatic, "GV14").y + large_move, 1.0)
       << "C7 carried with the back and confirmed there";
   std_srvs::Trigger clear;
-  ASSERT_TRUE(clear_client.call(clear));
+  ASSERT_TRUE(node.clear_client.call(clear));
 }
 
 int main(int argc, char** argv) {

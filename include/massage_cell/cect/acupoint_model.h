@@ -14,6 +14,7 @@
 #include <limits>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -107,6 +108,63 @@ struct AcupointModel {
 /// the file and the problem.
 AcupointModel loadAcupointModel(const std::string& path);
 
+/// Where a landmark of the layout came from.
+enum class LandmarkSource {
+  kMeasured,      ///< found in the view: C7 at the neck's base or the back's top, L4 from the waist
+  kInferred,      ///< from other landmarks by the model's proportions: C7 from the shoulder line, L4 from C7 and the
+                  ///< shoulder width
+  kGiven,         ///< given from outside (given_landmarks.h), how not said
+  kGivenService,  ///< given through the cect node's ~set_landmark / ~set_landmark_pixel
+  kGivenClick,    ///< given by a click (rviz's Publish Point, a click on the debug image)
+  kGivenMarker,   ///< given by a skin marker found in the view (skin_markers.h)
+  kGivenOption,   ///< given on a tool's command line (cect_locate's --landmark)
+};
+/// Given from outside (any of the kGiven... values): it overrides a measured or inferred one.
+inline bool isGiven(LandmarkSource source) {
+  return source != LandmarkSource::kMeasured && source != LandmarkSource::kInferred;
+}
+/// What BackLandmark.msg's `source` carries: "measured", "inferred" or "given".
+std::string sourceName(LandmarkSource source);
+/// How a given landmark was given, as the descriptions say it: "service", "clicked", "marker", "--landmark"; empty for
+/// a landmark not given or given without saying how (kGiven).
+std::string givenHowName(LandmarkSource source);
+
+/// What a measured or inferred landmark was taken from (Landmark::detail).
+inline constexpr const char* kFromNeckBase = "the neck's base";
+inline constexpr const char* kFromBackTop = "the back's top";
+inline constexpr const char* kFromShoulderLine = "the shoulder line";
+inline constexpr const char* kFromWaist = "the waist";
+inline constexpr const char* kFromShoulderWidth = "C7 and the shoulder width";
+
+/// One landmark of the layout (C7, a given level between such as T7, L4): where it is and what fixed it. The one
+/// record the layout (placement, layoutCovariance), the checks (layout_check.h), the descriptions and the messages
+/// read.
+struct Landmark {
+  Landmark(std::string level_ = {}, LandmarkSource source_ = LandmarkSource::kMeasured, std::string detail_ = {})
+      : level(std::move(level_)), source(source_), detail(std::move(detail_)) {}
+  std::string level;  ///< "C7", "T7", "L4"
+  LandmarkSource source = LandmarkSource::kMeasured;
+  std::string
+      detail;        ///< measured / inferred: from what (kFromNeckBase, ...); empty when given (givenHowName says how)
+  cv::Point2f body;  ///< on the midline, the body frame's pixel (BackLandmarks)
+  /// The camera's raw left pixel where known (a given landmark kept by GivenLandmarkSet), else NaN.
+  cv::Point2f raw_pixel{std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::quiet_NaN()};
+  /// 3D, the left optical frame, metres, where known (a given landmark applied with the back's 3D), else NaN.
+  cv::Point3f point{std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::quiet_NaN(),
+                    std::numeric_limits<float>::quiet_NaN()};
+
+  bool given() const { return isGiven(source); }
+  /// Measured at the base of a neck in view (not the back's top taken for it, nor the shoulder line).
+  bool atNeckBase() const { return source == LandmarkSource::kMeasured && detail == kFromNeckBase; }
+};
+
+/// The layout's sigma along the body (AcupointModel::layout_sigma, a fraction of C7 -> L4) of `level` ("C7", "L4" or a
+/// level given between them) fixed by `source`.
+double layoutSigma(const AcupointModel& model, const std::string& level, LandmarkSource source);
+inline double layoutSigma(const AcupointModel& model, const Landmark& landmark) {
+  return layoutSigma(model, landmark.level, landmark.source);
+}
+
 /// Landmarks of the back, in pixels of the body's frame: the rectified left
 /// image turned (about the back) so that the body lies along the columns with
 /// the head up, rows running across the body. For a subject lying along the
@@ -121,7 +179,11 @@ struct BackLandmarks {
   /// of the back to its bottom (x = middle of the back's extent on that row,
   /// smoothed).
   std::vector<cv::Point2f> midline;
-  cv::Point2f c7, l4;           ///< on the midline
+  /// C7 and L4 on the midline (body: rows and columns of the body's frame), with what fixed them: C7 measured (at
+  /// the neck's base or the back's top) or inferred from the shoulder line, L4 measured (the waist) or inferred from
+  /// C7 and the shoulder width, either given from outside (given_landmarks.h: a therapist's click, a skin marker),
+  /// which overrides the others. `measured` / `inferred` / `given` below say it in words.
+  Landmark c7{"C7", LandmarkSource::kMeasured, kFromBackTop}, l4{"L4", LandmarkSource::kMeasured, kFromWaist};
   double shoulder_row = 0.0;    ///< the shoulder line (widest row of the upper back)
   double shoulder_width = 0.0;  ///< pixels, across the back at the shoulder line
   double waist_row = 0.0;       ///< narrowest row between shoulders and hips
@@ -135,29 +197,16 @@ struct BackLandmarks {
   std::vector<double> along;
   /// The body's frame -> the rectified left image (a rotation and a shift).
   cv::Matx23d to_image = cv::Matx23d(1, 0, 0, 0, 1, 0);
-  /// What fixed the levels: C7 measured (at the neck's base or the back's
-  /// top) or inferred from the shoulder line; the waist measured or L4
-  /// inferred from C7 and the shoulder width. `measured` / `inferred` say it
-  /// in words.
-  bool c7_measured = true;
-  bool waist_measured = true;
-  /// C7 measured at the base of a neck in view (not the back's top taken for it, nor the shoulder line).
-  bool c7_at_neck = false;
-  /// C7 / L4 given from outside (given_landmarks.h: a therapist's click or a skin marker); they override the above.
-  bool c7_given = false, l4_given = false;
-  /// Levels given between C7 and L4 (given_landmarks.h: T7, the scapulae's inferior angles), each at its row of the
-  /// body's frame: the levels between two of C7, these and L4 are spaced by the model's fractions between them.
-  struct GivenLevel {
-    std::string level;
-    double row = 0.0;
-  };
-  std::vector<GivenLevel> given_levels;
+  /// Levels given between C7 and L4 (given_landmarks.h: T7, the scapulae's inferior angles), head to feet, each at
+  /// its row of the body's frame (body.y): the levels between two of C7, these and L4 are spaced by the model's
+  /// fractions between them.
+  std::vector<Landmark> given_levels;
   /// What the checks need to know of each given landmark (applyGivenLandmarks; checkLayout): where it was given
   /// against the back as measured before it was applied.
   struct GivenCheck {
-    std::string level;         ///< "C7", "T7", "L4"
-    std::string source;        ///< how it was given ("clicked", "service", "marker", ...)
-    cv::Point2f body;          ///< the given pixel in the body's frame
+    std::string level;                               ///< "C7", "T7", "L4"
+    LandmarkSource source = LandmarkSource::kGiven;  ///< how it was given
+    cv::Point2f body;                                ///< the given pixel in the body's frame
     double off_midline = 0.0;  ///< pixels of the body's frame across the measured midline (+: the body frame's right,
                                ///< the subject's right in a head-up view), at the given row
     /// The same landmark as the pair measured it (C7 at a neck's base, L4 from the waist), body frame row; NaN when
@@ -168,6 +217,9 @@ struct BackLandmarks {
     std::string stale;          ///< non-empty: why it no longer holds (the back moved since it was given)
   };
   std::vector<GivenCheck> given_checks;
+  /// In words: what the pair measured and inferred ("C7 at the neck's base", "the waist", "L4 from C7 and the
+  /// shoulder width (...)"), and the given landmarks ("C7 (clicked)"): printed, never read back (c7, l4 and
+  /// given_levels say it).
   std::vector<std::string> measured, inferred, given;
   /// How far the body is turned against the image's columns, degrees
   /// (+: the head toward the image right of a head-up view, clockwise on screen); 0 within
@@ -180,19 +232,22 @@ struct BackLandmarks {
 /// waist); measured: C7 at the neck's base, the waist; inferred: -".
 std::string describeLandmarks(const BackLandmarks& landmarks);
 
-/// One of the layout's landmarks (C7, a given T7, L4) as a rectified left pixel, and what fixed it.
+/// One of the layout's landmarks (C7, a given T7, L4) with its rectified left pixel.
 struct LayoutLandmark {
-  std::string name;    ///< "C7", "T7" (when given), "L4"
-  cv::Point2f pixel;   ///< rectified left image
-  std::string source;  ///< "measured", "inferred" or "given"
-  std::string detail;  ///< from what: "the neck's base", "C7 and the shoulder width", "marker", "clicked", ...
+  Landmark landmark;
+  cv::Point2f pixel;  ///< rectified left image
 };
 
 /// C7, the given levels between (T7) and L4 of `landmarks`, head to feet (empty when they are not valid).
 std::vector<LayoutLandmark> layoutLandmarks(const BackLandmarks& landmarks);
 
-/// "C7 given (clicked)", "L4 measured (the waist)", "T7 given" (a detail that only repeats the source left out).
-std::string describeLandmark(const LayoutLandmark& landmark);
+/// From what a landmark was fixed, in words: Landmark::detail ("the neck's base", "C7 and the shoulder width"), or
+/// for a given one how it was given (givenHowName: "clicked", "marker", ...). BackLandmark.msg's `detail`.
+std::string landmarkDetail(const Landmark& landmark);
+
+/// "C7 given (clicked)", "L4 measured (the waist)": the level, sourceName and landmarkDetail.
+std::string describeLandmark(const Landmark& landmark);
+inline std::string describeLandmark(const LayoutLandmark& landmark) { return describeLandmark(landmark.landmark); }
 
 /// A point of the body's frame (BackLandmarks) in the rectified left image.
 cv::Point2f toImage(const BackLandmarks& landmarks, const cv::Point2f& body_pixel);
@@ -270,7 +325,7 @@ struct AcupointPixel {
 };
 
 /// The layout's uncertainty of a point at `level` (AcupointModel::
-/// layout_sigma, with BackLandmarks::c7_measured / waist_measured), 3x3 in
+/// layout_sigma by the sources of BackLandmarks::c7 / l4 / given_levels: layoutSigma), 3x3 in
 /// metres^2 in the left optical frame, lying in the image plane's directions
 /// (along the body's axis on the image and across it; the camera looks down
 /// on the back). `metres_per_pixel` at the point turns the C7 -> L4 length

@@ -72,10 +72,12 @@ struct PairScore {
 PairScore scorePair(const LocatedAcupoints& result, const AcupointModel& model, const camera::StereoModel& geometry,
                     const BackTruth& truth);
 
-/// Mean, 95th percentile (nearest rank) and maximum of |values|; NaN each when empty.
+/// Mean, 95th percentile (nearest rank) and maximum of |values| (the finite ones), and their median (the upper
+/// middle of an even count: a sample); NaN each when empty. The one place CECT's figures take these statistics.
 struct Spread {
   int count = 0;
   double mean = 0.0, p95 = 0.0, max = 0.0;
+  double median = 0.0;
 };
 Spread spreadOf(const std::vector<double>& values);
 

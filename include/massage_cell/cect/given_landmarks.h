@@ -59,12 +59,15 @@ struct FollowLimits {
 
 struct GivenLandmark {
   GivenLandmark() = default;
-  GivenLandmark(std::string name_, const cv::Point2f& pixel_, std::string source_ = {}, bool confirmed_ = false)
-      : name(std::move(name_)), pixel(pixel_), source(std::move(source_)), confirmed(confirmed_) {}
-  std::string name;    ///< givenLandmarkNames(): "C7" (the vertebra prominens), "T7" (the scapulae's inferior angles'
-                       ///< line), "L4" (the iliac crests' line)
-  cv::Point2f pixel;   ///< on the midline at that level, rectified left image
-  std::string source;  ///< how it was given ("clicked", "service", "marker"): said in the landmarks' description
+  GivenLandmark(std::string name_, const cv::Point2f& pixel_, LandmarkSource source_, bool confirmed_ = false)
+      : name(std::move(name_)), pixel(pixel_), source(source_), confirmed(confirmed_) {}
+  std::string name;   ///< givenLandmarkNames(): "C7" (the vertebra prominens), "T7" (the scapulae's inferior angles'
+                      ///< line), "L4" (the iliac crests' line)
+  cv::Point2f pixel;  ///< on the midline at that level, rectified left image
+  /// How it was given (one of the given sources): said in the landmarks' description and messages.
+  LandmarkSource source = LandmarkSource::kGiven;
+  /// The camera's raw left pixel where known (GivenLandmarkSet::forPair), else NaN: carried into Landmark::raw_pixel.
+  cv::Point2f raw_pixel{std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::quiet_NaN()};
   /// Confirmed over the pair's own measurement of the same landmark (a neck's base, a waist) where the two disagree:
   /// without it such a layout is not trusted (checkLayout).
   bool confirmed = false;
@@ -82,14 +85,15 @@ std::string checkGivenLandmarkName(const std::string& name);
 /// Puts `given` into `landmarks` (as findLandmarks and the parallax corrections left them): each level at its
 /// pixel's row of the body's frame, the midline moved across to pass through the given pixels (with one, shifted by
 /// a constant; with more, the straight lines through them in order between the first and the last, the lateral
-/// directions perpendicular to each, and beyond them the midline shifted to join it), `c7_given` / `l4_given` set,
-/// a given T7 in `given_levels` (placeAcupoints then spaces the levels C7..T7 and T7..L4 by the model's fractions
-/// between them), the description's "given" list filled, and `given_checks` recording each given pixel against the
-/// back as measured before (across its midline; the pair's own C7 / L4 where it measured them) for checkLayout.
-/// Clears `along` (measured from the old C7: call measureLevelsIn3D again). Returns an empty string when applied; else
-/// the problem (an unknown name, a name twice, a pixel not finite or not on the back's rows, L4 not below C7, T7 not
-/// between them), leaving the landmarks as they were. `point`: the back's 3D (framePoints), which places the spine
-/// across each given row for the checks (the middle of the back's top there); without it the silhouette's midline does.
+/// directions perpendicular to each, and beyond them the midline shifted to join it), `c7` / `l4` given (their
+/// source, raw pixel and, with `point`, 3D), a given T7 in `given_levels` (placeAcupoints then spaces the levels C7..T7
+/// and T7..L4 by the model's fractions between them), the description's "given" list filled, and `given_checks`
+/// recording each given pixel against the back as measured before (across its midline; the pair's own C7 / L4 where it
+/// measured them) for checkLayout. Clears `along` (measured from the old C7: call measureLevelsIn3D again). Returns an
+/// empty string when applied; else the problem (an unknown name, a name twice, a pixel not finite or not on the back's
+/// rows, L4 not below C7, T7 not between them), leaving the landmarks as they were. `point`: the back's 3D
+/// (framePoints), which places the spine across each given row for the checks (the middle of the back's top there);
+/// without it the silhouette's midline does.
 std::string applyGivenLandmarks(BackLandmarks* landmarks, const std::vector<GivenLandmark>& given,
                                 const PointLookup& point = {});
 
@@ -101,7 +105,7 @@ class GivenLandmarkSet {
   /// Sets (or replaces) `name` at `raw_pixel` of an image of `image_size` (`confirmed`: GivenLandmark::confirmed), on
   /// the back of `view` (the pair it was given on; no frame: not followed). Returns an empty string, else the problem
   /// (an unknown name, a pixel not finite or outside the image) and changes nothing.
-  std::string set(const std::string& name, const cv::Point2f& raw_pixel, const std::string& source, cv::Size image_size,
+  std::string set(const std::string& name, const cv::Point2f& raw_pixel, LandmarkSource source, cv::Size image_size,
                   bool confirmed = false, const BackView& view = {});
   void clear() { landmarks_.clear(); }
   bool empty() const { return landmarks_.empty(); }
@@ -114,7 +118,7 @@ class GivenLandmarkSet {
   /// nothing.
   std::string confirm(const BackView& now);
   /// The landmarks in a pair's rectified left pixels (`geometry` of the processed images, `decimation` from the
-  /// camera's to them).
+  /// camera's to them), each with its raw pixel (GivenLandmark::raw_pixel).
   std::vector<GivenLandmark> forPair(const camera::StereoModel& geometry, const camera::Decimation& decimation) const;
   /// "C7 (clicked) at raw (412.0, 96.5), L4 (service) at raw (...)", or "none".
   std::string describe() const;
