@@ -124,7 +124,7 @@ std::uint32_t SimDrive::checkWrite(std::uint16_t index, std::uint8_t sub, const 
   if (isRpdoMap(index) || isTpdoMap(index)) return checkPdoMapWrite(od_, index, sub, v);
   if (index == 0x6060) {
     const auto mode = static_cast<std::int8_t>(v);
-    if (mode != 0 && mode != 1 && mode != 6) return sdo_abort::kInvalidValue;
+    if (mode != 0 && mode != 1 && mode != 6 && mode != 8) return sdo_abort::kInvalidValue;
   }
   if (index == 0x1016 && sub == 1) {
     const auto producer = (v >> 16) & 0xFF;
@@ -139,7 +139,11 @@ std::uint32_t SimDrive::checkWrite(std::uint16_t index, std::uint8_t sub, const 
 
 void SimDrive::afterWrite(std::uint16_t index, std::uint8_t sub) {
   if (index == 0x6040) processControlword();
-  if (index == 0x6060) od_.set(0x6061, 0, od_.get(0x6060, 0));
+  if (index == 0x6060) {
+    od_.set(0x6061, 0, od_.get(0x6060, 0));
+    csp_from_ = csp_to_ = demand_;  // a cyclic mode starts where the axis stands
+    csp_elapsed_ = csp_period_;
+  }
   if (index == 0x1017) next_heartbeat_ = clock_.now() + std::chrono::milliseconds(od_.get(0x1017, 0));
   if (index == 0x1016) {
     consumer_armed_ = false;  // monitoring starts with the producer's next heartbeat
@@ -349,6 +353,7 @@ void SimDrive::handleSync() {
       applyRpdo(n, v);
     }
   }
+  syncCyclicTarget();
   updateProcessObjects();
   for (int n = 0; n < 4; ++n) {
     const auto cob = static_cast<std::uint32_t>(od_.get(static_cast<std::uint16_t>(0x1800 + n), 1));

@@ -45,7 +45,7 @@ void SimDrive::resetApplication() {
   od_.add(0x609A, 0, A::kReadWrite, 4, std::llround(c.profile_acceleration * k));
   od_.add(0x6076, 0, A::kConst, 4, std::llround(c.rated_torque * 1000.0));  // mN m
   od_.add(0x6077, 0, A::kReadOnly, 2, 0, true, true);                       // per mille of 0x6076
-  od_.add(0x6502, 0, A::kReadOnly, 4, (1 << 0) | (1 << 5));                 // supported modes: pp, homing
+  od_.add(0x6502, 0, A::kReadOnly, 4, (1 << 0) | (1 << 5) | (1 << 7));      // supported modes: pp, homing, csp
   od_.add(0x6007, 0, A::kReadWrite, 2, 1, true);                            // abort connection option code: fault
   // The drive restarts: the position reference (homing) is lost, the motor is off.
   actual_ -= offset_;
@@ -117,7 +117,10 @@ std::uint16_t SimDrive::composeStatusword() const {
     const double pos_window = static_cast<double>(od_.get(0x6067, 0));
     const bool reached = (!moving_ && std::abs(actual_ - pp_target_) <= pos_window) || (halt_ && velocity_ == 0.0);
     if (reached) w |= sw::kTargetReached;
-    if (setpoint_ack_) w |= sw::kSetPointAcknowledge;
+    // Bit 12: profile position's set-point acknowledge; in cyclic synchronous position, "drive follows the
+    // command value" (always, while enabled).
+    if (setpoint_ack_ || od_.get(0x6061, 0) == static_cast<int>(Mode::kCyclicSyncPosition))
+      w |= sw::kSetPointAcknowledge;
     if (following) w |= sw::kFollowingError;
     if (internal_limit_) w |= sw::kInternalLimit;
   }
@@ -139,7 +142,7 @@ void SimDrive::enterState(Cia402State s) {
   if (s == Cia402State::kOperationEnabled && prev != Cia402State::kQuickStopActive) {
     demand_ = actual_;
     velocity_ = 0.0;
-    pp_target_ = actual_;
+    pp_target_ = csp_from_ = csp_to_ = actual_;
   }
   if (s == Cia402State::kOperationEnabled) {
     moving_ = false;
@@ -392,7 +395,9 @@ void SimDrive::step(double dt) {
 void SimDrive::stepOperationEnabled(double dt) {
   const auto mode = od_.get(0x6061, 0);
   const double dec = std::max(1.0, static_cast<double>(od_.get(0x6084, 0)));
-  if (mode == static_cast<int>(Mode::kProfilePosition) && moving_ && !halt_) {
+  if (mode == static_cast<int>(Mode::kCyclicSyncPosition) && !halt_) {
+    stepCyclic(dt);
+  } else if (mode == static_cast<int>(Mode::kProfilePosition) && moving_ && !halt_) {
     const double vmax = static_cast<double>(std::min(od_.get(0x6081, 0), od_.get(0x607F, 0)));
     const double acc = std::max(1.0, static_cast<double>(od_.get(0x6083, 0)));
     if (approach(pp_target_, vmax, acc, dec, dt)) moving_ = false;
@@ -401,6 +406,36 @@ void SimDrive::stepOperationEnabled(double dt) {
   } else {
     brake(dec, dt);
   }
+}
+
+// --- cyclic synchronous position (mode 8) ------------------------------------------------------
+
+void SimDrive::syncCyclicTarget() {
+  const double now = sim_time_s_;
+  const double period = now - last_sync_s_;
+  last_sync_s_ = now;
+  if (period > 1e-4 && period < 0.1) csp_period_ = period;  // the SYNC interval the targets come at
+  if (state_ != Cia402State::kOperationEnabled || od_.get(0x6061, 0) != static_cast<int>(Mode::kCyclicSyncPosition))
+    return;
+  // The new target is reached by the next SYNC, linearly; beyond the software limits or the maximum velocity
+  // (0x607F) per SYNC it is clamped and bit 11 (internal limit active) says so.
+  double t = static_cast<double>(od_.get(0x607A, 0));
+  const double lo = static_cast<double>(od_.get(0x607D, 1)), hi = static_cast<double>(od_.get(0x607D, 2));
+  const double step = static_cast<double>(od_.get(0x607F, 0)) * csp_period_;
+  internal_limit_ = false;
+  const double clamped = std::clamp(lo < hi ? std::clamp(t, lo, hi) : t, demand_ - step, demand_ + step);
+  if (clamped != t) internal_limit_ = true;
+  csp_from_ = demand_;
+  csp_to_ = pp_target_ = clamped;
+  csp_elapsed_ = 0.0;
+}
+
+void SimDrive::stepCyclic(double dt) {
+  csp_elapsed_ += dt;
+  const double f = std::min(1.0, csp_elapsed_ / csp_period_);
+  const double next = csp_from_ + (csp_to_ - csp_from_) * f;
+  velocity_ = f < 1.0 ? (csp_to_ - csp_from_) / csp_period_ : 0.0;
+  demand_ = next;
 }
 
 void SimDrive::stepHoming(double dt) {

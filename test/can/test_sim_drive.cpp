@@ -461,3 +461,31 @@ TEST_F(MechanicsFixture, TorqueActualCarriesGravityFrictionAndWhatPushesTheAxis)
   tick();
   EXPECT_EQ(drive.object(0x6077, 0), 0);
 }
+
+TEST_F(SimFixture, CyclicSynchronousPositionReachesEachTargetByTheNextSync) {
+  start();
+  write(0x6060, 0, {8});
+  EXPECT_EQ(drive.modeDisplay(), 8);
+  enable();
+  EXPECT_TRUE(drive.statusword() & sw::kSetPointAcknowledge);  // bit 12: the drive follows the command value
+  // A SYNC every 10 ms, the target 1 mm further each time: the drive moves 0.1 m/s, linearly between SYNCs.
+  std::int32_t target = drive.position();
+  for (int k = 0; k < 20; ++k) {
+    target += 100;  // 1 mm
+    host->send(*packPdo(0x205, {{0x6040, 0, 16}, {0x607A, 0, 32}}, {0x0F, static_cast<std::uint32_t>(target)}));
+    sync();
+    for (int i = 0; i < 9; ++i) tick();
+  }
+  EXPECT_NEAR(drive.position(), target - 10, 11);  // within a ms of the last target, one SYNC late at most
+  tick();
+  EXPECT_EQ(drive.position(), target);
+  // A jump beyond 0x607F per SYNC (1 m/s: 10 mm) is clamped, bit 11 set; beyond the software limit too.
+  host->send(*packPdo(0x205, {{0x6040, 0, 16}, {0x607A, 0, 32}}, {0x0F, static_cast<std::uint32_t>(target + 5000)}));
+  sync();
+  for (int i = 0; i < 10; ++i) tick();
+  EXPECT_TRUE(drive.statusword() & sw::kInternalLimit);
+  EXPECT_EQ(drive.position(), target + 1000);
+  // A mode other than 0, 1, 6 or 8 is refused.
+  const can_frame r = sdo(sdoInitiateDownloadRequest(5, 0x6060, 0, {3}));
+  EXPECT_EQ(r.data[0], 0x80);
+}

@@ -32,6 +32,9 @@
 //    axis' mechanics (sim_mechanics.h: mass, gravity, friction, ball screw)
 //    and an external force on the axis (setExternalForce: a body under the
 //    tool), mappable into a TPDO;
+//  - cyclic synchronous position (mode 8): the target 0x607A of each SYNC's
+//    RPDO is reached by the next SYNC, linearly (clamped to 0x607D and to
+//    0x607F per SYNC period, bit 11 set);
 //  - homing mode (0x6098: 1, 2, 17, 18 move to the home switch at
 //    0x6099:01, then the position becomes 0x607C; 33, 34, 35, 37 home in
 //    place); other methods end in a homing error.
@@ -191,6 +194,8 @@ class SimDrive {
   void step(double dt);
   void stepOperationEnabled(double dt);
   void stepHoming(double dt);
+  void syncCyclicTarget();  ///< at each SYNC in cyclic synchronous position: the next target from 0x607A
+  void stepCyclic(double dt);
   void brake(double dec, double dt);
   bool approach(double target, double vmax, double acc, double dec, double dt);  // true when arrived
   void monitorFollowingError();
@@ -244,6 +249,8 @@ class SimDrive {
   double offset_ = 0.0;  // reported - physical (set by homing)
   double pp_target_ = 0.0;
   bool moving_ = false;
+  // cyclic synchronous position: from where to where the demand goes between two SYNCs
+  double csp_from_ = 0.0, csp_to_ = 0.0, csp_elapsed_ = 0.0, csp_period_ = 0.01, last_sync_s_ = 0.0;
   bool setpoint_ack_ = false;
   bool target_reached_ = true;
   bool internal_limit_ = false;
