@@ -145,6 +145,8 @@ const char* toString(Cia402Axis::Operation op) {
       return "homing";
     case Cia402Axis::Operation::kMove:
       return "move";
+    case Cia402Axis::Operation::kMode:
+      return "mode change";
   }
   return "?";
 }
@@ -259,7 +261,28 @@ void Cia402Axis::moveToCounts(std::int32_t counts) {
   target_ = counts;
   if (counts < config_.toCounts(config_.min_position) || counts > config_.toCounts(config_.max_position)) {
     fail("target " + std::to_string(counts) + " counts is outside the configured limits");
+  } else if (mode_ == Mode::kCyclicSyncPosition) {
+    fail("move refused: the axis streams cyclic targets (mode 8); set profile position first");
   }
+}
+
+void Cia402Axis::setModeOfOperation(Mode mode) {
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
+  begin(Operation::kMode);
+  wanted_mode_ = mode;
+}
+
+bool Cia402Axis::setCyclicTarget(std::int32_t counts) {
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
+  if (!cyclic() || status_ == Status::kRunning) return false;
+  target_ = std::clamp(counts, config_.toCounts(config_.min_position), config_.toCounts(config_.max_position));
+  master_.setRpdo(config_.node_id, command_, target_);
+  return true;
+}
+
+bool Cia402Axis::cyclic() const {
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
+  return mode_ == Mode::kCyclicSyncPosition && state() == Cia402State::kOperationEnabled;
 }
 
 Cia402Axis::Operation Cia402Axis::operation() const {
@@ -381,6 +404,9 @@ void Cia402Axis::tick(TimePoint now) {
     case Operation::kMove:
       tickMove(now, s, word, fb.position);
       return;
+    case Operation::kMode:
+      tickMode(now, s, word);
+      return;
     case Operation::kNone:
       return;
   }
@@ -479,6 +505,43 @@ void Cia402Axis::tickMove(TimePoint now, Cia402State s, std::uint16_t word, std:
   }
 }
 
+void Cia402Axis::tickMode(TimePoint now, Cia402State s, std::uint16_t word) {
+  if (s != Cia402State::kOperationEnabled) {
+    return fail("mode change " + std::string(phase_ == Phase::kStart ? "refused" : "aborted") + ": drive is '" +
+                toString(s) + "' (" + faultText(word) + "), not operation enabled");
+  }
+  switch (phase_) {
+    case Phase::kStart: {
+      // Hold where the axis stands whichever mode comes: a PP set-point or the first cyclic target.
+      target_ = master_.feedback(config_.node_id).position;
+      command(cw::kEnableOperation);
+      const Mode wanted = wanted_mode_;
+      setMode(wanted, Phase::kDone);
+      return;
+    }
+    case Phase::kSetMode:
+      if (sdo_pending_) return;
+      if (!sdo_ok_) return fail("could not set the mode of operation: " + sdo_error_);
+      readMode();
+      return;
+    case Phase::kCheckMode:
+      if (sdo_pending_) return;
+      if (!sdo_ok_) return fail("could not read the mode display: " + sdo_error_);
+      if (mode_read_ == static_cast<std::int8_t>(wanted_mode_)) {
+        mode_ = wanted_mode_;
+        return succeed("mode of operation " + std::to_string(static_cast<int>(mode_)));
+      }
+      if (timedOut(now, config_.enable_timeout_ms)) {
+        return fail("mode display 0x6061 stays " + std::to_string(mode_read_) + ", wanted " +
+                    std::to_string(static_cast<int>(wanted_mode_)));
+      }
+      readMode();
+      return;
+    default:
+      return;
+  }
+}
+
 void Cia402Axis::setMode(Mode mode, Phase next) {
   wanted_mode_ = mode;
   after_mode_ = next;
@@ -541,6 +604,7 @@ void Cia402Axis::tickHoming(TimePoint now, Cia402State s, std::uint16_t word) {
       target_ = fb.position;
       command(cw::kEnableOperation);
       homed_ = false;
+      mode_ = Mode::kHoming;
       setMode(Mode::kHoming, Phase::kHomingRun);
       return;
     case Phase::kSetMode:
@@ -554,6 +618,7 @@ void Cia402Axis::tickHoming(TimePoint now, Cia402State s, std::uint16_t word) {
       if (!sdo_ok_) return fail("could not read the mode display: " + sdo_error_);
       if (mode_read_ == static_cast<std::int8_t>(wanted_mode_)) {
         if (after_mode_ == Phase::kHomingRun) return startHomingAttempt();
+        mode_ = Mode::kProfilePosition;
         char buf[96];
         std::snprintf(buf, sizeof buf, "homed at %.6f m (%d counts), back in profile position mode",
                       config_.toMetres(fb.position), fb.position);

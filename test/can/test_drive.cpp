@@ -164,6 +164,42 @@ TEST(Drive, ProfilePositionMoveReachesItsTarget) {
   EXPECT_LE(std::abs(r.drives[0]->position() - x.config().toCounts(0.349)), 1);
 }
 
+TEST(Drive, CyclicTargetsAreFollowedEverySyncThenProfilePositionAgain) {
+  Rig r;
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.enable(2));
+  Cia402Axis& z = *r.axes[2];
+  EXPECT_FALSE(z.setCyclicTarget(z.positionCounts() - 100));  // not streaming: nothing sent
+  z.setModeOfOperation(Mode::kCyclicSyncPosition);
+  ASSERT_TRUE(r.finish(z, 2s)) << z.error() << r.dump();
+  ASSERT_TRUE(z.cyclic());
+  EXPECT_EQ(r.drives[2]->modeDisplay(), 8);
+  // Down 1 mm per SYNC (0.1 m/s) for 10 SYNCs: the drive follows within a SYNC and a TPDO.
+  const std::int32_t start = z.positionCounts();
+  const std::int32_t mm = z.config().toCounts(0.001);
+  for (int k = 1; k <= 10; ++k) {
+    ASSERT_TRUE(z.setCyclicTarget(start - k * mm));
+    r.run(10ms);
+  }
+  r.run(30ms);
+  EXPECT_EQ(r.drives[2]->position(), start - 10 * mm);
+  EXPECT_EQ(z.positionCounts(), start - 10 * mm);
+  // Clamped to the configured limits (Z: 0 .. 0.30 m), never beyond.
+  ASSERT_TRUE(z.setCyclicTarget(z.config().toCounts(0.5)));
+  r.run(200ms);
+  EXPECT_LE(r.drives[2]->position(), z.config().toCounts(0.30));
+  // A profile-position move is refused while streaming, and works again once back in mode 1.
+  z.moveTo(0.2);
+  EXPECT_EQ(z.status(), Status::kFailed);
+  EXPECT_NE(z.error().find("cyclic"), std::string::npos) << z.error();
+  z.setModeOfOperation(Mode::kProfilePosition);
+  ASSERT_TRUE(r.finish(z, 2s)) << z.error();
+  EXPECT_FALSE(z.cyclic());
+  z.moveTo(0.2);
+  ASSERT_TRUE(r.finish(z)) << z.error();
+  EXPECT_NEAR(z.position(), 0.2, 1e-6);
+}
+
 TEST(Drive, MovesOfAllAxesAtOnce) {
   Rig r;
   ASSERT_TRUE(r.start());

@@ -90,7 +90,7 @@ std::vector<StartupWrite> cia402StartupWrites(const AxisConfig& axis);
 /// One CiA 402 axis on a Master; see the file comment.
 class Cia402Axis {
  public:
-  enum class Operation { kNone, kEnable, kDisable, kQuickStop, kFaultReset, kHoming, kMove };
+  enum class Operation { kNone, kEnable, kDisable, kQuickStop, kFaultReset, kHoming, kMove, kMode };
   enum class Status { kIdle, kRunning, kSucceeded, kFailed };
 
   /// Registers the axis's start-up writes and tick handler with `master`
@@ -121,6 +121,15 @@ class Cia402Axis {
   /// the configured limits; needs operation enabled).
   void moveTo(double metres);
   void moveToCounts(std::int32_t counts);
+  /// Switches the mode of operation (0x6060, read back from 0x6061), holding the position the axis stands at
+  /// (needs operation enabled): kCyclicSyncPosition to stream targets with setCyclicTarget, kProfilePosition to
+  /// move again with moveTo.
+  void setModeOfOperation(Mode mode);
+  /// In cyclic synchronous position (setModeOfOperation done): the target the next SYNC's RPDO carries, counts,
+  /// clamped to the configured limits. False (nothing sent) when the axis is not streaming.
+  bool setCyclicTarget(std::int32_t counts);
+  /// Cyclic synchronous position set and confirmed by the drive, and operation enabled.
+  bool cyclic() const;
 
   Operation operation() const;
   Status status() const;
@@ -160,6 +169,7 @@ class Cia402Axis {
   void tickEnable(TimePoint now, Cia402State s, std::uint16_t word);
   void tickMove(TimePoint now, Cia402State s, std::uint16_t word, std::int32_t pos);
   void tickHoming(TimePoint now, Cia402State s, std::uint16_t word);
+  void tickMode(TimePoint now, Cia402State s, std::uint16_t word);
   void setMode(Mode mode, Phase next);
   void readMode();
   void startHomingAttempt();
@@ -198,6 +208,7 @@ class Cia402Axis {
   std::int8_t mode_read_ = 0;
   Mode wanted_mode_ = Mode::kProfilePosition;
   Phase after_mode_ = Phase::kDone;
+  Mode mode_ = Mode::kProfilePosition;  ///< the mode last confirmed by setModeOfOperation (homing restores PP)
   bool sent_confirmed_ = false;
   std::uint64_t count_mark_ = 0;
   std::uint32_t quick_stop_timeout_ms_ = 0;
