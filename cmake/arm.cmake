@@ -12,6 +12,7 @@ add_library(massage_cell_arm STATIC
   src/arm/sim_body.cpp
   src/arm/force_estimate.cpp
   src/arm/tool_force.cpp
+  src/arm/force_press.cpp
   src/arm/session.cpp)
 target_include_directories(massage_cell_arm PUBLIC include ${EIGEN3_INCLUDE_DIR} ${OpenCV_INCLUDE_DIRS})
 target_link_libraries(massage_cell_arm PUBLIC massage_cell_can yaml-cpp ${OpenCV_LIBS} Threads::Threads)

@@ -1,0 +1,92 @@
+// A press by force, cycle by cycle, ROS-free and CAN-free: from the approach
+// point above the skin the tool seeks the body at a slow speed until the
+// force says it touches, ramps the force up to the target, holds it while the
+// back breathes under it (an admittance loop: the tool's height moves with the
+// force error), ramps it down and backs off to where it started. The
+// controller streams the z it returns to the Z drive (cyclic synchronous
+// position) and feeds back the measured force (tool_force.h).
+//
+// The limits hold whatever was asked: a force above the press's cap (the
+// region's force and pressure limits), an indentation past the region's
+// guard, a force rising faster than max_force_rate (the tool hit something),
+// or no contact within no_contact_band below where vision put the skin stop
+// the press and back it off; the press then ends failed with the reason.
+// abort() backs off the same way (a stop, the watchdog, a lost target).
+#pragma once
+
+#include <string>
+
+namespace massage_cell::arm {
+
+/// How the loop behaves (config/arm.yaml force_control:).
+struct ForceControlConfig {
+  double contact_force = 3.0;     ///< N: above this the tool touches
+  double seek_speed = 0.005;      ///< m/s down from the approach point until contact
+  double no_contact_band = 0.02;  ///< m below the expected skin without contact: the body is not there
+  double ramp_rate = 40.0;        ///< N/s of the force set-point, up and down
+  /// The admittance loop, normalised by the tissue's local stiffness k (so soft and stiff backs respond alike): the
+  /// tool moves at v = (ramp feed-forward + bandwidth e + integral ∫e) / k for a force error e. k is the power law's
+  /// slope n F / x at the indentation x past the contact point, within [min_stiffness, max_stiffness].
+  double bandwidth = 25.0;         ///< rad/s
+  double integral = 156.0;         ///< 1/s^2 (bandwidth^2 / 4: critically damped; follows breathing)
+  double tissue_exponent = 1.5;    ///< n of F = k x^n (sim_body.h's tissue; 1.2-1.5 published)
+  double min_stiffness = 1000.0;   ///< N/m
+  double max_stiffness = 40000.0;  ///< N/m
+  double max_speed = 0.02;         ///< m/s the loop may move the tool
+  double max_force_rate = 300.0;   ///< N/s: a faster rise stops the press (a hit, not tissue)
+  double release_speed = 0.01;     ///< m/s back to the approach point
+};
+
+/// One press: where it starts and what it may do.
+struct ForcePressGoal {
+  double start_z = 0.0;        ///< m, the approach point's height (the tool is there, still, when it starts)
+  double expected_skin_z = 0;  ///< m, where vision put the skin under the tool
+  double force = 0.0;          ///< N to hold
+  double max_force = 0.0;      ///< N: the cap (the region's force and pressure limits); above it the press stops
+  double max_indentation = 0;  ///< m past the contact point: beyond it the press stops
+  double hold = 0.0;           ///< s at the force
+};
+
+class ForcePress {
+ public:
+  enum class Phase { kSeek, kRamp, kHold, kRelease, kBackOff, kDone, kFailed };
+
+  ForcePress(const ForceControlConfig& config, const ForcePressGoal& goal);
+  /// One cycle of `dt` s: the measured force (N, + pushing the tool up) and the tool's measured height (m). Returns
+  /// the height to command (m).
+  double update(double force, double z, double dt);
+  /// Stop pressing: ramp nothing down, back off to the start at release_speed; the press then ends failed with `why`.
+  void abort(const std::string& why);
+
+  Phase phase() const { return phase_; }
+  bool finished() const { return phase_ == Phase::kDone || phase_ == Phase::kFailed; }
+  /// Why it failed (or is backing off to fail); empty otherwise.
+  const std::string& failure() const { return failure_; }
+  /// The force set-point now, N (0 before contact).
+  double setPoint() const { return set_point_; }
+  /// Where contact was found (m; NaN before).
+  double contactZ() const { return contact_z_; }
+  /// "seeking the skin", "ramping to 30 N", "holding 30 N", "releasing", "backing off: <why>".
+  std::string describe() const;
+
+ private:
+  double admittance(double force, double z, double feed_forward, double dt);
+  double localStiffness(double force, double z) const;
+  std::string checkLimits(double force, double z, double dt);
+  void fail(const std::string& why);
+
+  ForceControlConfig c_;
+  ForcePressGoal g_;
+  Phase phase_ = Phase::kSeek;
+  std::string failure_;
+  double z_cmd_;
+  double set_point_ = 0.0;
+  double integral_ = 0.0;
+  double contact_z_;
+  double held_ = 0.0;
+  double last_force_;
+};
+
+const char* toString(ForcePress::Phase phase);
+
+}  // namespace massage_cell::arm
