@@ -8,6 +8,7 @@ add_library(massage_cell_arm STATIC
   src/arm/profile.cpp
   src/arm/plan.cpp
   src/arm/controller.cpp
+  src/arm/controller_force.cpp
   src/arm/sim_cell.cpp
   src/arm/sim_body.cpp
   src/arm/force_estimate.cpp

@@ -215,6 +215,26 @@ void readForce(Reader& r, const YAML::Node& f, ForceConfig* out) {
   }
 }
 
+void readForceControl(Reader& r, const YAML::Node& f, ForceControlConfig* out) {
+  r.checkKeys(f, "force_control",
+              {"contact_force", "seek_speed", "no_contact_band", "ramp_rate", "bandwidth", "integral",
+               "tissue_exponent", "min_stiffness", "max_stiffness", "max_speed", "max_force_rate", "release_speed"});
+  ForceControlConfig& c = *out;
+  const std::string p = "force_control.";
+  c.contact_force = r.number(f["contact_force"], p + "contact_force", c.contact_force);
+  c.seek_speed = r.number(f["seek_speed"], p + "seek_speed", c.seek_speed);
+  c.no_contact_band = r.number(f["no_contact_band"], p + "no_contact_band", c.no_contact_band);
+  c.ramp_rate = r.number(f["ramp_rate"], p + "ramp_rate", c.ramp_rate);
+  c.bandwidth = r.number(f["bandwidth"], p + "bandwidth", c.bandwidth);
+  c.integral = r.number(f["integral"], p + "integral", c.integral);
+  c.tissue_exponent = r.number(f["tissue_exponent"], p + "tissue_exponent", c.tissue_exponent);
+  c.min_stiffness = r.number(f["min_stiffness"], p + "min_stiffness", c.min_stiffness);
+  c.max_stiffness = r.number(f["max_stiffness"], p + "max_stiffness", c.max_stiffness);
+  c.max_speed = r.number(f["max_speed"], p + "max_speed", c.max_speed);
+  c.max_force_rate = r.number(f["max_force_rate"], p + "max_force_rate", c.max_force_rate);
+  c.release_speed = r.number(f["release_speed"], p + "release_speed", c.release_speed);
+}
+
 ArmConfig armConfig(const std::string& yaml_text, const std::string& source, const std::string& base_dir) {
   Reader r(source);
   YAML::Node root;
@@ -225,8 +245,8 @@ ArmConfig armConfig(const std::string& yaml_text, const std::string& source, con
   }
   r.checkKeys(root, "",
               {"can_config", "axes", "joint_names", "joints", "tool_offset", "workspace", "watchdog_timeout",
-               "bringup_timeout", "position_tolerance", "press", "body", "force", "regions", "default_region",
-               "acupoints", "node"});  // node: the ROS node's settings (read by the node)
+               "bringup_timeout", "position_tolerance", "press", "body", "force", "force_control", "regions",
+               "default_region", "acupoints", "node"});  // node: the ROS node's settings (read by the node)
   ArmConfig c;
   c.source = source;
   c.can_config_path = resolve(base_dir, r.text(root["can_config"], "can_config", "", true));
@@ -274,7 +294,7 @@ ArmConfig armConfig(const std::string& yaml_text, const std::string& source, con
     r.checkKeys(p, "press",
                 {"approach_height", "travel_height", "speed", "max_speed", "acceleration", "retract_speed", "hold",
                  "max_hold", "max_repeats", "max_targets", "estop_release", "max_normal_tilt_deg", "knead_radius",
-                 "knead_period", "knead_segments"});
+                 "knead_period", "knead_segments", "mode", "contact_area"});
     PressConfig& pc = c.press;
     pc.approach_height = r.number(p["approach_height"], "press.approach_height", pc.approach_height);
     pc.travel_height = r.number(p["travel_height"], "press.travel_height", pc.travel_height);
@@ -293,6 +313,10 @@ ArmConfig armConfig(const std::string& yaml_text, const std::string& source, con
     pc.knead_radius = r.number(p["knead_radius"], "press.knead_radius", pc.knead_radius);
     pc.knead_period = r.number(p["knead_period"], "press.knead_period", pc.knead_period);
     pc.knead_segments = r.integer(p["knead_segments"], "press.knead_segments", pc.knead_segments);
+    const std::string mode = r.text(p["mode"], "press.mode", "depth");
+    if (mode != "depth" && mode != "force") r.fail("press.mode", "'" + mode + "' is neither depth nor force");
+    pc.mode = mode == "force" ? PressConfig::Mode::kForce : PressConfig::Mode::kDepth;
+    pc.contact_area = r.number(p["contact_area"], "press.contact_area", pc.contact_area);
   }
   if (const YAML::Node b = root["body"]) {
     r.checkKeys(b, "body", {"safe_height", "radius"});
@@ -300,16 +324,23 @@ ArmConfig armConfig(const std::string& yaml_text, const std::string& source, con
     c.body.radius = r.number(b["radius"], "body.radius", c.body.radius);
   }
   if (const YAML::Node f = root["force"]) readForce(r, f, &c.force);
+  if (const YAML::Node f = root["force_control"]) readForceControl(r, f, &c.force_control);
   const YAML::Node regions = root["regions"];
   if (!regions || !regions.IsMap() || regions.size() == 0)
     r.fail("regions", "missing or empty (region: {max_depth, default_depth})");
   for (const auto& kv : regions) {
     const std::string name = kv.first.as<std::string>();
     const std::string path = "regions." + name;
-    r.checkKeys(kv.second, path, {"max_depth", "default_depth"});
+    r.checkKeys(kv.second, path,
+                {"max_depth", "default_depth", "default_force", "max_force", "max_pressure", "max_indentation"});
     RegionLimits l;
     l.max_depth = r.number(kv.second["max_depth"], path + ".max_depth", 0.0, true);
     l.default_depth = r.number(kv.second["default_depth"], path + ".default_depth", 0.0, true);
+    // Force mode's limits: required with press.mode force (validate()), else optional.
+    l.default_force = r.number(kv.second["default_force"], path + ".default_force", 0.0);
+    l.max_force = r.number(kv.second["max_force"], path + ".max_force", 0.0);
+    l.max_pressure = r.number(kv.second["max_pressure"], path + ".max_pressure", 0.0);
+    l.max_indentation = r.number(kv.second["max_indentation"], path + ".max_indentation", 0.0);
     c.regions[name] = l;
   }
   c.default_region = r.text(root["default_region"], "default_region", c.default_region);
@@ -355,6 +386,31 @@ void validateForce(const ArmConfig& c, const Fail& fail) {
   for (double v : f.calibration_speeds)
     if (!(v > 0.0) || v > c.joints[2].max_velocity)
       fail("force.calibration_speeds", "each must be > 0 and <= the Z joint's max_velocity");
+}
+
+/// Force mode: the loop's settings, and every region's force limits when presses are by force.
+template <typename Fail>
+void validateForceControl(const ArmConfig& c, const Fail& fail) {
+  const ForceControlConfig& f = c.force_control;
+  const bool positive = f.contact_force > 0.0 && f.seek_speed > 0.0 && f.no_contact_band > 0.0 && f.ramp_rate > 0.0 &&
+                        f.bandwidth > 0.0 && f.integral >= 0.0 && f.tissue_exponent >= 1.0 && f.min_stiffness > 0.0 &&
+                        f.max_stiffness >= f.min_stiffness && f.max_speed > 0.0 && f.max_force_rate > 0.0 &&
+                        f.release_speed > 0.0;
+  if (!positive)
+    fail("force_control", "every setting must be > 0 (integral >= 0, tissue_exponent >= 1, max_stiffness >= min)");
+  if (f.seek_speed > c.press.max_speed) fail("force_control.seek_speed", "must be <= press.max_speed");
+  if (!(c.press.contact_area > 0.0)) fail("press.contact_area", "must be > 0 cm^2");
+  if (c.press.mode == PressConfig::Mode::kForce && !c.force.enabled)
+    fail("press.mode", "force needs the force: section (the Z drive's torque)");
+  if (!c.force.enabled) return;  // presses by force cannot be asked for: the regions' force limits are not used
+  for (const auto& [name, l] : c.regions) {
+    const std::string path = "regions." + name;
+    if (!(l.max_force > 0.0) || !(l.max_pressure > 0.0) || !(l.max_indentation > 0.0))
+      fail(path, "presses by force (force: is configured) need max_force, max_pressure and max_indentation > 0");
+    if (!(l.default_force > f.contact_force) || l.default_force > l.forceCap(c.press.contact_area))
+      fail(path + ".default_force", "must be above force_control.contact_force and within max_force and " +
+                                        std::string("max_pressure x press.contact_area"));
+  }
 }
 
 }  // namespace
@@ -425,6 +481,7 @@ void validate(const ArmConfig& c) {
     }
   }
   if (c.force.enabled) validateForce(c, fail);
+  validateForceControl(c, fail);
   if (!c.regions.count(c.default_region)) fail("default_region", "'" + c.default_region + "' is not one of regions");
   for (const auto& [point, region] : c.acupoint_regions) {
     if (!c.regions.count(region)) {

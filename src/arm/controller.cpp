@@ -381,7 +381,16 @@ bool Controller::startAction(Action& a, can::TimePoint) {
       if (a.step.contact && !in_contact_) tool_force_->rezero();
       in_contact_ = a.step.contact;
       if (a.step.kind == Step::Kind::kMove) startMove(a.step);
+      if (a.step.kind == Step::Kind::kForcePress) startForcePress(a.step);
       return mode_ != Mode::kFault;
+    case Action::Kind::kProfileMode:
+      for (int i = 0; i < 3; ++i) {
+        if (axes_[i]->mode() == can::Mode::kCyclicSyncPosition) {
+          axes_[i]->setModeOfOperation(can::Mode::kProfilePosition);
+          started_axes_ |= 1u << i;
+        }
+      }
+      return true;
   }
   return true;
 }
@@ -411,11 +420,14 @@ bool Controller::tickAction(Action& a, can::TimePoint now) {
       return waitOps("fault reset");
     case Action::Kind::kHome:
       return waitOps("homing");
+    case Action::Kind::kProfileMode:
+      return waitOps("back to profile position");
     case Action::Kind::kStep:
       break;
   }
   const Step& s = a.step;
   if (s.kind == Step::Kind::kHold) return std::chrono::duration<double>(now - action_start_).count() >= s.duration;
+  if (s.kind == Step::Kind::kForcePress) return tickForcePress(s);
   if (phase_ == Phase::kProfiles) {
     if (sdo_pending_ > 0) return false;
     if (!sdo_error_.empty()) {
@@ -631,12 +643,16 @@ Accepted Controller::massage(const PressRequest& request) {
 void Controller::stopAndReenable(const std::string& why) {
   aborting_ = true;
   abort_reason_ = why;
-  queue_ = {Action{Action::Kind::kQuickStopAll}, Action{Action::Kind::kEnableAll}};
+  queue_ = {Action{Action::Kind::kQuickStopAll}, Action{Action::Kind::kEnableAll}, Action{Action::Kind::kProfileMode}};
   current_.reset();
   mode_ = Mode::kStopping;
 }
 
 void Controller::retract(const std::string& why) {
+  if (current_ && current_->kind == Action::Kind::kStep && current_->step.kind == Step::Kind::kForcePress) {
+    abortForcePress(why);
+    return;
+  }
   const Step from = current_->step;
   aborting_ = true;
   abort_reason_ = why;
@@ -696,7 +712,10 @@ Accepted Controller::resetFault() {
   faults_.clear();
   estop_latched_ = false;
   for (auto& w : written_profile_) w.reset();
-  return begin(Mode::kResetting, {Action{Action::Kind::kFaultResetAll}, Action{Action::Kind::kEnableAll}}, "reset");
+  return begin(
+      Mode::kResetting,
+      {Action{Action::Kind::kFaultResetAll}, Action{Action::Kind::kEnableAll}, Action{Action::Kind::kProfileMode}},
+      "reset");
 }
 
 void Controller::setEstop(bool pressed) {
@@ -745,7 +764,7 @@ void Controller::startRelease(const Step& from) {
   // stopped and latched (runQueue). A fault on the way stops everything.
   Step back = retractSteps(config_, from).front();
   back.label = "e-stop: releasing the pressure";
-  queue_ = {Action{Action::Kind::kWaitStopped}, Action{Action::Kind::kEnableAll}};
+  queue_ = {Action{Action::Kind::kWaitStopped}, Action{Action::Kind::kEnableAll}, Action{Action::Kind::kProfileMode}};
   Action a{Action::Kind::kStep};
   a.step = back;
   queue_.push_back(a);
@@ -819,9 +838,13 @@ ArmStatus Controller::status() const {
         break;
       case Action::Kind::kStep:
         s.activity = current_->step.label;
+        if (current_->step.kind == Step::Kind::kForcePress && press_) s.activity += ": " + press_->describe();
         break;
       case Action::Kind::kWaitStopped:
         s.activity = "waiting for the axes to stop";
+        break;
+      case Action::Kind::kProfileMode:
+        s.activity = "back to profile position";
         break;
     }
     if (current_->kind == Action::Kind::kStep) s.target = current_->step.target;
@@ -846,6 +869,8 @@ Health health(const ArmStatus& s) {
   if (!s.homed || s.mode == Mode::kStarting) return {Level::kWarn, std::string(toString(s.mode)) + ": not homed"};
   return {Level::kOk, toString(s.mode)};
 }
+
+std::string formatForce(const ForceReading& force) { return fmt("%.1f N", force.force) + " (" + force.source + ")"; }
 
 std::string describeAxis(const AxisStatus& a) {
   char position[48];

@@ -152,6 +152,13 @@ std::string checkRequest(const ArmConfig& c, const Eigen::Vector3d& from, const 
     return "speed " + m3(*speed) + " m/s must be in (0, " + m3(pc.max_speed) + "] m/s";
   }
   if (!std::isfinite(req.depth) || req.depth < 0.0) return "depth must be >= 0 m (0: the region's default)";
+  if (!std::isfinite(req.force) || req.force < 0.0) return "force must be >= 0 N (0: the region's default)";
+  const bool by_force = req.mode.value_or(pc.mode) == PressConfig::Mode::kForce;
+  if (by_force && !c.force.enabled) return "a press by force needs the tool's force (config force:)";
+  if (by_force && req.depth > 0.0) return "a depth is for presses to a depth (mode depth), not by force";
+  if (!by_force && req.force > 0.0) return "a force is for presses by force (mode force), not to a depth";
+  if (by_force && req.technique == Technique::kKnead)
+    return "kneading by force is not built yet: knead with mode depth";
   if (std::string bad = checkTool(c, from); !bad.empty()) return "the tool's current position " + bad;
   return "";
 }
@@ -164,7 +171,49 @@ struct PressGeometry {
   double travel_z = 0.0;
   std::vector<Eigen::Vector3d> circle;  ///< kneading: the circle's points, closed
   int circles = 0;                      ///< ... and how many times it is run
+  std::optional<ForcePressGoal> force;  ///< a press by force (bottom: the seek's lowest point)
 };
+
+/// A press by force: vertical (the Z drive senses the force), from the approach point above the point down to the
+/// skin and up to no_contact_band below it at most; the force and its cap from the region.
+std::string forceGeometry(const ArmConfig& c, const PressRequest& req, const PressTarget& t, const std::string& region,
+                          const RegionLimits& lim, double hold, PressGeometry* g) {
+  const std::string& who = g->who;
+  const double cap = lim.forceCap(c.press.contact_area);
+  const double force = req.force > 0.0 ? req.force : lim.default_force;
+  char buf[320];
+  if (force > cap + 1e-9) {
+    std::snprintf(buf, sizeof buf,
+                  "%s: force %.1f N is above the %s limit %.1f N (max_force %.1f N; max_pressure %.1f N/cm^2 x %.1f "
+                  "cm^2 = %.1f N)",
+                  who.c_str(), force, region.c_str(), cap, lim.max_force, lim.max_pressure, c.press.contact_area,
+                  lim.max_pressure * c.press.contact_area);
+    return buf;
+  }
+  if (!(force > c.force_control.contact_force)) {
+    std::snprintf(buf, sizeof buf, "%s: force %.1f N is not above the contact force %.1f N", who.c_str(), force,
+                  c.force_control.contact_force);
+    return buf;
+  }
+  g->approach = t.point + c.press.approach_height * Eigen::Vector3d::UnitZ();
+  g->bottom = t.point - c.force_control.no_contact_band * Eigen::Vector3d::UnitZ();
+  g->travel_z = std::max(c.press.travel_height, g->approach.z());
+  const Eigen::Vector3d over(g->approach.x(), g->approach.y(), g->travel_z);
+  for (const auto& [what, p] : {std::pair<const char*, Eigen::Vector3d>{"travel point", over},
+                                {"approach point", g->approach},
+                                {"lowest point of the seek", g->bottom}}) {
+    if (std::string bad = checkTool(c, p); !bad.empty()) return who + ": the " + what + " " + bad;
+  }
+  ForcePressGoal goal;
+  goal.start_z = g->approach.z();
+  goal.expected_skin_z = t.point.z();
+  goal.force = force;
+  goal.max_force = cap;
+  goal.max_indentation = lim.max_indentation;
+  goal.hold = hold;
+  g->force = goal;
+  return "";
+}
 
 std::string pressGeometry(const ArmConfig& c, const PressRequest& req, int i, double hold, PressGeometry* g) {
   const PressConfig& pc = c.press;
@@ -188,6 +237,7 @@ std::string pressGeometry(const ArmConfig& c, const PressRequest& req, int i, do
     return who + ": unknown region '" + region + "' (known: " + known + ")";
   }
   const RegionLimits& lim = c.regions.at(region);
+  if (req.mode.value_or(pc.mode) == PressConfig::Mode::kForce) return forceGeometry(c, req, t, region, lim, hold, g);
   const double depth = req.depth > 0.0 ? req.depth : lim.default_depth;
   if (depth > lim.max_depth + 1e-12) {
     return who + ": depth " + mm(depth) + " is deeper than the " + region + " limit " + mm(lim.max_depth);
@@ -267,6 +317,12 @@ class StepWriter {
     for (int r = 0; r < req.repeats; ++r) {
       const std::string rep =
           req.repeats > 1 ? " (" + std::to_string(r + 1) + "/" + std::to_string(req.repeats) + ")" : "";
+      if (g.force) {
+        char what[32];
+        std::snprintf(what, sizeof what, "press %.0f N", g.force->force);
+        forcePress(g, prefix + what + rep, i);
+        continue;
+      }
       move(g.bottom, speed, prefix + "descend" + rep, true, false, i, g.approach);
       if (req.technique == Technique::kKnead && !g.circle.empty()) {
         knead(g, prefix + "knead" + rep, i, speed);
@@ -282,6 +338,19 @@ class StepWriter {
   std::vector<Step>& steps() { return steps_; }
 
  private:
+  void forcePress(const PressGeometry& g, const std::string& label, int i) {
+    Step s;
+    s.kind = Step::Kind::kForcePress;
+    s.tool = g.approach;
+    s.label = label;
+    s.contact = true;
+    s.target = i;
+    s.retreat = g.approach;
+    s.force = *g.force;
+    s.press_done = true;
+    steps_.push_back(s);
+  }
+
   void knead(const PressGeometry& g, const std::string& label, int i, double speed) {
     const double seg_len = (g.circle[1] - g.circle[0]).norm();
     const double knead_speed = std::min(pc_.max_speed, seg_len * pc_.knead_segments / pc_.knead_period);
@@ -335,6 +404,14 @@ std::string pressSettings(const ArmConfig& config, const MassageFields& f, Press
   } else {
     return "unknown technique '" + f.technique + "' (press or knead)";
   }
+  if (f.mode == "force") {
+    out->mode = PressConfig::Mode::kForce;
+  } else if (f.mode == "depth") {
+    out->mode = PressConfig::Mode::kDepth;
+  } else if (!f.mode.empty()) {
+    return "unknown mode '" + f.mode + "' (force or depth; empty: the configuration's)";
+  }
+  out->force = f.force;
   out->depth = f.depth;
   out->hold = f.hold == 0.0 ? -1.0 : std::max(0.0, f.hold);
   out->speed = f.speed;

@@ -280,6 +280,11 @@ bool Cia402Axis::setCyclicTarget(std::int32_t counts) {
   return true;
 }
 
+Mode Cia402Axis::mode() const {
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
+  return mode_;
+}
+
 bool Cia402Axis::cyclic() const {
   std::lock_guard<RecursivePiMutex> lock(master_.mutex());
   return mode_ == Mode::kCyclicSyncPosition && state() == Cia402State::kOperationEnabled;

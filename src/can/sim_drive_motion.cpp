@@ -434,7 +434,8 @@ void SimDrive::stepCyclic(double dt) {
   csp_elapsed_ += dt;
   const double f = std::min(1.0, csp_elapsed_ / csp_period_);
   const double next = csp_from_ + (csp_to_ - csp_from_) * f;
-  velocity_ = f < 1.0 ? (csp_to_ - csp_from_) / csp_period_ : 0.0;
+  // The step's own motion (the last step of a segment moves like the others; a stream that stops, stops).
+  velocity_ = (next - demand_) / dt;
   demand_ = next;
 }
 

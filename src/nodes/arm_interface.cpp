@@ -35,7 +35,19 @@ massage_cell::ArmState armStateMsg(const arm::ArmStatus& s, const std::string& b
   st.activity = s.activity;
   st.last_error = s.last_error;
   st.bus_state = can::toString(s.bus);
+  st.force_valid = s.force.valid;
+  st.force = s.force.valid ? s.force.force : 0.0;
+  st.force_source = s.force.valid ? s.force.source : s.force.source + ": " + s.force.problem;
   return st;
+}
+
+geometry_msgs::WrenchStamped wrenchMsg(const arm::ArmStatus& s, const std::string& tool_frame, const ros::Time& stamp) {
+  // The force the body puts on the tool, in the tool frame (axes parallel to the arm base: the gantry does not turn).
+  geometry_msgs::WrenchStamped w;
+  w.header.stamp = stamp;
+  w.header.frame_id = tool_frame;
+  w.wrench.force.z = s.force.force;
+  return w;
 }
 
 sensor_msgs::JointState jointStateMsg(const arm::ArmStatus& s, const arm::ArmConfig& config, const ros::Time& stamp) {
@@ -67,6 +79,7 @@ void reportArm(const arm::ArmStatus& s, const arm::NodeOptions& options, const c
   for (const auto& a : s.axes) out->add("axis " + a.name, arm::describeAxis(a));
   out->add("tool (" + options.base_frame + ")", arm::formatPoint(s.tool));
   out->add("activity", s.activity);
+  out->add("tool force", s.force.valid ? arm::formatForce(s.force) : s.force.source + ": " + s.force.problem);
   out->add("last error", s.last_error);
   out->add("controller cycles", s.cycles);
 }
@@ -106,6 +119,8 @@ std::string ArmTargets::pressRequest(const massage_cell::Massage::Request& req, 
   fields.regions = req.regions.size();
   fields.normals = req.normals.size();
   fields.technique = req.technique;
+  fields.mode = req.mode;
+  fields.force = req.force;
   fields.depth = req.depth;
   fields.hold = req.hold;
   fields.speed = req.speed;

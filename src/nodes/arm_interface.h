@@ -9,6 +9,7 @@
 #include <diagnostic_updater/DiagnosticStatusWrapper.h>
 #include <geometry_msgs/PointStamped.h>
 #include <geometry_msgs/TransformStamped.h>
+#include <geometry_msgs/WrenchStamped.h>
 #include <sensor_msgs/JointState.h>
 #include <tf2_ros/buffer.h>
 
@@ -21,6 +22,10 @@ namespace massage_cell::nodes {
 
 /// ~state of `status` (in `base_frame`, stamped `stamp`).
 massage_cell::ArmState armStateMsg(const arm::ArmStatus& status, const std::string& base_frame, const ros::Time& stamp);
+
+/// ~wrench: the tool's force (ArmStatus::force, + z: the body pushing the tool up) in `tool_frame`.
+geometry_msgs::WrenchStamped wrenchMsg(const arm::ArmStatus& status, const std::string& tool_frame,
+                                       const ros::Time& stamp);
 
 /// joint_states of `status` (the URDF's joint names from `config`).
 sensor_msgs::JointState jointStateMsg(const arm::ArmStatus& status, const arm::ArmConfig& config,

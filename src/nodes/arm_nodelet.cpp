@@ -57,6 +57,7 @@ void ArmNodelet::onInit() {
   targets_ = std::make_unique<ArmTargets>(*tf_buffer_, options_, config_);
   joint_pub_ = nh.advertise<sensor_msgs::JointState>("joint_states", 10);
   state_pub_ = pnh.advertise<massage_cell::ArmState>("state", 10);
+  wrench_pub_ = pnh.advertise<geometry_msgs::WrenchStamped>("wrench", 10);
   estop_sub_ = pnh.subscribe("estop", 10, &ArmNodelet::estopCb, this);
   if (sim_) fault_sub_ = pnh.subscribe("sim/inject_fault", 10, &ArmNodelet::injectFaultCb, this);
   home_srv_ = pnh.advertiseService("home", &ArmNodelet::home, this);
@@ -194,6 +195,7 @@ void ArmNodelet::publishState() {
   const ros::Time now = ros::Time::now();
   joint_pub_.publish(jointStateMsg(s, config_, now));
   state_pub_.publish(armStateMsg(s, options_.base_frame, now));
+  if (s.force.valid) wrench_pub_.publish(wrenchMsg(s, options_.tool_frame, now));  // only a force that is known
 }
 
 void ArmNodelet::checkPressTarget() {

@@ -13,7 +13,9 @@
 //    SimCell::start; can/realtime.h); a refusal is logged once with the fix
 //    and the node runs with normal scheduling; diagnostics report which;
 //  - publishes `joint_states` (for robot_state_publisher and urdf/), `~state`
-//    (massage_cell/ArmState) and diagnostics;
+//    (massage_cell/ArmState, with the tool's force), `~wrench`
+//    (geometry_msgs/WrenchStamped in tool_frame, while the force is known)
+//    and diagnostics;
 //  - services `~home`, `~stop`, `~reset_fault` (std_srvs/Trigger), `~move_to`
 //    (massage_cell/MoveTo: a PointStamped in any frame, tf2 into the arm base
 //    frame) and `~massage` (massage_cell/Massage: acupoint frames and points,
@@ -107,7 +109,7 @@ class ArmNodelet : public nodelet::Nodelet {
   // ROS.
   ros::CallbackQueue queue_;
   std::unique_ptr<ros::AsyncSpinner> spinner_;
-  ros::Publisher joint_pub_, state_pub_;
+  ros::Publisher joint_pub_, state_pub_, wrench_pub_;
   ros::Subscriber estop_sub_, fault_sub_;
   ros::ServiceServer home_srv_, stop_srv_, reset_srv_, move_srv_, massage_srv_;
   ros::WallTimer timer_;

@@ -83,12 +83,21 @@ TEST(ArmConfig, MistakesAreNamed) {
   EXPECT_NE(errorOf(edited("default_region: midline", "default_region: neck"))
                 .find("default_region: 'neck' is not one of regions"),
             std::string::npos);
-  EXPECT_NE(errorOf(edited("lower_back: \\{max_depth: 0.012, default_depth: 0.008\\}",
-                           "lower_back: {max_depth: 0.012, default_depth: 0.02}"))
+  EXPECT_NE(errorOf(edited("lower_back: \\{max_depth: 0.012, default_depth: 0.008,",
+                           "lower_back: {max_depth: 0.012, default_depth: 0.02,"))
                 .find("regions.lower_back.default_depth: must be > 0 and <= max_depth"),
             std::string::npos);
+  // Force mode: a region's default force above its cap, a press by force without the force section.
+  EXPECT_NE(errorOf(edited("default_force: 30.0, max_force: 60.0", "default_force: 65.0, max_force: 60.0"))
+                .find("regions.lower_back.default_force: must be above force_control.contact_force"),
+            std::string::npos);
+  EXPECT_EQ(errorOf(edited("  mode: depth ", "  mode: force ")), "");
+  EXPECT_NE(errorOf(edited("max_pressure: 35.0, ", "")).find("regions.lower_back: presses by force"),
+            std::string::npos);
+  EXPECT_NE(errorOf(edited("  mode: depth ", "  mode: forced ")).find("press.mode: 'forced' is neither"),
+            std::string::npos);
   // acupoints.yaml names lower_back: removing that region from the table is caught.
-  EXPECT_NE(errorOf(edited("  lower_back: \\{max_depth: 0.012, default_depth: 0.008\\}.*\n", ""))
+  EXPECT_NE(errorOf(edited("  lower_back: \\{max_depth: 0.012, default_depth: 0.008,.*\n.*\n", ""))
                 .find("has region 'lower_back', which regions does not list"),
             std::string::npos);
   EXPECT_NE(errorOf(edited("can_config: can_axes.yaml", "can_config: nowhere.yaml")).find("can_config: "),

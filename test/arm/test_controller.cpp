@@ -223,6 +223,111 @@ TEST(Controller, ForceIsCalibratedWhenHomingAndReadsTheBodyDuringAPress) {
   EXPECT_LT(worst, 3.0);
 }
 
+namespace {
+
+/// The rig with a flat back 15 cm above the table under the Z drive (breathing 3 mm p-p / 4 s unless `still`).
+void putBack(Rig& r, double skin_z, bool still = false) {
+  Breathing b;
+  if (still) b.amplitude = 0.0;
+  const auto body = std::make_shared<SimBody>(SimBody::flat(skin_z, Tissue{}, b));
+  const can::SimDrive* x = r.drives[0].get();
+  const can::SimDrive* y = r.drives[1].get();
+  const can::VirtualClock* clock = &r.clock;
+  r.drives[2]->setExternalForce([=](double z, double vz) {
+    const double t = std::chrono::duration<double>(clock->now().time_since_epoch()).count();
+    return body->force(Eigen::Vector3d(x->physicalPosition(), y->physicalPosition(), z), vz, t);
+  });
+}
+
+PressRequest byForce(double force, double hold) {
+  PressRequest request;
+  request.targets.push_back({"BL23_L", "lower_back", Eigen::Vector3d(0.3, 0.2, 0.15), Eigen::Vector3d::UnitZ()});
+  request.mode = PressConfig::Mode::kForce;
+  request.force = force;
+  request.hold = hold;
+  return request;
+}
+
+}  // namespace
+
+TEST(Controller, APressByForceHoldsItsForceOnABreathingBack) {
+  Rig r;
+  putBack(r, 0.15);
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  r.run(100ms);
+  double sq = 0.0, peak = 0.0;
+  int held = 0;
+  r.observer = [&] {
+    const double truth = r.drives[2]->externalForce();
+    peak = std::max(peak, truth);
+    if (!contains(r.controller->status().activity, "holding")) return;
+    sq += (truth - 30.0) * (truth - 30.0);
+    ++held;
+  };
+  const Accepted m = r.controller->massage(byForce(30.0, 3.0));
+  ASSERT_TRUE(r.finish(m)) << r.message(m) << r.log;
+  ASSERT_GT(held, 2900);  // 3 s at 1 ms steps
+  const double rms = std::sqrt(sq / held);
+  EXPECT_LT(rms, 2.0);
+  EXPECT_LT(peak, 30.0 * 1.1 + 2.0);
+  EXPECT_NEAR(r.tool().z(), r.config.press.travel_height, 1e-4);  // up again
+  EXPECT_EQ(r.controller->status().presses_done, 1);
+  EXPECT_EQ(r.drives[2]->modeDisplay(), 1);  // Z back in profile position
+  std::printf("force 30 N held 3 s: error RMS %.2f N, peak %.1f N\n", rms, peak);
+}
+
+TEST(Controller, APressByForceStopsWhereThereIsNoBodyOrBeyondItsLimits) {
+  Rig r;
+  putBack(r, 0.10, true);  // the back is 5 cm lower than vision said (0.15)
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  r.run(100ms);
+  Accepted m = r.controller->massage(byForce(30.0, 1.0));
+  ASSERT_FALSE(r.finish(m));
+  EXPECT_TRUE(contains(r.message(m), "no contact")) << r.message(m);
+  EXPECT_TRUE(contains(r.message(m), "retracted")) << r.message(m);
+  EXPECT_EQ(r.controller->mode(), Mode::kIdle);
+  EXPECT_EQ(r.drives[2]->modeDisplay(), 1);
+  // Asked beyond the region's cap: refused before anything moves, naming the limit.
+  m = r.controller->massage(byForce(80.0, 1.0));
+  EXPECT_FALSE(m);
+  EXPECT_TRUE(contains(m.error, "above the lower_back limit 60.0 N")) << m.error;
+  // Depth and force mixed up: refused.
+  PressRequest mixed = byForce(30.0, 1.0);
+  mixed.depth = 0.005;
+  m = r.controller->massage(mixed);
+  EXPECT_FALSE(m);
+  EXPECT_TRUE(contains(m.error, "not by force")) << m.error;
+}
+
+TEST(Controller, AStopDuringAPressByForceBacksOffAndAnEstopReleasesThePressure) {
+  Rig r;
+  putBack(r, 0.15, true);
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  r.run(100ms);
+  Accepted m = r.controller->massage(byForce(30.0, 5.0));
+  ASSERT_TRUE(m);
+  ASSERT_TRUE(r.runUntil([&] { return contains(r.controller->status().activity, "holding"); }, 20s)) << r.log;
+  const Accepted s = r.controller->stop("stop requested");
+  ASSERT_TRUE(s);
+  r.finish(m);
+  EXPECT_TRUE(contains(r.message(m), "stop requested")) << r.message(m);
+  EXPECT_NEAR(r.tool().z(), r.config.press.travel_height, 1e-4);
+  EXPECT_LT(r.drives[2]->externalForce(), 0.1);
+
+  m = r.controller->massage(byForce(30.0, 5.0));
+  ASSERT_TRUE(r.runUntil([&] { return contains(r.controller->status().activity, "holding"); }, 20s)) << r.log;
+  r.controller->setEstop(true);
+  ASSERT_TRUE(r.runUntil([&] { return r.controller->mode() == Mode::kEstop; }, 20s)) << r.log;
+  EXPECT_LT(r.drives[2]->externalForce(), 0.1);  // the pressure released
+  EXPECT_TRUE(r.controller->status().faults.empty()) << r.controller->status().faults.front();
+  r.controller->setEstop(false);
+  ASSERT_TRUE(r.finish(r.controller->resetFault())) << r.log;
+  EXPECT_EQ(r.drives[2]->modeDisplay(), 1);
+}
+
 // --- moves ---------------------------------------------------------------------------------------------
 
 TEST(Controller, SynchronisedMoveArrivesTogetherOnTheLine) {

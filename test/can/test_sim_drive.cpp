@@ -489,3 +489,21 @@ TEST_F(SimFixture, CyclicSynchronousPositionReachesEachTargetByTheNextSync) {
   const can_frame r = sdo(sdoInitiateDownloadRequest(5, 0x6060, 0, {3}));
   EXPECT_EQ(r.data[0], 0x80);
 }
+
+TEST_F(MechanicsFixture, StreamedAtAConstantSpeedTheTorqueIsSteady) {
+  start();
+  write(0x6060, 0, {8});
+  enable();
+  // Down at 5 mm/s in cyclic synchronous position: the torque every SYNC carries the weight less the sliding
+  // friction, no acceleration (a segment's last step once read as a stop: +-20 N spikes at the SYNC).
+  std::int32_t target = drive.position();
+  std::vector<double> forces;
+  for (int k = 0; k < 300; ++k) {
+    target -= 5;  // 50 um per 10 ms
+    host->send(*packPdo(0x205, {{0x6040, 0, 16}, {0x607A, 0, 32}}, {0x0F, static_cast<std::uint32_t>(target)}));
+    sync();
+    if (k > 20) forces.push_back(motorForceOf(drive));
+    for (int i = 0; i < 9; ++i) tick();
+  }
+  for (double f : forces) EXPECT_NEAR(f, 4.0 * 9.81 - 15.0 - 150.0 * 0.005, 1.0);
+}

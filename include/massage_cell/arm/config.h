@@ -12,6 +12,7 @@
 // joint q = (qx, qy, qz) puts the tool tip at q + tool_offset.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <map>
 #include <stdexcept>
@@ -19,6 +20,7 @@
 
 #include <Eigen/Core>
 
+#include "massage_cell/arm/force_press.h"
 #include "massage_cell/can/config.h"
 
 namespace massage_cell::arm {
@@ -36,10 +38,17 @@ struct JointLimits {
   double max_acceleration = 0.25;  ///< m/s^2
 };
 
-/// Press limits of one body region (back_acupoints.md, safety notes).
+/// Press limits of one body region (back_acupoints.md, safety notes; massage_forces.md for the forces).
 struct RegionLimits {
-  double max_depth = 0.002;      ///< m past the surface point along the normal
+  double max_depth = 0.002;      ///< m past the surface point along the normal (depth mode)
   double default_depth = 0.001;  ///< m, used when a request gives no depth
+  // Force mode (docs/arm.md "Forces and limits per region"):
+  double default_force = 0.0;    ///< N, used when a request gives no force
+  double max_force = 0.0;        ///< N, the most a press may reach
+  double max_pressure = 0.0;     ///< N/cm^2 under the tool (press.contact_area): the force cap is the lower of both
+  double max_indentation = 0.0;  ///< m past the contact point: a second guard
+  /// The force a press in this region may not pass: max_force or max_pressure x the tool's contact area.
+  double forceCap(double contact_area_cm2) const { return std::min(max_force, max_pressure * contact_area_cm2); }
 };
 
 /// The press routine: approach above the target, descend along the surface
@@ -59,9 +68,13 @@ struct PressConfig {
   /// the approach point at retract_speed, then stay stopped (false: stop in place).
   bool estop_release = true;
   double max_normal_tilt = 0.7854;  ///< rad between the outward normal and +z (config: degrees)
-  double knead_radius = 0.004;      ///< m, circle in the tangent plane while kneading
-  double knead_period = 1.0;        ///< s per circle
-  int knead_segments = 8;           ///< straight segments per circle
+  /// How a press is controlled: kForce (to a force, the Z drive's torque; needs force:) or kDepth (to a depth past
+  /// the skin point vision gave). Config `mode: force | depth`; a request may ask for either.
+  enum class Mode { kDepth, kForce } mode = Mode::kDepth;
+  double contact_area = 2.0;    ///< cm^2 the tool touches (a thumb's pad: 1.5-3 cm^2)
+  double knead_radius = 0.004;  ///< m, circle in the tangent plane while kneading
+  double knead_period = 1.0;    ///< s per circle
+  int knead_segments = 8;       ///< straight segments per circle
 };
 
 /// Keeping out of the body (see checkBodyClearance in plan.h).
@@ -102,6 +115,7 @@ struct ArmConfig {
   PressConfig press;
   BodyConfig body;
   ForceConfig force;
+  ForceControlConfig force_control;
   std::map<std::string, RegionLimits> regions;
   std::string default_region = "midline";  ///< for targets of no known region (the most conservative)
   std::string acupoints_path;              ///< resolved path of the acupoint model (name -> region); may be empty

@@ -133,6 +133,9 @@ struct Health {
 };
 Health health(const ArmStatus& status);
 
+/// "12.3 N (drive torque)".
+std::string formatForce(const ForceReading& force);
+
 /// "0.123456 m, operation enabled, node operational, homed".
 std::string describeAxis(const AxisStatus& axis);
 
@@ -206,7 +209,8 @@ class Controller {
 
  private:
   struct Action {
-    enum class Kind { kEnableAll, kQuickStopAll, kWaitStopped, kFaultResetAll, kHome, kStep };
+    /// kProfileMode: every axis left streaming cyclic targets (a force press cut short) back to profile position.
+    enum class Kind { kEnableAll, kQuickStopAll, kWaitStopped, kFaultResetAll, kHome, kStep, kProfileMode };
     explicit Action(Kind k = Kind::kStep, unsigned m = 0b111) : kind(k), mask(m) {}
     Kind kind = Kind::kStep;
     unsigned mask = 0b111;  ///< axes (kHome)
@@ -237,6 +241,10 @@ class Controller {
   bool allHomed() const;
   void log(const std::string& text);
   void senseForce(can::TimePoint now);
+  // A press by force (controller_force.cpp): the Z drive streams the heights ForcePress returns.
+  void startForcePress(const Step& s);
+  bool tickForcePress(const Step& s);  ///< true when done (ok); faults or fails the command otherwise
+  void abortForcePress(const std::string& why);
   void finishForceCalibration();
   /// After homing, with force sensing: Z down and back up by force.calibration_travel at each calibration speed.
   std::deque<Action> forceCalibration() const;
@@ -284,6 +292,9 @@ class Controller {
   std::unique_ptr<ToolForce> tool_force_;
   bool calibrating_force_ = false;  ///< a force calibration runs (its first move started, its last not ended)
   bool in_contact_ = false;         ///< the running step is a contact step (a press below its approach point)
+  enum class ForcePhase { kEnterCyclic, kPressing, kLeaveCyclic };
+  ForcePhase force_phase_ = ForcePhase::kEnterCyclic;
+  std::unique_ptr<ForcePress> press_;  ///< the running press by force
 };
 
 }  // namespace massage_cell::arm

@@ -11,6 +11,7 @@ namespace massage_cell::arm {
 struct NodeOptions {
   std::string can_interface = "sim";          ///< "sim": simulated drives; else a SocketCAN interface (can0)
   std::string base_frame = "arm_base_link";   ///< the frame targets are expressed in
+  std::string tool_frame = "tool_tip";        ///< ~wrench's frame (the URDF's tool tip)
   double publish_rate = 50.0;                 ///< Hz of ~state, joint_states and the command watchdog
   double max_target_age = 0.5;                ///< s: an older target transform is stale
   double tf_timeout = 0.2;                    ///< s a target lookup waits for its transform
@@ -24,6 +25,7 @@ template <class Visit>
 void visitOptions(NodeOptions& o, Visit&& visit) {
   visit("can_interface", o.can_interface);
   visit("base_frame", o.base_frame);
+  visit("tool_frame", o.tool_frame);
   visit("publish_rate", o.publish_rate);
   visit("max_target_age", o.max_target_age);
   visit("tf_timeout", o.tf_timeout);

@@ -35,10 +35,12 @@ struct PressTarget {
 struct PressRequest {
   std::vector<PressTarget> targets;  ///< pressed in this order
   Technique technique = Technique::kPress;
-  double depth = 0.0;  ///< m past the surface point; 0: each region's default depth
-  double hold = -1.0;  ///< s at depth; < 0: config default
-  double speed = 0.0;  ///< m/s approach / descent; 0: config default
-  int repeats = 1;     ///< presses per target
+  std::optional<PressConfig::Mode> mode;  ///< by force or to a depth; unset: the configuration's press.mode
+  double force = 0.0;                     ///< N to hold (force mode); 0: each region's default force
+  double depth = 0.0;                     ///< m past the surface point (depth mode); 0: each region's default depth
+  double hold = -1.0;                     ///< s at depth; < 0: config default
+  double speed = 0.0;                     ///< m/s approach / descent; 0: config default
+  int repeats = 1;                        ///< presses per target
 };
 
 /// A massage request's settings as a service call carries them (its targets are resolved separately).
@@ -47,6 +49,8 @@ struct MassageFields {
   std::size_t regions = 0;  ///< entries of the per-target regions (0: none given)
   std::size_t normals = 0;  ///< entries of the per-target normals (0: none given)
   std::string technique;    ///< "" or "press", "knead"
+  std::string mode;         ///< "" (the configuration's), "force" or "depth"
+  double force = 0.0;       ///< as PressRequest::force
   double depth = 0.0;       ///< as PressRequest::depth
   double hold = 0.0;        ///< s; 0: the default; < 0: none
   double speed = 0.0;       ///< as PressRequest::speed
@@ -60,7 +64,8 @@ std::string pressSettings(const ArmConfig& config, const MassageFields& fields, 
 
 /// One step of a plan.
 struct Step {
-  enum class Kind { kMove, kHold };
+  /// kForcePress: from the approach point (tool), a press by force (force_press.h), back to it.
+  enum class Kind { kMove, kHold, kForcePress };
   Kind kind = Kind::kMove;
   Eigen::Vector3d tool = Eigen::Vector3d::Zero();  ///< goal of a move (tool tip, arm base frame)
   double speed = 0.0;                              ///< m/s along the path (0: joint limits only)
@@ -73,6 +78,7 @@ struct Step {
   bool press_done = false;  ///< finishing this step completes one press (the retract after a hold)
   Eigen::Vector3d retreat = Eigen::Vector3d::Zero();  ///< where an abort during a contact step retracts to
   bool force_calibration = false;  ///< a free move after homing whose torque samples identify the Z axis' baseline
+  ForcePressGoal force;            ///< kForcePress: what to press and its limits
 };
 
 /// Empty when `tool` is inside the workspace envelope and its joints inside

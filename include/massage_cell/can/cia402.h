@@ -130,6 +130,8 @@ class Cia402Axis {
   bool setCyclicTarget(std::int32_t counts);
   /// Cyclic synchronous position set and confirmed by the drive, and operation enabled.
   bool cyclic() const;
+  /// The mode of operation last set and confirmed (profile position after homing).
+  Mode mode() const;
 
   Operation operation() const;
   Status status() const;
