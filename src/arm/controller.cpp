@@ -772,6 +772,11 @@ void Controller::startRelease(const Step& from) {
   log("E-STOP during a press: backing off to " + formatPoint(back.tool) + " at " + fmt("%.3f", back.speed) + " m/s");
 }
 
+void Controller::setSensorForce(double force) {
+  Lock lock(master_->mutex());
+  tool_force_->setSensorForce(force, clock_.now());
+}
+
 void Controller::keepAlive() {
   Lock lock(master_->mutex());
   last_keepalive_ = clock_.now();

@@ -31,7 +31,25 @@ ToolForce::ToolForce(const ArmConfig& config)
       estimate_(screwOf(config), priorOf(config.force), config.force.filter_time_constant),
       problem_(config.force.enabled ? "not calibrated: the arm has not homed" : "no force sensing configured") {}
 
+void ToolForce::setSensorForce(double force, can::TimePoint stamp) {
+  if (!std::isfinite(force)) return;
+  if (!sensor_seen_) sensor_offset_ = force;  // its first reading is taken in the air: its zero until a press's
+  sensor_seen_ = true;
+  sensor_force_ = force;
+  sensor_stamp_ = stamp;
+}
+
+bool ToolForce::sensorFresh() const {
+  return sensor_seen_ && std::chrono::duration<double>(now_ - sensor_stamp_).count() <= kSensorTimeout;
+}
+
+void ToolForce::rezero() {
+  estimate_.rezero();
+  if (sensorFresh()) sensor_offset_ = sensor_force_;
+}
+
 void ToolForce::update(const can::DriveFeedback& z, double position, can::TimePoint now, bool calibrating) {
+  now_ = now;
   if (!enabled_) return;
   if (!z.valid || !z.has_torque) {
     have_last_ = have_velocity_ = false;
@@ -72,11 +90,20 @@ std::string ToolForce::finishCalibration() {
 
 ForceReading ToolForce::reading() const {
   ForceReading r;
+  if (sensorFresh()) {  // the load cell takes precedence while it reports
+    r.valid = true;
+    r.source = "load cell";
+    r.force = sensor_force_ - sensor_offset_;
+    r.calibrated = calibrated_;
+    r.baseline = estimate_.baseline();
+    return r;
+  }
   r.source = enabled_ ? "drive torque" : "none";
   r.calibrated = calibrated_;
   r.baseline = estimate_.baseline();
   r.problem = problem_;
   if (enabled_ && calibrated_ && !have_last_) r.problem = "no torque from the Z drive (TPDO3)";
+  if (sensor_seen_) r.source += " (the load cell is silent)";
   if (enabled_ && calibrated_ && have_last_ && !std::isfinite(estimate_.force()))
     r.problem = "settling: the estimate's zero is being taken";
   r.valid = enabled_ && calibrated_ && have_last_ && std::isfinite(estimate_.force());

@@ -112,6 +112,22 @@ std::string ArmTargets::moveGoal(const geometry_msgs::PointStamped& target, cons
   return why.empty() ? "" : "move refused: " + why;
 }
 
+std::string ArmTargets::sensorForce(const geometry_msgs::WrenchStamped& wrench, double* force_z) const {
+  const geometry_msgs::Vector3& f = wrench.wrench.force;
+  if (!std::isfinite(f.x) || !std::isfinite(f.y) || !std::isfinite(f.z)) return "the force is not finite";
+  if (wrench.header.frame_id.empty()) return "the wrench has no frame_id";
+  geometry_msgs::TransformStamped t;
+  try {  // the sensor is fixed to the tool, whose orientation does not change: the latest transform
+    t = tf_.lookupTransform(options_.base_frame, wrench.header.frame_id, ros::Time(0));
+  } catch (const tf2::TransformException& e) {
+    return "the frame '" + wrench.header.frame_id + "' is not connected to " + options_.base_frame + ": " + e.what();
+  }
+  geometry_msgs::Vector3 in_base;
+  tf2::doTransform(f, in_base, t);
+  *force_z = in_base.z;
+  return "";
+}
+
 std::string ArmTargets::pressRequest(const massage_cell::Massage::Request& req, arm::PressRequest* press,
                                      std::vector<FrameTarget>* frames) const {
   arm::MassageFields fields;

@@ -59,6 +59,10 @@ class ArmTargets {
 
   /// ~massage's request with every target resolved and checked, and its targets that are tf frames: "" or why the
   /// request is refused.
+  /// ~ft_sensor: the force a load cell or F/T sensor reports (the force on the tool, in the message's frame) along
+  /// +z of the base frame (tf2: the sensor's rotation; the latest transform). Empty, or why it cannot be used (no
+  /// frame, unknown frame, not finite).
+  std::string sensorForce(const geometry_msgs::WrenchStamped& wrench, double* force_z) const;
   std::string pressRequest(const massage_cell::Massage::Request& req, arm::PressRequest* press,
                            std::vector<FrameTarget>* frames) const;
 

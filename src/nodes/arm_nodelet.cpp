@@ -59,6 +59,7 @@ void ArmNodelet::onInit() {
   state_pub_ = pnh.advertise<massage_cell::ArmState>("state", 10);
   wrench_pub_ = pnh.advertise<geometry_msgs::WrenchStamped>("wrench", 10);
   estop_sub_ = pnh.subscribe("estop", 10, &ArmNodelet::estopCb, this);
+  sensor_sub_ = pnh.subscribe("ft_sensor", 10, &ArmNodelet::sensorCb, this);
   if (sim_) fault_sub_ = pnh.subscribe("sim/inject_fault", 10, &ArmNodelet::injectFaultCb, this);
   home_srv_ = pnh.advertiseService("home", &ArmNodelet::home, this);
   stop_srv_ = pnh.advertiseService("stop", &ArmNodelet::stop, this);
@@ -219,6 +220,15 @@ void ArmNodelet::checkPressTarget() {
 void ArmNodelet::estopCb(const std_msgs::BoolConstPtr& msg) {
   estop_input_ = msg->data;
   if (arm::Controller* c = controller()) c->setEstop(msg->data);
+}
+
+void ArmNodelet::sensorCb(const geometry_msgs::WrenchStampedConstPtr& msg) {
+  double force = 0.0;
+  if (const std::string why = targets_->sensorForce(*msg, &force); !why.empty()) {
+    NODELET_WARN_STREAM_THROTTLE(5.0, "arm: ~ft_sensor reading not used: " << why);
+    return;
+  }
+  if (arm::Controller* c = controller()) c->setSensorForce(force);
 }
 
 void ArmNodelet::injectFaultCb(const std_msgs::StringConstPtr& msg) {

@@ -277,6 +277,42 @@ TEST(Controller, APressByForceHoldsItsForceOnABreathingBack) {
   std::printf("force 30 N held 3 s: error RMS %.2f N, peak %.1f N\n", rms, peak);
 }
 
+TEST(Controller, ALoadCellTakesPrecedenceAndHoldsTheForceTighter) {
+  Rig r;
+  putBack(r, 0.15);
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  r.run(100ms);
+  // A load cell on the tool: the true force with 0.1 N of noise, at 1 kHz.
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  bool cell_on = true;
+  double sq = 0.0, peak = 0.0;
+  int held = 0;
+  r.observer = [&] {
+    const double truth = r.drives[2]->externalForce();
+    if (cell_on) r.controller->setSensorForce(truth + noise(rng));
+    peak = std::max(peak, truth);
+    if (!contains(r.controller->status().activity, "holding")) return;
+    sq += (truth - 30.0) * (truth - 30.0);
+    ++held;
+  };
+  r.run(10ms);
+  EXPECT_EQ(r.controller->status().force.source, "load cell");
+  const Accepted m = r.controller->massage(byForce(30.0, 3.0));
+  ASSERT_TRUE(r.finish(m)) << r.message(m) << r.log;
+  ASSERT_GT(held, 2900);
+  const double rms = std::sqrt(sq / held);
+  EXPECT_LT(rms, 0.5);
+  EXPECT_LT(peak, 30.0 * 1.1);
+  std::printf("force 30 N held 3 s with a load cell: error RMS %.2f N, peak %.1f N\n", rms, peak);
+  // The load cell falls silent: the drive's estimate takes over, and the reading says so.
+  cell_on = false;
+  r.run(100ms);
+  EXPECT_EQ(r.controller->status().force.source, "drive torque (the load cell is silent)");
+  EXPECT_TRUE(r.controller->status().force.valid);
+}
+
 TEST(Controller, APressByForceStopsWhereThereIsNoBodyOrBeyondItsLimits) {
   Rig r;
   putBack(r, 0.10, true);  // the back is 5 cm lower than vision said (0.15)

@@ -192,6 +192,9 @@ class Controller {
   void setEstop(bool pressed);
   /// Feeds the command watchdog.
   void keepAlive();
+  /// A load cell's / F/T sensor's force on the tool now (N along +z of the arm base, + when the body pushes the tool
+  /// up): while such readings keep coming they are the tool's force, in place of the Z drive's estimate.
+  void setSensorForce(double force);
   /// The running massage's target cannot be trusted any more (tf lost / stale).
   void abortMassage(const std::string& reason);
 

@@ -19,7 +19,7 @@ namespace massage_cell::arm {
 struct ForceReading {
   bool valid = false;   ///< a force is known (enabled, torque arriving, calibrated)
   double force = 0.0;   ///< N along +z on the tool: + when the body pushes it up (the tool's pressing force)
-  std::string source;   ///< "drive torque" (or "none")
+  std::string source;   ///< "load cell" (an external sensor, while it reports), "drive torque", or "none"
   std::string problem;  ///< why not valid ("not calibrated: the arm has not homed", "no torque from Z")
   bool calibrated = false;
   AxisBaseline baseline;  ///< what the axis carries without contact (identified or the config's prior)
@@ -39,9 +39,14 @@ class ToolForce {
   /// The calibration moves ended: fits the baseline to their samples. Returns an empty string, else why not (the
   /// prior stays; the force is then not valid).
   std::string finishCalibration();
-  /// The tool is still and touches nothing: zero the estimate here.
-  void rezero() { estimate_.rezero(); }
+  /// A load cell's or F/T sensor's reading (N along +z on the tool, + when the body pushes it up) taken at `stamp`:
+  /// while readings keep coming (each within kSensorTimeout of the last cycle) they are the force, not the drive's.
+  void setSensorForce(double force, can::TimePoint stamp);
+  /// The tool is still and touches nothing: zero the estimate (and the sensor, which drifts too) here.
+  void rezero();
   ForceReading reading() const;
+  /// A sensor silent longer than this no longer counts: the drive's estimate takes over (and the reading says so).
+  static constexpr double kSensorTimeout = 0.05;
 
  private:
   bool enabled_ = false;
@@ -53,6 +58,12 @@ class ToolForce {
   double last_position_ = 0.0, last_velocity_ = 0.0;
   can::TimePoint last_stamp_{};
   std::uint64_t last_count_ = 0;
+  can::TimePoint now_{};  ///< the last cycle's time
+  // The external sensor:
+  bool sensor_seen_ = false;
+  double sensor_force_ = 0.0, sensor_offset_ = 0.0;
+  can::TimePoint sensor_stamp_{};
+  bool sensorFresh() const;
 };
 
 }  // namespace massage_cell::arm
