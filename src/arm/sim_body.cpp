@@ -1,6 +1,8 @@
 // The simulated body under the tool (see sim_body.h).
 #include "massage_cell/arm/sim_body.h"
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <stdexcept>
 #include <utility>
@@ -54,6 +56,30 @@ double SimBody::force(const Eigen::Vector3d& tool, double tool_vz, double t) con
   // The indentation grows as the skin rises and the tool goes down.
   const double rate = breathingRate(t) - tool_vz;
   return tissue_(tool.x(), tool.y()).force(depth, rate);
+}
+
+void SkinPoints::set(std::vector<Eigen::Vector3d> points) {
+  std::atomic_store(&points_, std::shared_ptr<const std::vector<Eigen::Vector3d>>(
+                                  std::make_shared<std::vector<Eigen::Vector3d>>(std::move(points))));
+}
+
+std::size_t SkinPoints::size() const { return std::atomic_load(&points_)->size(); }
+
+double SkinPoints::height(double x, double y) const {
+  const auto points = std::atomic_load(&points_);
+  double weights = 0.0, sum = 0.0;
+  for (const Eigen::Vector3d& p : *points) {
+    const double d = std::hypot(p.x() - x, p.y() - y);
+    if (d > radius_) continue;
+    const double w = 1.0 / std::max(d, 1e-4);  // on a point: that point
+    weights += w;
+    sum += w * p.z();
+  }
+  return weights > 0.0 ? sum / weights : NAN;
+}
+
+SimBody::Surface SkinPoints::surface(std::shared_ptr<const SkinPoints> skin) {
+  return [skin](double x, double y) { return skin->height(x, y); };
 }
 
 }  // namespace massage_cell::arm

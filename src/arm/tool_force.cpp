@@ -28,6 +28,7 @@ AxisBaseline priorOf(const ForceConfig& f) {
 
 ToolForce::ToolForce(const ArmConfig& config)
     : enabled_(config.force.enabled),
+      sync_period_(config.can.sync_period_us / 1e6),
       estimate_(screwOf(config), priorOf(config.force), config.force.filter_time_constant),
       problem_(config.force.enabled ? "not calibrated: the arm has not homed" : "no force sensing configured") {}
 
@@ -53,22 +54,31 @@ void ToolForce::update(const can::DriveFeedback& z, double position, can::TimePo
   if (!enabled_) return;
   if (!z.valid || !z.has_torque) {
     have_last_ = have_velocity_ = false;
+    acceleration_ = 0.0;
     return;
   }
   if (have_last_ && z.count == last_count_) return;  // no new TPDO this cycle
-  const can::TimePoint stamp = z.stamp.time_since_epoch().count() ? z.stamp : now;
   double velocity = 0.0, acceleration = 0.0, dt = 0.0;
   if (have_last_) {
-    dt = std::chrono::duration<double>(stamp - last_stamp_).count();
+    // The drive samples at each SYNC: the time between two samples is the SYNC period times the TPDOs between them,
+    // whenever they arrive (on a loaded machine two may come in one cycle).
+    dt = sync_period_ * static_cast<double>(z.count - last_count_);
     if (!(dt > 0.0)) return;
     velocity = (position - last_position_) / dt;
-    if (have_velocity_) acceleration = (velocity - last_velocity_) / dt;
+    // The second difference of positions sampled a few hundred microseconds apart from their nominal instants (the
+    // drive's sampling, the bus) swings by metres per second squared; the load's real accelerations in a press are
+    // tenths of that and slow: a low-pass (kAccelerationFilterS) keeps the mass term from turning jitter into force.
+    if (have_velocity_) {
+      const double raw = (velocity - last_velocity_) / dt;
+      acceleration_ += dt / (kAccelerationFilterS + dt) * (raw - acceleration_);
+      acceleration = acceleration_;
+    }
     have_velocity_ = true;
   }
   estimate_.update(z.torque, position, velocity, acceleration, dt);
   if (calibrating && have_velocity_) samples_.push_back({estimate_.motorForce(), velocity, acceleration});
   have_last_ = true;
-  last_position_ = position, last_velocity_ = velocity, last_stamp_ = stamp, last_count_ = z.count;
+  last_position_ = position, last_velocity_ = velocity, last_count_ = z.count;
 }
 
 std::string ToolForce::finishCalibration() {

@@ -351,7 +351,13 @@ void SimDrive::updateMechanics(double dt, double previous_actual, double previou
   const double position = (actual_ - offset_) / k;
   physical_m_.store(position, std::memory_order_relaxed);
   if (!mechanics_.enabled()) return;
-  const double v = velocity_ / k, a = (velocity_ - previous_velocity) / k / dt;
+  (void)previous_velocity;
+  // The acceleration the motor gives the load: the demand's velocity through the servo's own lag (kServoLagS), not
+  // its step-to-step difference, which a step of microseconds (the real clock's remainder) would make unbounded.
+  const double v = velocity_ / k;
+  const double before = servo_velocity_;
+  servo_velocity_ += (v - servo_velocity_) * std::min(1.0, dt / kServoLagS);
+  const double a = (servo_velocity_ - before) / dt;
   external_force_ = external_ ? external_(position, v) : 0.0;
   const double torque = mechanics_.step((actual_ - previous_actual) / k, v, a, external_force_);
   // The motor carries the load while it is energised (holding brake otherwise: no torque).
@@ -432,8 +438,12 @@ void SimDrive::syncCyclicTarget() {
 
 void SimDrive::stepCyclic(double dt) {
   csp_elapsed_ += dt;
-  const double f = std::min(1.0, csp_elapsed_ / csp_period_);
-  const double next = csp_from_ + (csp_to_ - csp_from_) * f;
+  // A SYNC that comes late (the bus, the master's thread): the drive goes on at the segment's speed for up to half a
+  // period (extrapolation, as drives do), then holds; the next target starts from where it is.
+  const double f = std::min(kCspExtrapolation, csp_elapsed_ / csp_period_);
+  double next = csp_from_ + (csp_to_ - csp_from_) * f;
+  const double lo = static_cast<double>(od_.get(0x607D, 1)), hi = static_cast<double>(od_.get(0x607D, 2));
+  if (lo < hi) next = std::clamp(next, lo, hi);
   // The step's own motion (the last step of a segment moves like the others; a stream that stops, stops).
   velocity_ = (next - demand_) / dt;
   demand_ = next;

@@ -128,6 +128,25 @@ std::string ArmTargets::sensorForce(const geometry_msgs::WrenchStamped& wrench, 
   return "";
 }
 
+std::string ArmTargets::pointsInBase(const massage_cell::AcupointArray& acupoints,
+                                     std::vector<Eigen::Vector3d>* out) const {
+  if (acupoints.header.frame_id.empty()) return "the acupoints have no frame_id";
+  geometry_msgs::TransformStamped t;
+  try {
+    t = tf_.lookupTransform(options_.base_frame, acupoints.header.frame_id, ros::Time(0));
+  } catch (const tf2::TransformException& e) {
+    return "the frame '" + acupoints.header.frame_id + "' is not connected to " + options_.base_frame + ": " + e.what();
+  }
+  out->clear();
+  for (const massage_cell::Acupoint& a : acupoints.acupoints) {
+    if (!a.valid) continue;
+    geometry_msgs::Point p;
+    tf2::doTransform(a.position, p, t);
+    out->push_back(toEigen(p));
+  }
+  return "";
+}
+
 std::string ArmTargets::pressRequest(const massage_cell::Massage::Request& req, arm::PressRequest* press,
                                      std::vector<FrameTarget>* frames) const {
   arm::MassageFields fields;

@@ -13,6 +13,7 @@
 #include <sensor_msgs/JointState.h>
 #include <tf2_ros/buffer.h>
 
+#include "massage_cell/AcupointArray.h"
 #include "massage_cell/ArmState.h"
 #include "massage_cell/Massage.h"
 #include "massage_cell/arm/controller.h"
@@ -63,6 +64,8 @@ class ArmTargets {
   /// +z of the base frame (tf2: the sensor's rotation; the latest transform). Empty, or why it cannot be used (no
   /// frame, unknown frame, not finite).
   std::string sensorForce(const geometry_msgs::WrenchStamped& wrench, double* force_z) const;
+  /// The valid points of `acupoints` in the base frame (tf2 at their stamp, else the latest): empty, or why not.
+  std::string pointsInBase(const massage_cell::AcupointArray& acupoints, std::vector<Eigen::Vector3d>* out) const;
   std::string pressRequest(const massage_cell::Massage::Request& req, arm::PressRequest* press,
                            std::vector<FrameTarget>* frames) const;
 

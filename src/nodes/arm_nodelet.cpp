@@ -61,6 +61,15 @@ void ArmNodelet::onInit() {
   estop_sub_ = pnh.subscribe("estop", 10, &ArmNodelet::estopCb, this);
   sensor_sub_ = pnh.subscribe("ft_sensor", 10, &ArmNodelet::sensorCb, this);
   if (sim_) fault_sub_ = pnh.subscribe("sim/inject_fault", 10, &ArmNodelet::injectFaultCb, this);
+  if (sim_) {
+    // The simulated drives press a back whose skin is the session's true acupoints (the body moves with them).
+    sim_skin_ = std::make_shared<arm::SkinPoints>(config_.body.radius);
+    arm::Breathing carried;  // the true points breathe already
+    carried.amplitude = 0.0;
+    sim_->setBody(std::make_shared<arm::SimBody>(
+        arm::SkinPoints::surface(sim_skin_), [](double, double) { return arm::Tissue{}; }, carried));
+    skin_sub_ = pnh.subscribe("sim/skin", 2, &ArmNodelet::skinCb, this);
+  }
   home_srv_ = pnh.advertiseService("home", &ArmNodelet::home, this);
   stop_srv_ = pnh.advertiseService("stop", &ArmNodelet::stop, this);
   reset_srv_ = pnh.advertiseService("reset_fault", &ArmNodelet::resetFault, this);
@@ -229,6 +238,15 @@ void ArmNodelet::sensorCb(const geometry_msgs::WrenchStampedConstPtr& msg) {
     return;
   }
   if (arm::Controller* c = controller()) c->setSensorForce(force);
+}
+
+void ArmNodelet::skinCb(const massage_cell::AcupointArrayConstPtr& msg) {
+  std::vector<Eigen::Vector3d> points;
+  if (const std::string why = targets_->pointsInBase(*msg, &points); !why.empty()) {
+    NODELET_WARN_STREAM_THROTTLE(5.0, "arm: ~sim/skin not used: " << why);
+    return;
+  }
+  sim_skin_->set(std::move(points));
 }
 
 void ArmNodelet::injectFaultCb(const std_msgs::StringConstPtr& msg) {

@@ -24,6 +24,10 @@
 //  - topic `~ft_sensor` (geometry_msgs/WrenchStamped): a load cell's / F/T
 //    sensor's force on the tool; while it reports (every 50 ms at least) it is
 //    the tool's force, in place of the Z drive's estimate;
+//  - `sim` only: topic `~sim/skin` (massage_cell/AcupointArray: the session's
+//    true acupoints, remapped by cell.launch) is the skin of the back under
+//    the simulated tool (arm::SkinPoints; default tissue), so presses by force
+//    meet a body;
 //  - topic `~estop` (std_msgs/Bool: true latches the e-stop; false releases
 //    the input, the latch holds until ~reset_fault);
 //  - in sim mode `~sim/inject_fault` (std_msgs/String "Y 0x2310": that axis's
@@ -84,6 +88,7 @@ class ArmNodelet : public nodelet::Nodelet {
   void checkPressTarget();
   void estopCb(const std_msgs::BoolConstPtr& msg);
   void sensorCb(const geometry_msgs::WrenchStampedConstPtr& msg);
+  void skinCb(const massage_cell::AcupointArrayConstPtr& msg);
   void injectFaultCb(const std_msgs::StringConstPtr& msg);
   bool home(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool stop(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
@@ -114,7 +119,8 @@ class ArmNodelet : public nodelet::Nodelet {
   ros::CallbackQueue queue_;
   std::unique_ptr<ros::AsyncSpinner> spinner_;
   ros::Publisher joint_pub_, state_pub_, wrench_pub_;
-  ros::Subscriber estop_sub_, fault_sub_, sensor_sub_;
+  ros::Subscriber estop_sub_, fault_sub_, sensor_sub_, skin_sub_;
+  std::shared_ptr<arm::SkinPoints> sim_skin_;  ///< sim: the back the simulated drives press (~sim/skin)
   ros::ServiceServer home_srv_, stop_srv_, reset_srv_, move_srv_, massage_srv_;
   ros::WallTimer timer_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;

@@ -4,7 +4,8 @@
 // rate while the arm keeps moving, the e-stop -> quick-stop frame latency,
 // and the final position error of moves; with --force, the error of the
 // tool's force estimate (the Z drive's torque) against the force a simulated
-// body pushes the tool with, during presses (issue 45).
+// body pushes the tool with, during presses to a depth, and how presses by
+// force hold their force (the true force against the target) (issue 45).
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -60,11 +61,22 @@ config says (not in place: the drives' physical frame is then the arm's, which
 the body needs). Prints the baseline identified by the calibration moves at the
 end of homing against the drive's true mechanics (can_axes.yaml sim.mechanics,
 as the estimate sees them through the nominal screw efficiency), then for each
-target force one press (region lower_back, depth = the tissue's indentation at
-that force, refused beyond the region's max_depth) sampled every controller
-cycle: the estimate at the approach point before contact (the no-contact
-error), its error during the descent from contact, and while holding: the true
-mean force and the error's mean, RMS and max.
+target force two presses at the same point, sampled every controller cycle:
+  to a depth  region lower_back, depth = the tissue's indentation at that force
+              (skipped beyond the region's max_depth): the estimate at the
+              approach point before contact (the no-contact error), its error
+              during the descent from contact, and while holding: the true mean
+              force and the estimate's error (mean, RMS, max)
+  by force    mode force, the force itself (force_press.h): while holding, the
+              true force's mean and its error against the target (RMS, max
+              |e|); the overshoot (peak true force from contact to the end of
+              the hold over the target); the tool's indentation into the skin
+              when the press found contact (switched from seeking to ramping);
+              the estimate's error RMS. A press by force refused or stopped by
+              a limit (the region's force cap: lower_back's is 60 N) is
+              reported as failed, with the controller's message.
+Targets (issue 45, by force, 10-60 N, breathing): hold error <= 0.5 N RMS,
+overshoot <= 10 %, contact within 2 mm of indentation.
   --forces N,...      target forces, N (default 10,20,40,60)
   --hold S            s at depth (default 3)
   --breathing-mm MM   the back's breathing, mm peak to peak over 4 s (default 3; 0: still)
@@ -310,27 +322,43 @@ std::string format(const char* f, ...) {
   return buf;
 }
 
-/// Where a controller cycle was in the press (its activity).
-enum class Phase { kOther, kApproach, kDescend, kHold };
+/// Where a controller cycle was in the press (its activity). A press to a depth approaches, descends and holds; a
+/// press by force approaches, seeks the skin, ramps the force up, holds it and releases (then backs off: kOther).
+enum class Phase { kOther, kApproach, kDescend, kHold, kSeek, kRamp, kRelease };
 
 struct ForceSample {
   Phase phase = Phase::kOther;
-  double tool_z = 0.0;    ///< m
-  double estimate = 0.0;  ///< N, ArmStatus::force
-  double truth = 0.0;     ///< N, SimCell::bodyForce
+  double tool_z = 0.0;       ///< m
+  double estimate = 0.0;     ///< N, ArmStatus::force
+  double truth = 0.0;        ///< N, SimCell::bodyForce
+  double indentation = NAN;  ///< m, the tool tip into the skin (SimBody::indentation at SimCell::bodyTime)
   double error() const { return estimate - truth; }
 };
 
-/// Runs a massage request to its end, sampling the force estimate and the body's true force once per controller
-/// cycle (status polled at 1 kHz, a sample when its cycle count moved on). Throws when the press is refused or fails,
-/// or the estimate is not valid while the press approaches, descends or holds.
-std::vector<ForceSample> samplePress(ArmBench& b, const arm::PressRequest& request, const std::string& what) {
-  arm::Controller& c = b.controller();
-  const arm::Accepted a = c.massage(request);
-  if (!a) throw std::runtime_error(what + " refused: " + a.error);
+/// A press sampled: its samples and how it ended.
+struct PressRun {
   std::vector<ForceSample> samples;
+  bool refused = false;  ///< the controller refused the request (nothing moved)
+  bool success = false;
+  std::string message;  ///< the refusal or the failure
+};
+
+/// Runs a massage request to its end, sampling the force estimate, the body's true force and the tool's
+/// indentation into it once per controller cycle (status polled at 1 kHz, a sample when its cycle count moved on).
+/// A refusal or a failure is returned (PressRun); throws on a timeout, when the estimate is not valid while the press
+/// approaches or presses, or when the arm is left in fault.
+PressRun samplePress(ArmBench& b, const arm::SimBody& body, const arm::PressRequest& request, const std::string& what) {
+  arm::Controller& c = b.controller();
+  PressRun run;
+  const arm::Accepted a = c.massage(request);
+  if (!a) {
+    run.refused = true;
+    run.message = a.error;
+    return run;
+  }
   std::uint64_t last_cycle = 0;
   const auto deadline = Clock::now() + std::chrono::seconds(120);
+  const auto has = [](const std::string& s, const char* what) { return s.find(what) != std::string::npos; };
   while (!c.result(a.id).done) {
     if (Clock::now() > deadline) throw std::runtime_error("timed out waiting for " + what);
     const arm::ArmStatus s = c.status();
@@ -338,21 +366,87 @@ std::vector<ForceSample> samplePress(ArmBench& b, const arm::PressRequest& reque
       last_cycle = s.cycles;
       ForceSample f;
       f.truth = b.cell().bodyForce();
+      f.indentation = body.indentation(s.tool, b.cell().bodyTime());
       f.tool_z = s.tool.z();
       f.estimate = s.force.force;
-      if (s.activity.find(": approach") != std::string::npos) f.phase = Phase::kApproach;
-      if (s.activity.find(": descend") != std::string::npos) f.phase = Phase::kDescend;
-      if (s.activity.find(": hold") != std::string::npos) f.phase = Phase::kHold;
+      const std::string& act = s.activity;
+      if (has(act, ": approach")) f.phase = Phase::kApproach;
+      if (has(act, ": descend")) f.phase = Phase::kDescend;
+      if (has(act, ": hold")) f.phase = Phase::kHold;  // also a press by force's "holding 30 N"
+      if (has(act, ": seeking the skin")) f.phase = Phase::kSeek;
+      if (has(act, ": ramping")) f.phase = Phase::kRamp;
+      if (has(act, ": releasing")) f.phase = Phase::kRelease;
       if (f.phase != Phase::kOther && !s.force.valid)
         throw std::runtime_error(what + ": the force estimate is not valid (" + s.force.problem + ")");
-      samples.push_back(f);
+      run.samples.push_back(f);
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   const arm::CommandResult r = c.result(a.id);
-  if (!r.success) throw std::runtime_error(what + " failed: " + r.message);
-  return samples;
+  run.success = r.success;
+  run.message = r.message;
+  if (!r.success) {
+    if (c.mode() == arm::Mode::kFault)
+      throw std::runtime_error(what + " failed and left the arm in fault: " + r.message);
+  }
+  return run;
 }
+
+/// Whether a press by force was refused or stopped by the region's force cap (plan.cpp's forceGeometry, force_press.h's
+/// limits): a result (a 60 N press on lower_back, capped at 60 N, may overshoot it), not a bench error.
+bool limitStopped(const PressRun& run) {
+  for (const char* limit : {"is above the", "passed the press's limit"})
+    if (run.message.find(limit) != std::string::npos) return true;
+  return false;
+}
+
+/// How a press by force held its target, from the true force.
+struct ByForceStats {
+  int held = 0;                ///< cycles holding
+  double truth_mean = NAN;     ///< N, while holding
+  double error_rms = NAN;      ///< N, true - target while holding
+  double error_max = NAN;      ///< N, |true - target| max while holding
+  double peak = NAN;           ///< N, the true force's peak from contact to the end of the hold
+  double overshoot_pct = NAN;  ///< (peak - target) / target, %
+  double contact_mm = NAN;     ///< the indentation when the press switched from seeking to ramping, mm
+  double contact_force = NAN;  ///< N, the true force then
+  double estimate_rms = NAN;   ///< N, estimate - true while holding
+};
+
+ByForceStats byForceStats(const std::vector<ForceSample>& samples, double target) {
+  ByForceStats s;
+  double sum = 0.0, sum2 = 0.0, worst = 0.0, est2 = 0.0, peak = -INFINITY;
+  bool pressing = false;  // from contact (the first ramping cycle) to the end of the hold
+  for (const ForceSample& f : samples) {
+    if (f.phase == Phase::kRamp && !pressing && std::isnan(s.contact_mm)) {
+      pressing = true;
+      s.contact_mm = f.indentation * 1000.0;
+      s.contact_force = f.truth;
+    }
+    if (pressing && f.phase != Phase::kRamp && f.phase != Phase::kHold) pressing = false;  // released or stopped
+    if (pressing) peak = std::max(peak, f.truth);
+    if (f.phase != Phase::kHold) continue;
+    ++s.held;
+    const double e = f.truth - target;
+    sum += f.truth;
+    sum2 += e * e;
+    worst = std::max(worst, std::abs(e));
+    est2 += f.error() * f.error();
+  }
+  if (std::isfinite(peak)) {
+    s.peak = peak;
+    s.overshoot_pct = (peak - target) / target * 100.0;
+  }
+  if (s.held == 0) return s;
+  s.truth_mean = sum / s.held;
+  s.error_rms = std::sqrt(sum2 / s.held);
+  s.error_max = worst;
+  s.estimate_rms = std::sqrt(est2 / s.held);
+  return s;
+}
+
+/// The larger of a and b, NaN ignored (NaN when both are).
+double maxOf(double a, double b) { return std::isnan(a) ? b : std::isnan(b) ? a : std::max(a, b); }
 
 /// Of the samples `pick` selects: how many, the true and the estimated mean force, the error's mean, RMS and max |e|.
 struct ErrorStats {
@@ -422,7 +516,8 @@ void forceBench(const Options& o) {
     if (!why.empty()) std::fprintf(stderr, "arm_bench: %s\n", why.c_str());
 
   ArmBench b(config);
-  b.cell().setBody(std::make_shared<const arm::SimBody>(arm::SimBody::flat(skin, tissue, breathing)));
+  const auto body = std::make_shared<const arm::SimBody>(arm::SimBody::flat(skin, tissue, breathing));
+  b.cell().setBody(body);
   b.start(o);
   // The estimate takes its zero under the identified baseline over a few cycles after homing.
   const auto settle = Clock::now() + std::chrono::seconds(1);
@@ -451,61 +546,116 @@ void forceBench(const Options& o) {
         {"force_after_homing_N", calibrated.force, "N", "estimate after homing (no contact)"}}});
 
   const double approach_z = skin + config.press.approach_height;
+  const double cap = config.regions.at(region).forceCap(config.press.contact_area);
   std::vector<ForceSample> all_holds;
   double worst_descent = 0.0, worst_no_contact = 0.0;
   int pressed = 0;
+  // Presses by force: the worst target's hold error RMS, the largest overshoot and contact indentation.
+  double bf_rms = NAN, bf_max = NAN, bf_overshoot = NAN, bf_contact = NAN, bf_estimate = NAN;
+  int bf_ended = 0, bf_failed = 0;
   for (std::size_t k = 0; k < o.forces.size(); ++k) {
     const double target = o.forces[k];
     const std::string key = "force_" + format("%g", target) + "N_";
     const double depth = tissue.indentationAt(target);
     if (!skipped[k].empty()) {
       sections.push_back(
-          {format("press to %s", skipped[k].c_str()),
+          {format("to a depth: %s", skipped[k].c_str()),
            {{key + "depth_mm", depth * 1000.0, "mm", "depth needed"}, {key + "skipped", 1.0, "", "skipped (1)"}}});
-      continue;
+    } else {
+      arm::PressRequest request;
+      request.targets.push_back({format("%g N", target), region, point, Eigen::Vector3d::UnitZ()});
+      request.mode = arm::PressConfig::Mode::kDepth;
+      request.depth = depth;
+      request.hold = o.hold;
+      const std::string what = format("the press to a depth for %g N", target);
+      const PressRun run = samplePress(b, *body, request, what);
+      if (!run.success) throw std::runtime_error(what + (run.refused ? " refused: " : " failed: ") + run.message);
+      const std::vector<ForceSample>& samples = run.samples;
+      ++pressed;
+      const ErrorStats hold = errorStats(samples, [](const ForceSample& f) { return f.phase == Phase::kHold; });
+      const ErrorStats descent =
+          errorStats(samples, [](const ForceSample& f) { return f.phase == Phase::kDescend && f.truth > 0.0; });
+      // At the approach point, still in the air (before the press re-zeroes the estimate): the no-contact error.
+      const ErrorStats air = errorStats(samples, [&](const ForceSample& f) {
+        return f.phase == Phase::kApproach && std::abs(f.tool_z - approach_z) < 5e-4;
+      });
+      if (hold.n == 0) throw std::runtime_error(what + ": no cycle sampled while holding");
+      for (const ForceSample& f : samples)
+        if (f.phase == Phase::kHold) all_holds.push_back(f);
+      if (descent.n > 0) worst_descent = std::max(worst_descent, descent.max);
+      if (air.n > 0) worst_no_contact = std::max(worst_no_contact, std::abs(air.mean));
+      sections.push_back(
+          {format("%g N to a depth: %.2f mm (%s max_depth %.1f mm), hold %g s, %d cycles held: the estimate's error",
+                  target, depth * 1000.0, region.c_str(), max_depth * 1000.0, o.hold, hold.n),
+           {{key + "depth_mm", depth * 1000.0, "mm", "depth (the tissue's indentation at the force)"},
+            {key + "no_contact_N", air.mean, "N",
+             format("estimate at the approach point, no contact (%d cycles)", air.n)},
+            {key + "descent_error_rms_N", descent.rms, "N",
+             format("descent from contact: error RMS (%d cycles)", descent.n)},
+            {key + "descent_error_max_N", descent.max, "N", "descent from contact: error max |e|"},
+            {key + "true_mean_N", hold.truth_mean, "N", "holding: true force, mean"},
+            {key + "estimate_mean_N", hold.estimate_mean, "N", "holding: estimate, mean"},
+            {key + "error_mean_N", hold.mean, "N", "holding: error (estimate - true), mean"},
+            {key + "error_rms_N", hold.rms, "N", "holding: error RMS"},
+            {key + "error_max_N", hold.max, "N", "holding: error max |e|"}}});
     }
+
+    // The same target by force, at the same point.
     arm::PressRequest request;
     request.targets.push_back({format("%g N", target), region, point, Eigen::Vector3d::UnitZ()});
-    request.depth = depth;
+    request.mode = arm::PressConfig::Mode::kForce;
+    request.force = target;
     request.hold = o.hold;
-    const std::vector<ForceSample> samples = samplePress(b, request, format("the press to %g N", target));
-    ++pressed;
-    const ErrorStats hold = errorStats(samples, [](const ForceSample& f) { return f.phase == Phase::kHold; });
-    const ErrorStats descent =
-        errorStats(samples, [](const ForceSample& f) { return f.phase == Phase::kDescend && f.truth > 0.0; });
-    // At the approach point, still in the air (before the press re-zeroes the estimate): the no-contact error.
-    const ErrorStats air = errorStats(samples, [&](const ForceSample& f) {
-      return f.phase == Phase::kApproach && std::abs(f.tool_z - approach_z) < 5e-4;
-    });
-    if (hold.n == 0) throw std::runtime_error(format("the press to %g N: no cycle sampled while holding", target));
-    for (const ForceSample& f : samples)
-      if (f.phase == Phase::kHold) all_holds.push_back(f);
-    if (descent.n > 0) worst_descent = std::max(worst_descent, descent.max);
-    if (air.n > 0) worst_no_contact = std::max(worst_no_contact, std::abs(air.mean));
-    sections.push_back({format("press to %g N: depth %.2f mm (%s max_depth %.1f mm), hold %g s, %d cycles held", target,
-                               depth * 1000.0, region.c_str(), max_depth * 1000.0, o.hold, hold.n),
-                        {{key + "depth_mm", depth * 1000.0, "mm", "depth (the tissue's indentation at the force)"},
-                         {key + "no_contact_N", air.mean, "N",
-                          format("estimate at the approach point, no contact (%d cycles)", air.n)},
-                         {key + "descent_error_rms_N", descent.rms, "N",
-                          format("descent from contact: error RMS (%d cycles)", descent.n)},
-                         {key + "descent_error_max_N", descent.max, "N", "descent from contact: error max |e|"},
-                         {key + "true_mean_N", hold.truth_mean, "N", "holding: true force, mean"},
-                         {key + "estimate_mean_N", hold.estimate_mean, "N", "holding: estimate, mean"},
-                         {key + "error_mean_N", hold.mean, "N", "holding: error (estimate - true), mean"},
-                         {key + "error_rms_N", hold.rms, "N", "holding: error RMS"},
-                         {key + "error_max_N", hold.max, "N", "holding: error max |e|"}}});
+    const std::string what = format("the press by force to %g N", target);
+    const PressRun run = samplePress(b, *body, request, what);
+    if (!run.success && !limitStopped(run))
+      throw std::runtime_error(what + (run.refused ? " refused: " : " failed: ") + run.message);
+    const ByForceStats bf = byForceStats(run.samples, target);
+    if (run.success && bf.held == 0) throw std::runtime_error(what + ": no cycle sampled while holding");
+    const std::string bk = key + "byforce_";
+    if (run.success)
+      ++bf_ended;
+    else
+      ++bf_failed;
+    bf_rms = maxOf(bf_rms, bf.error_rms);
+    bf_max = maxOf(bf_max, bf.error_max);
+    bf_overshoot = maxOf(bf_overshoot, bf.overshoot_pct);
+    bf_contact = maxOf(bf_contact, bf.contact_mm);
+    bf_estimate = maxOf(bf_estimate, bf.estimate_rms);
+    const std::string how =
+        run.success ? "ended" : format("FAILED (%s: %s)", run.refused ? "refused" : "stopped", run.message.c_str());
+    sections.push_back(
+        {format("%g N by force (%s cap %.1f N), hold %g s, %d cycles held: %s", target, region.c_str(), cap, o.hold,
+                bf.held, how.c_str()),
+         {{bk + "failed", run.success ? 0.0 : 1.0, "", "failed (1: refused or stopped by a limit)"},
+          {bk + "true_mean_N", bf.truth_mean, "N", "holding: true force, mean"},
+          {bk + "error_rms_N", bf.error_rms, "N", "holding: true - target, RMS (target <= 0.5 N RMS)"},
+          {bk + "error_max_N", bf.error_max, "N", "holding: true - target, max |e|"},
+          {bk + "peak_N", bf.peak, "N", "true force peak, contact to the end of the hold"},
+          {bk + "overshoot_pct", bf.overshoot_pct, "%", "overshoot (peak - target) / target (target <= 10 %)"},
+          {bk + "contact_mm", bf.contact_mm, "mm", "indentation at contact detection (target <= 2 mm)"},
+          {bk + "contact_true_N", bf.contact_force, "N", "true force at contact detection"},
+          {bk + "estimate_error_rms_N", bf.estimate_rms, "N", "holding: estimate - true, RMS"}}});
   }
   b.stop();
   const ErrorStats overall = errorStats(all_holds, [](const ForceSample&) { return true; });
   const double runtime = std::chrono::duration<double>(Clock::now() - began).count();
-  sections.push_back({"all presses",
+  sections.push_back({"all presses to a depth: the estimate's error",
                       {{"force_error_rms_N", overall.rms, "N", "holding: error RMS"},
                        {"force_error_max_N", overall.max, "N", "holding: error max |e|"},
                        {"force_descent_error_max_N", worst_descent, "N", "descent from contact: error max |e|"},
                        {"force_no_contact_max_N", worst_no_contact, "N", "no contact: |estimate| max"},
-                       {"force_presses", static_cast<double>(pressed), "count", "presses"},
-                       {"runtime_s", runtime, "s", "bench runtime (homing included)"}}});
+                       {"force_presses", static_cast<double>(pressed), "count", "presses"}}});
+  sections.push_back(
+      {"all presses by force: the true force",
+       {{"force_byforce_error_rms_max_N", bf_rms, "N", "hold error RMS, worst target (target <= 0.5 N RMS)"},
+        {"force_byforce_error_max_N", bf_max, "N", "hold error max |e|"},
+        {"force_byforce_overshoot_max_pct", bf_overshoot, "%", "overshoot max (target <= 10 %)"},
+        {"force_byforce_contact_mm_max", bf_contact, "mm", "contact indentation max (target <= 2 mm)"},
+        {"force_byforce_estimate_error_rms_max_N", bf_estimate, "N", "holding: estimate - true RMS, worst target"},
+        {"force_byforce_presses", static_cast<double>(bf_ended), "count", "presses ended"},
+        {"force_byforce_failed", static_cast<double>(bf_failed), "count", "presses failed (a limit)"}}});
+  sections.push_back({"run", {{"runtime_s", runtime, "s", "bench runtime (homing included)"}}});
 
   if (o.csv) {
     std::printf("metric,value,unit\n");

@@ -1,6 +1,7 @@
 // arm_bench's command line: a short run prints the five metric rows with
 // plausible values; a short --force run estimates the force a simulated body
-// pushes the tool with; bad options exit 2, a bad configuration 1.
+// pushes the tool with and presses it by force too; bad options exit 2, a bad
+// configuration 1.
 #include <gtest/gtest.h>
 
 #include <pthread.h>
@@ -117,6 +118,19 @@ TEST(ArmBenchTool, ForceRunEstimatesThePressingForce) {
   // Within lower_back's 12 mm.
   EXPECT_GT(values["force_20N_depth_mm"], 0.0);
   EXPECT_LE(values["force_20N_depth_mm"], 12.0);
+  // The same target pressed by force: it ended (20 N is well under lower_back's 60 N cap) and held about 20 N.
+  for (const char* m :
+       {"force_20N_byforce_failed", "force_20N_byforce_true_mean_N", "force_20N_byforce_error_rms_N",
+        "force_20N_byforce_error_max_N", "force_20N_byforce_overshoot_pct", "force_20N_byforce_contact_mm",
+        "force_20N_byforce_estimate_error_rms_N", "force_byforce_error_rms_max_N", "force_byforce_overshoot_max_pct",
+        "force_byforce_contact_mm_max", "force_byforce_presses"})
+    ASSERT_TRUE(values.count(m)) << m << "\n" << r.out;
+  EXPECT_EQ(values["force_20N_byforce_failed"], 0.0) << r.out;
+  EXPECT_EQ(values["force_byforce_presses"], 1.0) << r.out;
+  const double by_force_rms = values["force_20N_byforce_error_rms_N"];
+  EXPECT_TRUE(std::isfinite(by_force_rms)) << r.out;
+  EXPECT_LT(by_force_rms, 5.0) << r.out;
+  EXPECT_TRUE(std::isfinite(values["force_20N_byforce_contact_mm"])) << r.out;
 }
 
 TEST(ArmBenchTool, ForceRunSkipsAForceDeeperThanTheRegionAllows) {

@@ -42,6 +42,19 @@ TEST(SimBody, BreathingMovesTheSkinAndOffTheBodyNothingPushes) {
   EXPECT_EQ(half.force(Eigen::Vector3d(0.6, 0.2, 0.14), 0.0, 0.0), 0.0);
 }
 
+TEST(SkinPoints, TheSkinIsWhereItsPointsAreAndNowhereElse) {
+  auto skin = std::make_shared<SkinPoints>(0.05);
+  EXPECT_TRUE(std::isnan(skin->height(0.3, 0.2)));  // no points yet: no body
+  skin->set({Eigen::Vector3d(0.30, 0.20, 0.15), Eigen::Vector3d(0.34, 0.20, 0.17)});
+  EXPECT_NEAR(skin->height(0.30, 0.20), 0.15, 1e-3);  // on a point: that point
+  EXPECT_NEAR(skin->height(0.32, 0.20), 0.16, 1e-9);  // half-way: the mean
+  EXPECT_TRUE(std::isnan(skin->height(0.50, 0.20)));  // beyond the radius of every point
+  const SimBody body(SkinPoints::surface(skin), [](double, double) { return Tissue{}; });
+  EXPECT_GT(body.force(Eigen::Vector3d(0.30, 0.20, 0.145), 0.0, 0.0), 0.0);
+  skin->set({Eigen::Vector3d(0.30, 0.20, 0.12)});  // the body moved down
+  EXPECT_EQ(body.force(Eigen::Vector3d(0.30, 0.20, 0.145), 0.0, 0.0), 0.0);
+}
+
 /// The simulated Z axis of config/can_axes.yaml (true values) and what the estimate is told (nominal).
 can::SimDriveSettings::Mechanics trueAxis() {
   can::SimDriveSettings::Mechanics m;

@@ -103,7 +103,7 @@ TEST(ForcePress, EachLimitStopsThePressAndBacksOff) {
   EXPECT_EQ(r.phase, ForcePress::Phase::kFailed);
   EXPECT_NE(r.failure.find("sank"), std::string::npos) << r.failure;
 
-  r = press(back(200.0, 0.0), goal(30.0));  // bone, a table edge: not tissue
+  r = press(back(2000.0, 0.0), goal(30.0));  // bone, a table edge: three orders stiffer than tissue
   EXPECT_EQ(r.phase, ForcePress::Phase::kFailed);
   EXPECT_NE(r.failure.find("N/s"), std::string::npos) << r.failure;
 

@@ -480,11 +480,16 @@ TEST_F(SimFixture, CyclicSynchronousPositionReachesEachTargetByTheNextSync) {
   tick();
   EXPECT_EQ(drive.position(), target);
   // A jump beyond 0x607F per SYNC (1 m/s: 10 mm) is clamped, bit 11 set; beyond the software limit too.
+  // (This SYNC comes 11 ms after the last: the drive went on 1 ms past `target` at the old speed, 10 counts, and takes
+  // 11 ms as the period: the step allowed is 1100 counts, reached by the next SYNC's time, 10 ms after it.)
   host->send(*packPdo(0x205, {{0x6040, 0, 16}, {0x607A, 0, 32}}, {0x0F, static_cast<std::uint32_t>(target + 5000)}));
   sync();
   for (int i = 0; i < 10; ++i) tick();
   EXPECT_TRUE(drive.statusword() & sw::kInternalLimit);
-  EXPECT_EQ(drive.position(), target + 1000);
+  EXPECT_EQ(drive.position(), target + 10 + 1000);
+  // No SYNC comes: the drive goes on at the segment's speed for half a period (extrapolation), then holds.
+  for (int i = 0; i < 20; ++i) tick();
+  EXPECT_EQ(drive.position(), target + 10 + 1650);
   // A mode other than 0, 1, 6 or 8 is refused.
   const can_frame r = sdo(sdoInitiateDownloadRequest(5, 0x6060, 0, {3}));
   EXPECT_EQ(r.data[0], 0x80);

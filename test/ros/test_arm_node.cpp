@@ -21,6 +21,7 @@
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/TransformStamped.h>
+#include <geometry_msgs/WrenchStamped.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/JointState.h>
@@ -33,6 +34,7 @@
 #include <tf2_ros/transform_listener.h>
 #include <urdf/model.h>
 
+#include "massage_cell/AcupointArray.h"
 #include "massage_cell/ArmState.h"
 #include "massage_cell/Massage.h"
 #include "massage_cell/MoveTo.h"
@@ -306,6 +308,65 @@ TEST(ArmNode, MassageOverTwoAcupointFrames) {
   // ~state is sampled at 50 Hz: its latest message may predate the end of the retraction.
   F->waitFor([] { return std::abs(F->latest().tool.z - F->config.press.travel_height) < 1e-4; }, 1.0);
   EXPECT_NEAR(F->latest().tool.z, F->config.press.travel_height, 1e-4);
+}
+
+TEST(ArmNode, APressByForceOnTheSimulatedSkin) {
+  // The session's true acupoints, as the session player publishes them: a 9 x 9 grid 15 mm apart at z 0.16 m around
+  // (0.40, 0.25) in the base frame; the simulated drives press the skin through them.
+  ros::Publisher skin = F->nh.advertise<massage_cell::AcupointArray>("/stereo/ground_truth/acupoints", 1, true);
+  massage_cell::AcupointArray truth;
+  truth.header.frame_id = kBase;
+  truth.header.stamp = ros::Time::now();
+  for (int i = -4; i <= 4; ++i)
+    for (int j = -4; j <= 4; ++j) {
+      massage_cell::Acupoint a;
+      a.name = "p" + std::to_string(i) + "_" + std::to_string(j);
+      a.position.x = 0.40 + 0.015 * i;
+      a.position.y = 0.25 + 0.015 * j;
+      a.position.z = 0.16;
+      a.valid = true;
+      truth.acupoints.push_back(a);
+    }
+  skin.publish(truth);
+  if (!F->latest().homed) ASSERT_TRUE(F->trigger("/arm/home").success);
+  ASSERT_TRUE(F->waitFor([] { return F->latest().force_valid; }, 5.0)) << F->latest().force_source;
+  std::atomic<int> wrenches{0};
+  ros::Subscriber wrench_sub = F->nh.subscribe<geometry_msgs::WrenchStamped>("/arm/wrench", 10, [&](const auto& w) {
+    if (w->header.frame_id == "tool_tip") ++wrenches;
+  });
+  std::vector<double> held;
+  std::atomic<bool> watching{true};
+  std::thread watch([&] {
+    while (watching) {
+      const massage_cell::ArmState st = F->latest();
+      if (st.activity.find("holding") != std::string::npos && st.force_valid) held.push_back(st.force);
+      ros::WallDuration(0.02).sleep();
+    }
+  });
+  massage_cell::Massage::Request req;
+  geometry_msgs::PointStamped p;
+  p.header.frame_id = kBase;
+  p.point.x = 0.40, p.point.y = 0.25, p.point.z = 0.16;
+  req.points = {p};
+  req.regions = {"lower_back"};
+  req.mode = "force";
+  req.force = 20.0;
+  req.hold = 1.0;
+  const auto r = F->massage(req);
+  watching = false;
+  watch.join();
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_EQ(r.presses_done, 1);
+  ASSERT_GT(held.size(), 20u);  // ~state at 50 Hz over the 1 s hold
+  double mean = 0.0;
+  for (double f : held) mean += f / static_cast<double>(held.size());
+  EXPECT_NEAR(mean, 20.0, 2.0);
+  EXPECT_GT(wrenches.load(), 0);
+  // Asked beyond the region's cap: refused with the limit named.
+  req.force = 90.0;
+  const auto refused = F->massage(req);
+  EXPECT_FALSE(refused.success);
+  EXPECT_NE(refused.message.find("above the lower_back limit"), std::string::npos) << refused.message;
 }
 
 TEST(ArmNode, EstopDuringAPressBacksOffTheBody) {

@@ -33,7 +33,7 @@ struct ForceControlConfig {
   double min_stiffness = 1000.0;   ///< N/m
   double max_stiffness = 40000.0;  ///< N/m
   double max_speed = 0.02;         ///< m/s the loop may move the tool
-  double max_force_rate = 300.0;   ///< N/s: a faster rise stops the press (a hit, not tissue)
+  double max_force_rate = 1000.0;  ///< N/s: a faster rise stops the press (a hit, not tissue)
   double release_speed = 0.01;     ///< m/s back to the approach point
 };
 

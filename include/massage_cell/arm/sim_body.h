@@ -13,6 +13,8 @@
 #pragma once
 
 #include <functional>
+#include <memory>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -63,6 +65,23 @@ class SimBody {
   Surface surface_;
   TissueAt tissue_;
   Breathing breathing_;
+};
+
+/// A skin known by points on it (the session's true acupoints, arm base frame), updated while the body moves: its
+/// height at (x, y) is the inverse-distance mean of the points within `radius` (NaN farther from every point: no
+/// body known there). Thread-safe: set() from one thread, height() from the simulated drives'.
+class SkinPoints {
+ public:
+  explicit SkinPoints(double radius) : radius_(radius) {}
+  void set(std::vector<Eigen::Vector3d> points);
+  double height(double x, double y) const;
+  std::size_t size() const;
+  /// A SimBody surface reading this skin (keeps it alive).
+  static SimBody::Surface surface(std::shared_ptr<const SkinPoints> skin);
+
+ private:
+  double radius_;
+  std::shared_ptr<const std::vector<Eigen::Vector3d>> points_ = std::make_shared<std::vector<Eigen::Vector3d>>();
 };
 
 }  // namespace massage_cell::arm

@@ -50,13 +50,15 @@ class ToolForce {
 
  private:
   bool enabled_ = false;
+  double sync_period_;  ///< s between two TPDOs of the drive
   AxialForceEstimate estimate_;
   std::vector<FreeMotionSample> samples_;
   bool calibrated_ = false;
   std::string problem_;
   bool have_last_ = false, have_velocity_ = false;
   double last_position_ = 0.0, last_velocity_ = 0.0;
-  can::TimePoint last_stamp_{};
+  double acceleration_ = 0.0;  ///< low-passed
+  static constexpr double kAccelerationFilterS = 0.05;
   std::uint64_t last_count_ = 0;
   can::TimePoint now_{};  ///< the last cycle's time
   // The external sensor:

@@ -251,6 +251,11 @@ class SimDrive {
   bool moving_ = false;
   // cyclic synchronous position: from where to where the demand goes between two SYNCs
   double csp_from_ = 0.0, csp_to_ = 0.0, csp_elapsed_ = 0.0, csp_period_ = 0.01, last_sync_s_ = 0.0;
+  /// The load's velocity as the servo gives it (the demand's, lagging by kServoLagS): its change is the
+  /// acceleration the motor's torque carries (sim_mechanics.h).
+  double servo_velocity_ = 0.0;
+  static constexpr double kServoLagS = 0.002;
+  static constexpr double kCspExtrapolation = 1.5;  ///< how far past its target a late SYNC's segment goes on
   bool setpoint_ack_ = false;
   bool target_reached_ = true;
   bool internal_limit_ = false;
