@@ -39,6 +39,8 @@ void SessionConfig::validate() const {
   require(technique == "press" || technique == "knead", "technique",
           "expected press or knead, got '" + technique + "'");
   require(std::isfinite(depth) && depth >= 0.0 && depth <= 0.03, "depth", "expected 0 .. 0.03 m");
+  require(mode == "depth" || mode == "force", "mode", "expected force or depth, got '" + mode + "'");
+  require(std::isfinite(force) && force >= 0.0 && force <= 100.0, "force", "expected 0 .. 100 N (0: the region's)");
   require(std::isfinite(hold) && hold >= 0.0 && hold <= 60.0, "hold", "expected 0 .. 60 s");
   require(repeats >= 1 && repeats <= 20, "repeats", "expected 1 .. 20");
   require(std::isfinite(fix_window) && fix_window > 0.0, "fix_window", "expected > 0 s");
@@ -51,15 +53,17 @@ SessionConfig SessionConfig::load(const std::string& path) {
   SessionConfig c;
   try {
     const YAML::Node root = YAML::LoadFile(path);
-    static const std::set<std::string> known = {"acupoints",     "technique",    "depth",      "hold",
-                                                "repeats",       "frame_prefix", "fix_window", "fix_samples",
-                                                "fix_tolerance", "fix_timeout"};
+    static const std::set<std::string> known = {"acupoints",  "technique",   "mode",          "force",
+                                                "depth",      "hold",        "repeats",       "frame_prefix",
+                                                "fix_window", "fix_samples", "fix_tolerance", "fix_timeout"};
     for (const auto& kv : root) {
       const std::string key = kv.first.as<std::string>();
       if (!known.count(key)) throw std::invalid_argument("session: unknown field '" + key + "'");
     }
     if (root["acupoints"]) c.acupoints = root["acupoints"].as<std::vector<std::string>>();
     if (root["technique"]) c.technique = root["technique"].as<std::string>();
+    if (root["mode"]) c.mode = root["mode"].as<std::string>();
+    if (root["force"]) c.force = root["force"].as<double>();
     if (root["depth"]) c.depth = root["depth"].as<double>();
     if (root["hold"]) c.hold = root["hold"].as<double>();
     if (root["repeats"]) c.repeats = root["repeats"].as<int>();
@@ -151,7 +155,12 @@ std::string SessionReport::summary(double tolerance) const {
   if (!landmarks.empty()) out << "  layout: " << landmarks << "\n";
   for (const PressRecord& p : presses) {
     out << "  press " << p.acupoint << ": " << (p.success ? "done" : "FAILED") << format(" in %.1f s", p.seconds);
-    if (p.measured) out << format(", tool at depth %.1f mm from the ground truth", 1e3 * p.error());
+    if (p.measured && p.by_force) {
+      out << format(", %.1f N held, tool %.1f mm from the ground truth across the skin", p.force_held, 1e3 * p.error())
+          << format(" and %.1f mm into it", 1e3 * p.indentation());
+    } else if (p.measured) {
+      out << format(", tool at depth %.1f mm from the ground truth", 1e3 * p.error());
+    }
     if (p.targeted) out << format(" (%.1f mm from CECT's acupoint)", 1e3 * p.placement());
     if (!p.success) out << " (" << p.message << ")";
     out << "\n";
@@ -199,13 +208,14 @@ void SessionReport::writeHtml(const std::string& dir, double tolerance,
       << "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
       << "td,th{border:1px solid #aaa;padding:4px 10px;text-align:left}.bad{color:#b00}img{max-width:48%;margin:4px}"
       << "</style></head><body>\n<h1>Massage session</h1>\n<pre>" << escape(summary(tolerance)) << "</pre>\n";
-  out << "<h2>Presses</h2>\n<table><tr><th>acupoint</th><th>result</th><th>s</th><th>tool at depth vs truth (mm)</th>"
+  out << "<h2>Presses</h2>\n<table><tr><th>acupoint</th><th>result</th><th>s</th><th>tool at depth vs truth (mm; by "
+         "force: across the skin, the force held)</th>"
       << "<th>vs CECT's acupoint (mm)</th><th>arm's answer</th></tr>\n";
   for (const PressRecord& p : presses) {
     out << "<tr" << (p.success ? "" : " class=\"bad\"") << "><td>" << escape(p.acupoint) << "</td><td>"
         << (p.success ? "done" : "failed") << "</td><td>" << format("%.1f", p.seconds) << "</td><td>"
-        << (p.measured ? format("%.1f", 1e3 * p.error()) : "-") << "</td><td>"
-        << (p.targeted ? format("%.1f", 1e3 * p.placement()) : "-") << "</td><td>" << escape(p.message)
+        << (p.measured ? format("%.1f", 1e3 * p.error()) + (p.by_force ? format(" (%.1f N)", p.force_held) : "") : "-")
+        << "</td><td>" << (p.targeted ? format("%.1f", 1e3 * p.placement()) : "-") << "</td><td>" << escape(p.message)
         << "</td></tr>\n";
   }
   out << "</table>\n<h2>Acupoint fix against the ground truth</h2>\n<table><tr><th>acupoint</th><th>mm</th><th>x, y, z "

@@ -147,7 +147,9 @@ class Session {
     massage_cell::Massage srv;
     srv.request.frames = {config_.frame_prefix + name};
     srv.request.technique = config_.technique;
-    srv.request.depth = config_.depth;
+    srv.request.mode = config_.mode;
+    srv.request.force = config_.mode == "force" ? config_.force : 0.0;
+    srv.request.depth = config_.mode == "force" ? 0.0 : config_.depth;
     srv.request.hold = config_.hold;
     srv.request.repeats = config_.repeats;
     {
@@ -155,6 +157,7 @@ class Session {
       holding_ = {};
       truth_holding_ = {};
       target_holding_ = {};
+      force_holding_ = {};
       current_ = name;
       descending_ = false;
     }
@@ -167,14 +170,18 @@ class Session {
     record.seconds = (ros::WallTime::now() - t0).toSec();
     const std::lock_guard<std::mutex> lock(mutex_);
     current_.clear();
+    // To a depth: the truth pushed that depth down; by force the depth is the body's answer (compared across).
+    const double depth = config_.mode == "force" ? 0.0 : config_.depth;
     if (!holding_.empty() && !truth_holding_.empty()) {
       record.measured = true;
+      record.by_force = config_.mode == "force";
       record.tool_at_depth = average(holding_);
-      record.truth_at_depth = average(truth_holding_) - config_.depth * Eigen::Vector3d::UnitZ();
+      record.truth_at_depth = average(truth_holding_) - depth * Eigen::Vector3d::UnitZ();
+      for (double f : force_holding_) record.force_held += f / static_cast<double>(force_holding_.size());
     }
     if (!holding_.empty() && !target_holding_.empty()) {
       record.targeted = true;
-      record.target_at_depth = average(target_holding_) - config_.depth * Eigen::Vector3d::UnitZ();
+      record.target_at_depth = average(target_holding_) - depth * Eigen::Vector3d::UnitZ();
     }
     ROS_INFO("massage_session: %s %s (%.1f s)", name.c_str(), record.success ? "done" : "FAILED", record.seconds);
     report_.presses.push_back(record);
@@ -351,13 +358,19 @@ class Session {
   void onState(const massage_cell::ArmStateConstPtr& msg) {
     const std::lock_guard<std::mutex> lock(mutex_);
     if (msg->homed) trajectory_.emplace_back(msg->tool.x, msg->tool.y, msg->tool.z);
-    if (!current_.empty() && !descending_ && msg->activity.find(current_ + ": descend") != std::string::npos) {
+    const bool in_press = !current_.empty() && msg->activity.find(current_ + ": ") != std::string::npos;
+    const bool going_down = in_press && (msg->activity.find(": descend") != std::string::npos ||
+                                         msg->activity.find("seeking the skin") != std::string::npos);
+    if (going_down && !descending_) {
       descending_ = true;
       const auto tf = tf_stamps_.find(config_.frame_prefix + current_);
       if (tf != tf_stamps_.end()) latency(kPressStart).push_back((ros::Time::now() - tf->second).toSec());
     }
-    if (current_.empty() || msg->activity.find(current_ + ": hold") == std::string::npos) return;
+    const bool holding = in_press && (msg->activity.find(current_ + ": hold") != std::string::npos ||
+                                      msg->activity.find(": holding") != std::string::npos);
+    if (!holding) return;
     holding_.emplace_back(msg->tool.x, msg->tool.y, msg->tool.z);
+    if (msg->force_valid) force_holding_.push_back(msg->force);
     try {  // where the arm was sent: the acupoint's frame now
       const auto target = tf_.lookupTransform(base_frame_, config_.frame_prefix + current_, ros::Time(0)).transform;
       target_holding_.emplace_back(target.translation.x, target.translation.y, target.translation.z);
@@ -403,6 +416,7 @@ class Session {
   std_msgs::Header truth_header_;
   std::string current_;
   std::vector<Eigen::Vector3d> holding_, truth_holding_, target_holding_;
+  std::vector<double> force_holding_;  ///< the arm's force while holding (mode force)
 };
 
 }  // namespace

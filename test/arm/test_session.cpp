@@ -43,6 +43,7 @@ TEST(SessionConfig, TheShippedRoutineLoads) {
   EXPECT_GE(c.acupoints.size(), 6u);
   EXPECT_EQ(c.technique, "press");
   EXPECT_GT(c.depth, 0.0);
+  EXPECT_EQ(c.mode, "force");  // the main job presses by force
   EXPECT_EQ(c.frame_prefix, "acupoint/");
 }
 
@@ -52,6 +53,8 @@ TEST(SessionConfig, BadFilesAreNamed) {
   EXPECT_NE(loadError("acupoints: [GV14]\ntechnique: slap\n").find("technique"), std::string::npos);
   EXPECT_NE(loadError("acupoints: [GV14]\ndepth: 0.5\n").find("depth"), std::string::npos);
   EXPECT_NE(loadError("acupoints: [GV14]\nrepeat: 2\n").find("unknown field 'repeat'"), std::string::npos);
+  EXPECT_NE(loadError("acupoints: [GV14]\nmode: push\n").find("mode: expected force or depth"), std::string::npos);
+  EXPECT_NE(loadError("acupoints: [GV14]\nforce: 300\n").find("force"), std::string::npos);
   EXPECT_NE(loadError("acupoints: [GV14\n").find("session.yaml"), std::string::npos) << "a YAML error names the file";
   EXPECT_THROW(arm::SessionConfig::load("/nonexistent/session.yaml"), std::runtime_error);
 }
@@ -102,6 +105,25 @@ TEST(SessionReport, CountsPressesWithinTheTolerance) {
   EXPECT_NE(s.find("fix   BL18_L: 5.0 mm from the ground truth (x +0.0, y +4.0, z -3.0 mm)"), std::string::npos) << s;
   EXPECT_NE(s.find("is stale"), std::string::npos) << s;
   EXPECT_NE(s.find("result: 2 of 3 presses done, 1 within 5 mm"), std::string::npos) << s;
+}
+
+TEST(SessionReport, APressByForceIsMeasuredAcrossTheSkinWithItsForce) {
+  arm::PressRecord p;
+  p.acupoint = "BL23_L";
+  p.success = p.measured = p.by_force = true;
+  p.force_held = 29.6;
+  p.tool_at_depth = Eigen::Vector3d(0.1, 0.2, 0.145);    // 5 mm into the skin: the body's answer to the force
+  p.truth_at_depth = Eigen::Vector3d(0.1, 0.203, 0.15);  // the true skin point, not pushed down
+  EXPECT_NEAR(p.error(), 0.003, 1e-12);                  // across the skin only
+  EXPECT_NEAR(p.indentation(), 0.005, 1e-12);
+  arm::SessionReport r;
+  r.presses = {p};
+  const std::string s = r.summary(0.005);
+  EXPECT_NE(s.find("29.6 N held, tool 3.0 mm from the ground truth across the skin and 5.0 mm into it"),
+            std::string::npos)
+      << s;
+  p.by_force = false;  // the same numbers read as a press to a depth: the depth counts
+  EXPECT_NEAR(p.error(), std::hypot(0.003, 0.005), 1e-12);
 }
 
 TEST(SessionReport, LatencyQuantilesAndTheHtmlPage) {

@@ -84,6 +84,7 @@ class ForcePress {
   double integral_ = 0.0;
   double contact_z_;
   double held_ = 0.0;
+  int above_ = 0;  ///< cycles in a row the force has been above contact_force while seeking
   double last_force_;
 };
 

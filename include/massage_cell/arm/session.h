@@ -18,7 +18,9 @@ namespace massage_cell::arm {
 struct SessionConfig {
   std::vector<std::string> acupoints;  ///< pressed in this order (names of config/acupoints.yaml)
   std::string technique = "press";     ///< press or knead
-  double depth = 0.003;                ///< m past the surface (the arm clamps it to the region's limit)
+  std::string mode = "depth";          ///< force (each press held at `force`) or depth (pressed `depth` past the skin)
+  double force = 0.0;                  ///< N (mode force); 0: each region's default force
+  double depth = 0.003;                ///< m past the surface (mode depth; the arm clamps it to the region's limit)
   double hold = 2.0;                   ///< s at depth
   int repeats = 1;                     ///< presses per acupoint
   std::string frame_prefix = "acupoint/";
@@ -65,12 +67,20 @@ struct PressRecord {
   bool success = false;
   std::string message;  ///< the arm's answer
   double seconds = 0.0;
-  bool measured = false;              ///< the tool was seen holding at depth and the truth was known
+  bool measured = false;  ///< the tool was seen holding at depth and the truth was known
+  /// Pressed by force: the depth is the body's answer to the force, so error() is across the skin (x, y) and the
+  /// tool's depth into it and the force held are reported beside it.
+  bool by_force = false;
+  double force_held = 0.0;            ///< N, the arm's mean force while holding (mode force)
   Eigen::Vector3d tool_at_depth{};    ///< mean tool tip while holding, arm base frame
   Eigen::Vector3d truth_at_depth{};   ///< ground-truth acupoint pushed `depth` down (-z of the arm base)
   bool targeted = false;              ///< the acupoint's tf frame was seen while holding
   Eigen::Vector3d target_at_depth{};  ///< CECT's acupoint (its tf frame) pushed `depth` down, likewise
-  double error() const { return (tool_at_depth - truth_at_depth).norm(); }
+  double error() const {
+    return by_force ? (tool_at_depth - truth_at_depth).head<2>().norm() : (tool_at_depth - truth_at_depth).norm();
+  }
+  /// Mode force: how deep the tool held below the true skin point, m.
+  double indentation() const { return truth_at_depth.z() - tool_at_depth.z(); }
   /// The arm's own share: the tool against where it was sent (CECT's acupoint).
   double placement() const { return (tool_at_depth - target_at_depth).norm(); }
 };
