@@ -26,6 +26,15 @@ double SimCell::bodyTime() const {
   return std::chrono::duration<double>(can::SteadyClock::instance().now() - epoch_).count();
 }
 
+std::shared_ptr<SkinPoints> SimCell::setSkin(double radius) {
+  auto skin = std::make_shared<SkinPoints>(radius);
+  Breathing carried;  // the points breathe already
+  carried.amplitude = 0.0;
+  setBody(std::make_shared<SimBody>(
+      SkinPoints::surface(skin), [](double, double) { return Tissue{}; }, carried));
+  return skin;
+}
+
 void SimCell::setBody(std::shared_ptr<const SimBody> body) {
   if (!body) {
     drive(2).setExternalForce({});

@@ -525,26 +525,36 @@ void Cia402Axis::tickMode(TimePoint now, Cia402State s, std::uint16_t word) {
       return;
     }
     case Phase::kSetMode:
-      if (sdo_pending_) return;
-      if (!sdo_ok_) return fail("could not set the mode of operation: " + sdo_error_);
-      readMode();
-      return;
     case Phase::kCheckMode:
-      if (sdo_pending_) return;
-      if (!sdo_ok_) return fail("could not read the mode display: " + sdo_error_);
-      if (mode_read_ == static_cast<std::int8_t>(wanted_mode_)) {
-        mode_ = wanted_mode_;
-        return succeed("mode of operation " + std::to_string(static_cast<int>(mode_)));
-      }
-      if (timedOut(now, config_.enable_timeout_ms)) {
-        return fail("mode display 0x6061 stays " + std::to_string(mode_read_) + ", wanted " +
-                    std::to_string(static_cast<int>(wanted_mode_)));
-      }
-      readMode();
-      return;
+      if (!modeConfirmed(now)) return;
+      mode_ = wanted_mode_;
+      return succeed("mode of operation " + std::to_string(static_cast<int>(mode_)));
     default:
       return;
   }
+}
+
+bool Cia402Axis::modeConfirmed(TimePoint now) {
+  if (sdo_pending_) return false;
+  if (phase_ != Phase::kCheckMode) {  // the write (kSetMode, kRestoreMode) answered
+    if (!sdo_ok_)
+      fail("could not set the mode of operation: " + sdo_error_);
+    else
+      readMode();
+    return false;
+  }
+  if (!sdo_ok_) {
+    fail("could not read the mode display: " + sdo_error_);
+    return false;
+  }
+  if (mode_read_ == static_cast<std::int8_t>(wanted_mode_)) return true;
+  if (timedOut(now, config_.enable_timeout_ms)) {
+    fail("mode display 0x6061 stays " + std::to_string(mode_read_) + ", wanted " +
+         std::to_string(static_cast<int>(wanted_mode_)));
+    return false;
+  }
+  readMode();
+  return false;
 }
 
 void Cia402Axis::setMode(Mode mode, Phase next) {
@@ -614,27 +624,15 @@ void Cia402Axis::tickHoming(TimePoint now, Cia402State s, std::uint16_t word) {
       return;
     case Phase::kSetMode:
     case Phase::kRestoreMode:
-      if (sdo_pending_) return;
-      if (!sdo_ok_) return fail("could not set the mode of operation: " + sdo_error_);
-      readMode();
-      return;
-    case Phase::kCheckMode:
-      if (sdo_pending_) return;
-      if (!sdo_ok_) return fail("could not read the mode display: " + sdo_error_);
-      if (mode_read_ == static_cast<std::int8_t>(wanted_mode_)) {
-        if (after_mode_ == Phase::kHomingRun) return startHomingAttempt();
-        mode_ = Mode::kProfilePosition;
-        char buf[96];
-        std::snprintf(buf, sizeof buf, "homed at %.6f m (%d counts), back in profile position mode",
-                      config_.toMetres(fb.position), fb.position);
-        return succeed(buf);
-      }
-      if (timedOut(now, config_.enable_timeout_ms)) {
-        return fail("mode display 0x6061 stays " + std::to_string(mode_read_) + ", wanted " +
-                    std::to_string(static_cast<int>(wanted_mode_)));
-      }
-      readMode();
-      return;
+    case Phase::kCheckMode: {
+      if (!modeConfirmed(now)) return;
+      if (after_mode_ == Phase::kHomingRun) return startHomingAttempt();
+      mode_ = Mode::kProfilePosition;
+      char buf[96];
+      std::snprintf(buf, sizeof buf, "homed at %.6f m (%d counts), back in profile position mode",
+                    config_.toMetres(fb.position), fb.position);
+      return succeed(buf);
+    }
     case Phase::kWaitEdgeLow:
       if (freshFeedback(fb)) {
         command(cw::kEnableOperation | cw::kNewSetPoint);  // homing start (rising edge of bit 4)

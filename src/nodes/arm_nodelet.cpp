@@ -61,13 +61,8 @@ void ArmNodelet::onInit() {
   estop_sub_ = pnh.subscribe("estop", 10, &ArmNodelet::estopCb, this);
   sensor_sub_ = pnh.subscribe("ft_sensor", 10, &ArmNodelet::sensorCb, this);
   if (sim_) fault_sub_ = pnh.subscribe("sim/inject_fault", 10, &ArmNodelet::injectFaultCb, this);
-  if (sim_) {
-    // The simulated drives press a back whose skin is the session's true acupoints (the body moves with them).
-    sim_skin_ = std::make_shared<arm::SkinPoints>(config_.body.radius);
-    arm::Breathing carried;  // the true points breathe already
-    carried.amplitude = 0.0;
-    sim_->setBody(std::make_shared<arm::SimBody>(
-        arm::SkinPoints::surface(sim_skin_), [](double, double) { return arm::Tissue{}; }, carried));
+  if (sim_) {  // the simulated drives press a back whose skin is the session's true acupoints
+    sim_skin_ = sim_->setSkin(config_.body.radius);
     skin_sub_ = pnh.subscribe("sim/skin", 2, &ArmNodelet::skinCb, this);
   }
   home_srv_ = pnh.advertiseService("home", &ArmNodelet::home, this);

@@ -44,6 +44,9 @@ class SimCell {
   /// Puts `body` under the tool (nullptr: none): the Z drive feels its force (SimBody::force at the tool tip of the
   /// drives' physical positions, breathing on the steady clock from the cell's construction).
   void setBody(std::shared_ptr<const SimBody> body);
+  /// Puts a back known by points under the tool (SkinPoints within `radius` of each; the default tissue; the points
+  /// carry the breathing) and returns the points to update.
+  std::shared_ptr<SkinPoints> setSkin(double radius);
   /// The true force the body pushes the tool up with now, N (0 without a body).
   double bodyForce() { return drive(2).externalForce(); }
   /// Seconds on the body's clock (its breathing phase).

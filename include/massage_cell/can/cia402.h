@@ -173,6 +173,9 @@ class Cia402Axis {
   void tickHoming(TimePoint now, Cia402State s, std::uint16_t word);
   void tickMode(TimePoint now, Cia402State s, std::uint16_t word);
   void setMode(Mode mode, Phase next);
+  /// A mode change (setMode) step by step: the write answered, then 0x6061 read back until it shows wanted_mode_;
+  /// true once it does; failed (with the reason) on an SDO error or after enable_timeout_ms.
+  bool modeConfirmed(TimePoint now);
   void readMode();
   void startHomingAttempt();
   void homingAttemptFailed(const std::string& why);
