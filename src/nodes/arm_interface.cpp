@@ -112,6 +112,21 @@ std::string ArmTargets::moveGoal(const geometry_msgs::PointStamped& target, cons
   return why.empty() ? "" : "move refused: " + why;
 }
 
+std::string ArmTargets::whyNoFrame(const std::string& frame) const {
+  const std::string& prefix = options_.acupoint_prefix;
+  if (frame.rfind(prefix, 0) == 0) {
+    const std::string name = frame.substr(prefix.size());
+    if (!config_.regionOf(name).empty())
+      return "; " + name +
+             " is an acupoint of the model but CECT publishes no valid fix for it now (see its "
+             "acupoints message's reason)";
+    return "; '" + name + "' is not an acupoint of the model (" + config_.acupoints_path + ")";
+  }
+  if (!config_.regionOf(frame).empty())
+    return "; acupoint frames are named '" + prefix + "<name>': did you mean '" + prefix + frame + "'?";
+  return "";
+}
+
 std::string ArmTargets::sensorForce(const geometry_msgs::WrenchStamped& wrench, double* force_z) const {
   const geometry_msgs::Vector3& f = wrench.wrench.force;
   if (!std::isfinite(f.x) || !std::isfinite(f.y) || !std::isfinite(f.z)) return "the force is not finite";
@@ -177,7 +192,8 @@ std::string ArmTargets::pressTarget(const massage_cell::Massage::Request& req, s
   std::string error;
   if (i < req.frames.size()) {  // an acupoint's (or any) tf frame
     const std::string& frame = req.frames[i];
-    if (!lookup(frame, ros::Time(0), &t, &error)) return "target " + std::to_string(i + 1) + ": the frame " + error;
+    if (!lookup(frame, ros::Time(0), &t, &error))
+      return "target " + std::to_string(i + 1) + ": the frame " + error + whyNoFrame(frame);
     const std::string& prefix = options_.acupoint_prefix;
     target->name = frame.rfind(prefix, 0) == 0 ? frame.substr(prefix.size()) : frame;
     target->point = {t.transform.translation.x, t.transform.translation.y, t.transform.translation.z};

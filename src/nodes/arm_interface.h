@@ -70,6 +70,9 @@ class ArmTargets {
                            std::vector<FrameTarget>* frames) const;
 
  private:
+  /// Why `frame` is not there, beyond tf's "unknown": a model's acupoint CECT has no valid fix for, a name that is
+  /// not an acupoint, an acupoint named without the prefix; empty for any other frame.
+  std::string whyNoFrame(const std::string& frame) const;
   std::string pressTarget(const massage_cell::Massage::Request& req, std::size_t i, const arm::BodySurface& body,
                           arm::PressTarget* target) const;
 

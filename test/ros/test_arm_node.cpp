@@ -447,6 +447,13 @@ TEST(ArmNode, RefusalsNameTheProblem) {
   r = F->massage(req);
   EXPECT_FALSE(r.success);
   EXPECT_TRUE(contains(r.message, "the frame 'acupoint/NOPE' is unknown")) << r.message;
+  EXPECT_TRUE(contains(r.message, "'NOPE' is not an acupoint of the model")) << r.message;
+  req.frames = {"acupoint/GV14"};  // an acupoint of the model the test never publishes: CECT has no fix for it
+  r = F->massage(req);
+  EXPECT_TRUE(contains(r.message, "GV14 is an acupoint of the model but CECT publishes no valid fix")) << r.message;
+  req.frames = {"BL23_L"};  // without the prefix
+  r = F->massage(req);
+  EXPECT_TRUE(contains(r.message, "did you mean 'acupoint/BL23_L'?")) << r.message;
   m = F->moveTo("no_such_frame", {0, 0, 0});
   EXPECT_FALSE(m.success);
   EXPECT_TRUE(contains(m.message, "'no_such_frame' is unknown")) << m.message;
