@@ -476,6 +476,15 @@ ErrorStats errorStats(const std::vector<ForceSample>& samples, Pick pick) {
   return e;
 }
 
+/// One vertical press of `hold` s at `point` (region `region`); the caller sets its mode and depth or force.
+arm::PressRequest onePress(const std::string& name, const std::string& region, const Eigen::Vector3d& point,
+                           double hold) {
+  arm::PressRequest request;
+  request.targets.push_back({name, region, point, Eigen::Vector3d::UnitZ()});
+  request.hold = hold;
+  return request;
+}
+
 struct Section {
   std::string title;
   std::vector<Row> rows;
@@ -562,11 +571,9 @@ void forceBench(const Options& o) {
           {format("to a depth: %s", skipped[k].c_str()),
            {{key + "depth_mm", depth * 1000.0, "mm", "depth needed"}, {key + "skipped", 1.0, "", "skipped (1)"}}});
     } else {
-      arm::PressRequest request;
-      request.targets.push_back({format("%g N", target), region, point, Eigen::Vector3d::UnitZ()});
+      arm::PressRequest request = onePress(format("%g N", target), region, point, o.hold);
       request.mode = arm::PressConfig::Mode::kDepth;
       request.depth = depth;
-      request.hold = o.hold;
       const std::string what = format("the press to a depth for %g N", target);
       const PressRun run = samplePress(b, *body, request, what);
       if (!run.success) throw std::runtime_error(what + (run.refused ? " refused: " : " failed: ") + run.message);
@@ -601,11 +608,9 @@ void forceBench(const Options& o) {
     }
 
     // The same target by force, at the same point.
-    arm::PressRequest request;
-    request.targets.push_back({format("%g N", target), region, point, Eigen::Vector3d::UnitZ()});
+    arm::PressRequest request = onePress(format("%g N", target), region, point, o.hold);
     request.mode = arm::PressConfig::Mode::kForce;
     request.force = target;
-    request.hold = o.hold;
     const std::string what = format("the press by force to %g N", target);
     const PressRun run = samplePress(b, *body, request, what);
     if (!run.success && !limitStopped(run))
