@@ -843,7 +843,12 @@ ArmStatus Controller::status() const {
         break;
       case Action::Kind::kStep:
         s.activity = current_->step.label;
-        if (current_->step.kind == Step::Kind::kForcePress && press_) s.activity += ": " + press_->describe();
+        if (current_->step.kind == Step::Kind::kForcePress && press_) {
+          s.activity += ": " + press_->describe();
+          s.press_phase = toString(press_->phase());
+          s.force_target = press_->setPoint();
+          s.force_limit = press_->limit();
+        }
         break;
       case Action::Kind::kWaitStopped:
         s.activity = "waiting for the axes to stop";

@@ -38,6 +38,9 @@ massage_cell::ArmState armStateMsg(const arm::ArmStatus& s, const std::string& b
   st.force_valid = s.force.valid;
   st.force = s.force.valid ? s.force.force : 0.0;
   st.force_source = s.force.valid ? s.force.source : s.force.source + ": " + s.force.problem;
+  st.press_phase = s.press_phase;
+  st.force_target = s.force_target;
+  st.force_limit = s.force_limit;
   return st;
 }
 

@@ -258,16 +258,22 @@ TEST(Controller, APressByForceHoldsItsForceOnABreathingBack) {
   r.run(100ms);
   double sq = 0.0, peak = 0.0;
   int held = 0;
+  bool phases_ok = true;
   r.observer = [&] {
     const double truth = r.drives[2]->externalForce();
     peak = std::max(peak, truth);
-    if (!contains(r.controller->status().activity, "holding")) return;
+    const ArmStatus s = r.controller->status();
+    if (!contains(s.activity, "holding")) return;
+    // The status tells what the press asks for and what it may not pass (lower back: 60 N).
+    phases_ok = phases_ok && s.press_phase == "hold" && s.force_target == 30.0 && s.force_limit == 60.0;
     sq += (truth - 30.0) * (truth - 30.0);
     ++held;
   };
   const Accepted m = r.controller->massage(byForce(30.0, 3.0));
   ASSERT_TRUE(r.finish(m)) << r.message(m) << r.log;
   ASSERT_GT(held, 2900);  // 3 s at 1 ms steps
+  EXPECT_TRUE(phases_ok);
+  EXPECT_EQ(r.controller->status().press_phase, "");  // none runs now
   const double rms = std::sqrt(sq / held);
   EXPECT_LT(rms, 2.0);
   EXPECT_LT(peak, 30.0 * 1.1 + 2.0);

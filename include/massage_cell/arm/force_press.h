@@ -64,6 +64,8 @@ class ForcePress {
   const std::string& failure() const { return failure_; }
   /// The force set-point now, N (0 before contact).
   double setPoint() const { return set_point_; }
+  /// The press's force cap (the region's force and pressure limits), N.
+  double limit() const { return g_.max_force; }
   /// Where contact was found (m; NaN before).
   double contactZ() const { return contact_z_; }
   /// "seeking the skin", "ramping to 30 N", "holding 30 N", "releasing", "backing off: <why>".
