@@ -764,6 +764,12 @@ void Controller::startRelease(const Step& from) {
   // stopped and latched (runQueue). A fault on the way stops everything.
   Step back = retractSteps(config_, from).front();
   back.label = "e-stop: releasing the pressure";
+  if (from.kind == Step::Kind::kForcePress && press_) {
+    // Straight up from where the tool presses (a stroke may be anywhere along its path), to the approach height
+    // over the skin there.
+    const Eigen::Vector3d at = config_.toolOf(joints());
+    back.tool = Eigen::Vector3d(at.x(), at.y(), std::max(at.z(), press_->backOffZ()));
+  }
   queue_ = {Action{Action::Kind::kWaitStopped}, Action{Action::Kind::kEnableAll}, Action{Action::Kind::kProfileMode}};
   Action a{Action::Kind::kStep};
   a.step = back;

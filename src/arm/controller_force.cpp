@@ -1,8 +1,10 @@
 // The arm controller's press by force (see controller.h and force_press.h): the step's phases, each cycle.
-//  1. Z to cyclic synchronous position, holding where it stands (the approach point); the force zeroed there.
-//  2. Each cycle ForcePress turns the measured force and height into the next height, streamed to Z.
-//  3. Z back to profile position; a press that failed (a limit, no contact, an abort) fails the command, with
-//     the tool backed off to its approach point and then up to the travel height.
+//  1. Z (a stroke: X, Y and Z) to cyclic synchronous position, holding where it stands (the approach point); the
+//     force zeroed there.
+//  2. Each cycle ForcePress turns the measured force and height into the next height, streamed to Z (a stroke: and
+//     where along its path the tool is, streamed to X and Y).
+//  3. The streaming axes back to profile position; a press that failed (a limit, no contact, an abort) fails the
+//     command, with the tool backed off straight up and then up to the travel height.
 #include "massage_cell/arm/controller.h"
 
 namespace massage_cell::arm {
@@ -16,19 +18,32 @@ void Controller::startForcePress(const Step& s) {
     force_phase_ = ForcePhase::kLeaveCyclic;
     return;
   }
-  axes_[2]->setModeOfOperation(can::Mode::kCyclicSyncPosition);
-  log(s.label + ": Z streams its height (cyclic synchronous position)");
+  for (int i = 0; i < 3; ++i) {
+    if (streamingAxes(s) & (1u << i)) axes_[i]->setModeOfOperation(can::Mode::kCyclicSyncPosition);
+  }
+  log(s.label + (s.force.path.empty() ? ": Z streams its height (cyclic synchronous position)"
+                                      : ": X, Y and Z stream the path (cyclic synchronous position)"));
+}
+
+unsigned Controller::streamingAxes(const Step& s) { return s.force.path.empty() ? 0b100u : 0b111u; }
+
+bool Controller::streamingModeSet(const Step& s, const std::string& what) {
+  for (int i = 0; i < 3; ++i) {
+    if (!(streamingAxes(s) & (1u << i))) continue;
+    const can::Cia402Axis::Status st = axes_[i]->status();
+    if (st == can::Cia402Axis::Status::kRunning) return false;
+    if (st == can::Cia402Axis::Status::kFailed) {
+      fault("press by force: " + config_.axis(i).name + " could not " + what + ": " + axes_[i]->error());
+      return false;
+    }
+  }
+  return true;
 }
 
 bool Controller::tickForcePress(const Step& s) {
-  const can::Cia402Axis::Status st = axes_[2]->status();
   switch (force_phase_) {
     case ForcePhase::kEnterCyclic:
-      if (st == can::Cia402Axis::Status::kRunning) return false;
-      if (st == can::Cia402Axis::Status::kFailed) {
-        fault("press by force: Z could not stream its height: " + axes_[2]->error());
-        return false;
-      }
+      if (!streamingModeSet(s, "stream its position")) return false;
       {
         ForcePressGoal goal = s.force;
         goal.start_z = config_.toolOf(joints()).z();
@@ -44,27 +59,30 @@ bool Controller::tickForcePress(const Step& s) {
       const double tool_z = press_->update(f.valid ? f.force : NAN, z, dt);
       const double joint_z = tool_z - config_.tool_offset.z();
       axes_[2]->setCyclicTarget(config_.axis(2).toCounts(joint_z));
+      if (!s.force.path.empty()) {
+        const Eigen::Vector2d joint_xy = press_->xy() - config_.tool_offset.head<2>();
+        for (int i = 0; i < 2; ++i) axes_[i]->setCyclicTarget(config_.axis(i).toCounts(joint_xy[i]));
+      }
       if (!press_->finished()) return false;
-      axes_[2]->setModeOfOperation(can::Mode::kProfilePosition);
+      for (int i = 0; i < 3; ++i) {
+        if (streamingAxes(s) & (1u << i)) axes_[i]->setModeOfOperation(can::Mode::kProfilePosition);
+      }
       force_phase_ = ForcePhase::kLeaveCyclic;
       return false;
     }
     case ForcePhase::kLeaveCyclic:
-      if (st == can::Cia402Axis::Status::kRunning) return false;
-      if (st == can::Cia402Axis::Status::kFailed) {
-        fault("press by force: Z could not return to profile position: " + axes_[2]->error());
-        return false;
-      }
+      if (!streamingModeSet(s, "return to profile position")) return false;
       if (press_ && press_->phase() == ForcePress::Phase::kFailed && !aborting_) {
         log("press by force failed: " + press_->failure());
         aborting_ = true;
         abort_reason_ = press_->failure();
       }
       if (aborting_) {
-        // The command fails with the reason; from the approach point the tool goes up to the travel height.
+        // The command fails with the reason; from where it backed off the tool goes up to the travel height.
         queue_.clear();
         Action up{Action::Kind::kStep};
         up.step = retractSteps(config_, s).back();
+        up.step.tool.head<2>() = config_.toolOf(joints()).head<2>();
         queue_.push_back(std::move(up));
       }
       return true;

@@ -32,7 +32,17 @@ void tangentBasis(const Eigen::Vector3d& n, Eigen::Vector3d* u, Eigen::Vector3d*
 
 }  // namespace
 
-const char* toString(Technique t) { return t == Technique::kKnead ? "knead" : "press"; }
+const char* toString(Technique t) {
+  switch (t) {
+    case Technique::kPress:
+      return "press";
+    case Technique::kKnead:
+      return "knead";
+    case Technique::kStroke:
+      return "stroke";
+  }
+  return "?";
+}
 
 std::optional<double> BodySurface::heightAt(double x, double y, double radius) const {
   std::optional<double> z;
@@ -147,7 +157,8 @@ std::string checkRequest(const ArmConfig& c, const Eigen::Vector3d& from, const 
   if (req.repeats < 1 || req.repeats > pc.max_repeats) {
     return "repeats must be 1.." + std::to_string(pc.max_repeats) + ", got " + std::to_string(req.repeats);
   }
-  *speed = req.speed == 0.0 ? pc.speed : req.speed;
+  const bool stroke = req.technique == Technique::kStroke;
+  *speed = req.speed != 0.0 ? req.speed : stroke ? c.force_control.stroke_speed : pc.speed;
   if (!(*speed > 0.0) || *speed > pc.max_speed) {
     return "speed " + m3(*speed) + " m/s must be in (0, " + m3(pc.max_speed) + "] m/s";
   }
@@ -159,6 +170,9 @@ std::string checkRequest(const ArmConfig& c, const Eigen::Vector3d& from, const 
   if (!by_force && req.force > 0.0) return "a force is for presses by force (mode force), not to a depth";
   if (by_force && req.technique == Technique::kKnead)
     return "kneading by force is not built yet: knead with mode depth";
+  if (stroke && !by_force) return "a stroke glides at a force: mode force, not depth";
+  if (stroke && req.targets.size() < 2) return "a stroke needs a path of at least two points (frames or points)";
+  if (stroke && req.hold >= 0.0) return "a stroke holds its force while it glides: give no hold";
   if (std::string bad = checkTool(c, from); !bad.empty()) return "the tool's current position " + bad;
   return "";
 }
@@ -169,18 +183,25 @@ struct PressGeometry {
   std::string who;  ///< the target's name, or "target N"
   Eigen::Vector3d approach, bottom;
   double travel_z = 0.0;
-  std::vector<Eigen::Vector3d> circle;  ///< kneading: the circle's points, closed
-  int circles = 0;                      ///< ... and how many times it is run
-  std::optional<ForcePressGoal> force;  ///< a press by force (bottom: the seek's lowest point)
+  std::vector<Eigen::Vector3d> circle;            ///< kneading: the circle's points, closed
+  int circles = 0;                                ///< ... and how many times it is run
+  std::optional<ForcePressGoal> force;            ///< a press by force (bottom: the seek's lowest point)
+  Eigen::Vector3d end = Eigen::Vector3d::Zero();  ///< a stroke: the approach point over its last point
 };
 
-/// A press by force: vertical (the Z drive senses the force), from the approach point above the point down to the
-/// skin and up to no_contact_band below it at most; the force and its cap from the region.
-std::string forceGeometry(const ArmConfig& c, const PressRequest& req, const PressTarget& t, const std::string& region,
-                          const RegionLimits& lim, double hold, PressGeometry* g) {
-  const std::string& who = g->who;
+/// The target's region (the configuration's default when it names none), or why it is not known.
+std::string regionOf(const ArmConfig& c, const PressTarget& t, const std::string& who, std::string* region) {
+  *region = t.region.empty() ? c.default_region : t.region;
+  if (c.regions.count(*region)) return "";
+  std::string known;
+  for (const auto& kv : c.regions) known += (known.empty() ? "" : ", ") + kv.first;
+  return who + ": unknown region '" + *region + "' (known: " + known + ")";
+}
+
+/// Why `force` may not be pressed in `region` (above its cap, or not above the contact force); empty when it may.
+std::string forceRefusal(const ArmConfig& c, const std::string& who, const std::string& region, const RegionLimits& lim,
+                         double force) {
   const double cap = lim.forceCap(c.press.contact_area);
-  const double force = req.force > 0.0 ? req.force : lim.default_force;
   char buf[320];
   if (force > cap + 1e-9) {
     std::snprintf(buf, sizeof buf,
@@ -195,6 +216,17 @@ std::string forceGeometry(const ArmConfig& c, const PressRequest& req, const Pre
                   c.force_control.contact_force);
     return buf;
   }
+  return "";
+}
+
+/// A press by force: vertical (the Z drive senses the force), from the approach point above the point down to the
+/// skin and up to no_contact_band below it at most; the force and its cap from the region.
+std::string forceGeometry(const ArmConfig& c, const PressRequest& req, const PressTarget& t, const std::string& region,
+                          const RegionLimits& lim, double hold, PressGeometry* g) {
+  const std::string& who = g->who;
+  const double cap = lim.forceCap(c.press.contact_area);
+  const double force = req.force > 0.0 ? req.force : lim.default_force;
+  if (std::string bad = forceRefusal(c, who, region, lim, force); !bad.empty()) return bad;
   g->approach = t.point + c.press.approach_height * Eigen::Vector3d::UnitZ();
   g->bottom = t.point - c.force_control.no_contact_band * Eigen::Vector3d::UnitZ();
   g->travel_z = std::max(c.press.travel_height, g->approach.z());
@@ -215,6 +247,82 @@ std::string forceGeometry(const ArmConfig& c, const PressRequest& req, const Pre
   return "";
 }
 
+/// Closer than this across the skin, two points of a stroke are one (a repeated frame, a typo).
+constexpr double kMinStrokeLeg = 0.005;
+
+/// A stroke: one press by force that glides through every target in order, vertical like every press by force. Its
+/// limits are the most conservative of the regions it crosses (the lowest force cap, the shallowest indentation
+/// guard, the lowest default force); no leg rises or falls steeper than press.max_normal_tilt; every point of the
+/// path (down to the seek's and the indentation guard's lowest), its approach points and the travel points over its
+/// ends lie within the arm's reach.
+std::string strokeGeometry(const ArmConfig& c, const PressRequest& req, double speed, PressGeometry* g) {
+  const auto name = [&](int i) {
+    const PressTarget& t = req.targets[i];
+    return t.name.empty() ? "point " + std::to_string(i + 1) : t.name;
+  };
+  const int n = static_cast<int>(req.targets.size());
+  g->who = name(0) + " -> " + name(n - 1);
+  std::string cap_region;
+  const RegionLimits* cap_limits = nullptr;
+  double indentation = INFINITY, default_force = INFINITY, highest = -INFINITY;
+  ForcePressGoal goal;
+  for (int i = 0; i < n; ++i) {
+    const PressTarget& t = req.targets[i];
+    const std::string who = "stroke point " + name(i);
+    if (!t.point.allFinite()) return who + ": the point is not finite";
+    std::string region;
+    if (std::string bad = regionOf(c, t, who, &region); !bad.empty()) return bad;
+    const RegionLimits& lim = c.regions.at(region);
+    if (!cap_limits || lim.forceCap(c.press.contact_area) < cap_limits->forceCap(c.press.contact_area)) {
+      cap_limits = &lim;
+      cap_region = region;
+    }
+    indentation = std::min(indentation, lim.max_indentation);
+    default_force = std::min(default_force, lim.default_force);
+    highest = std::max(highest, t.point.z());
+    if (i > 0) {
+      const Eigen::Vector3d d = t.point - req.targets[i - 1].point;
+      const double leg = d.head<2>().norm();
+      char buf[200];
+      if (leg < kMinStrokeLeg) {
+        std::snprintf(buf, sizeof buf, "stroke: %s and %s are %.1f mm apart across the skin (at least %.1f mm)",
+                      name(i - 1).c_str(), name(i).c_str(), 1e3 * leg, 1e3 * kMinStrokeLeg);
+        return buf;
+      }
+      if (const double slope = std::atan2(std::abs(d.z()), leg); slope > c.press.max_normal_tilt + 1e-9) {
+        std::snprintf(buf, sizeof buf, "stroke: the skin from %s to %s %s %.1f deg (limit %.1f deg)",
+                      name(i - 1).c_str(), name(i).c_str(), d.z() > 0 ? "rises" : "falls", slope * 180.0 / M_PI,
+                      c.press.max_normal_tilt * 180.0 / M_PI);
+        return buf;
+      }
+    }
+    const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+    if (std::string bad = checkTool(c, t.point + c.press.approach_height * up); !bad.empty())
+      return who + ": the approach point " + bad;
+    const double lowest = std::max(c.force_control.no_contact_band, lim.max_indentation);
+    if (std::string bad = checkTool(c, t.point - lowest * up); !bad.empty()) return who + ": the lowest point " + bad;
+    goal.path.push_back(t.point);
+  }
+  const double force = req.force > 0.0 ? req.force : default_force;
+  if (std::string bad = forceRefusal(c, "stroke " + g->who, cap_region, *cap_limits, force); !bad.empty()) return bad;
+  g->approach = goal.path.front() + c.press.approach_height * Eigen::Vector3d::UnitZ();
+  g->bottom = goal.path.front() - c.force_control.no_contact_band * Eigen::Vector3d::UnitZ();
+  g->travel_z = std::max(c.press.travel_height, highest + c.press.approach_height);
+  g->end = goal.path.back() + c.press.approach_height * Eigen::Vector3d::UnitZ();
+  for (const Eigen::Vector3d& end : {g->approach, g->end}) {
+    if (std::string bad = checkTool(c, Eigen::Vector3d(end.x(), end.y(), g->travel_z)); !bad.empty())
+      return "stroke " + g->who + ": the travel point " + bad;
+  }
+  goal.start_z = g->approach.z();
+  goal.expected_skin_z = goal.path.front().z();
+  goal.force = force;
+  goal.max_force = cap_limits->forceCap(c.press.contact_area);
+  goal.max_indentation = indentation;
+  goal.glide_speed = speed;
+  g->force = goal;
+  return "";
+}
+
 std::string pressGeometry(const ArmConfig& c, const PressRequest& req, int i, double hold, PressGeometry* g) {
   const PressConfig& pc = c.press;
   const PressTarget& t = req.targets[i];
@@ -230,12 +338,8 @@ std::string pressGeometry(const ArmConfig& c, const PressRequest& req, int i, do
                   tilt * 180.0 / M_PI, pc.max_normal_tilt * 180.0 / M_PI);
     return buf;
   }
-  const std::string region = t.region.empty() ? c.default_region : t.region;
-  if (!c.regions.count(region)) {
-    std::string known;
-    for (const auto& kv : c.regions) known += (known.empty() ? "" : ", ") + kv.first;
-    return who + ": unknown region '" + region + "' (known: " + known + ")";
-  }
+  std::string region;
+  if (std::string bad = regionOf(c, t, who, &region); !bad.empty()) return bad;
   const RegionLimits& lim = c.regions.at(region);
   if (req.mode.value_or(pc.mode) == PressConfig::Mode::kForce) return forceGeometry(c, req, t, region, lim, hold, g);
   const double depth = req.depth > 0.0 ? req.depth : lim.default_depth;
@@ -335,6 +439,27 @@ class StepWriter {
     move(over, 0.0, prefix + "up to the travel height", false, true, i, g.approach);
   }
 
+  /// A stroke: up, over its first point, down to the approach point; each repeat a press by force gliding to the
+  /// last point, backing off over it, up to the travel height (and, to repeat, back over the first point).
+  void stroke(const PressGeometry& g, const PressRequest& req) {
+    const std::string prefix = "stroke " + g.who + ": ";
+    const Eigen::Vector3d over(g.approach.x(), g.approach.y(), g.travel_z), over_end(g.end.x(), g.end.y(), g.travel_z);
+    for (int r = 0; r < req.repeats; ++r) {
+      const std::string rep =
+          req.repeats > 1 ? " (" + std::to_string(r + 1) + "/" + std::to_string(req.repeats) + ")" : "";
+      if (at_.z() < g.travel_z - 1e-9)
+        move(Eigen::Vector3d(at_.x(), at_.y(), g.travel_z), 0.0, prefix + "up to the travel height", false, false, 0,
+             g.approach);
+      move(over, 0.0, prefix + "travel" + rep, false, false, 0, g.approach);
+      move(g.approach, 0.0, prefix + "approach" + rep, false, false, 0, g.approach);
+      char what[48];
+      std::snprintf(what, sizeof what, "glide at %.0f N", g.force->force);
+      forcePress(g, prefix + what + rep, 0);
+      at_ = g.end;
+      move(over_end, 0.0, prefix + "up to the travel height" + rep, false, true, 0, g.end);
+    }
+  }
+
   std::vector<Step>& steps() { return steps_; }
 
  private:
@@ -375,6 +500,13 @@ std::string planMassage(const ArmConfig& c, const Eigen::Vector3d& from, const P
   double hold = 0.0, speed = 0.0;
   if (std::string bad = checkRequest(c, from, req, &hold, &speed); !bad.empty()) return bad;
   StepWriter writer(c.press, from);
+  if (req.technique == Technique::kStroke) {
+    PressGeometry g;
+    if (std::string bad = strokeGeometry(c, req, speed, &g); !bad.empty()) return bad;
+    writer.stroke(g, req);
+    *steps = std::move(writer.steps());
+    return "";
+  }
   for (int i = 0; i < static_cast<int>(req.targets.size()); ++i) {
     PressGeometry g;
     if (std::string bad = pressGeometry(c, req, i, hold, &g); !bad.empty()) return bad;
@@ -401,8 +533,10 @@ std::string pressSettings(const ArmConfig& config, const MassageFields& f, Press
     out->technique = Technique::kPress;
   } else if (f.technique == "knead") {
     out->technique = Technique::kKnead;
+  } else if (f.technique == "stroke") {
+    out->technique = Technique::kStroke;
   } else {
-    return "unknown technique '" + f.technique + "' (press or knead)";
+    return "unknown technique '" + f.technique + "' (press, knead or stroke)";
   }
   if (f.mode == "force") {
     out->mode = PressConfig::Mode::kForce;

@@ -283,6 +283,121 @@ TEST(Controller, APressByForceHoldsItsForceOnABreathingBack) {
   std::printf("force 30 N held 3 s: error RMS %.2f N, peak %.1f N\n", rms, peak);
 }
 
+namespace {
+
+/// Distance across the skin (x, y) from `p` to the polyline through `path`.
+double distanceToPath(const Eigen::Vector2d& p, const std::vector<PressTarget>& path) {
+  double best = INFINITY;
+  for (std::size_t i = 1; i < path.size(); ++i) {
+    const Eigen::Vector2d a = path[i - 1].point.head<2>(), b = path[i].point.head<2>();
+    const double f = std::clamp((p - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+    best = std::min(best, (p - (a + f * (b - a))).norm());
+  }
+  return best;
+}
+
+/// A back rising 2 cm over a stroke's 16 cm along x (breathing unless `still`) under the rig's tool.
+double slopedSkin(double x) { return 0.15 + 0.125 * (x - 0.25); }
+
+void putSlopedBack(Rig& r, bool still = false) {
+  Breathing b;
+  if (still) b.amplitude = 0.0;
+  const auto body = std::make_shared<SimBody>([](double x, double) { return slopedSkin(x); },
+                                              [](double, double) { return Tissue{}; }, b);
+  const can::SimDrive* x = r.drives[0].get();
+  const can::SimDrive* y = r.drives[1].get();
+  const can::VirtualClock* clock = &r.clock;
+  r.drives[2]->setExternalForce([=](double z, double vz) {
+    const double t = std::chrono::duration<double>(clock->now().time_since_epoch()).count();
+    return body->force(Eigen::Vector3d(x->physicalPosition(), y->physicalPosition(), z), vz, t);
+  });
+}
+
+/// A stroke at 20 N from x 0.25 to 0.41 m over the sloped back, its points where vision put them (+-2 mm).
+PressRequest strokeRequest() {
+  PressRequest request;
+  request.technique = Technique::kStroke;
+  request.mode = PressConfig::Mode::kForce;
+  request.force = 20.0;
+  const double vision_error[] = {0.002, -0.002, 0.001, -0.001, 0.002};
+  for (int i = 0; i < 5; ++i) {
+    const double x = 0.25 + 0.04 * i;
+    request.targets.push_back({"BL" + std::to_string(11 + 2 * i) + "_L", "upper_back",
+                               Eigen::Vector3d(x, 0.2 + 0.005 * (i % 2), slopedSkin(x) + vision_error[i]),
+                               Eigen::Vector3d::UnitZ()});
+  }
+  return request;
+}
+
+}  // namespace
+
+TEST(Controller, AStrokeGlidesAlongItsPathAtItsForce) {
+  Rig r;
+  putSlopedBack(r);
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  r.run(100ms);
+  const PressRequest request = strokeRequest();
+  double sq = 0.0, worst_force = 0.0, worst_path = 0.0;
+  int gliding = 0;
+  r.observer = [&] {
+    if (r.controller->status().press_phase != "glide") return;
+    const double e = r.drives[2]->externalForce() - 20.0;
+    sq += e * e;
+    worst_force = std::max(worst_force, std::abs(e));
+    worst_path = std::max(worst_path, distanceToPath(r.tool().head<2>(), request.targets));
+    ++gliding;
+  };
+  const Accepted m = r.controller->massage(request);
+  ASSERT_TRUE(m) << m.error;
+  ASSERT_TRUE(r.finish(m)) << r.message(m) << r.log;
+  ASSERT_GT(gliding, 10000);  // 16 cm at 15 mm/s: ~11 s
+  const double rms = std::sqrt(sq / gliding);
+  EXPECT_LT(rms, 2.0);
+  EXPECT_LT(worst_path, 0.003);
+  // Over the path's end, up at the travel height; one stroke done; every axis back in profile position.
+  EXPECT_NEAR(r.tool().x(), 0.41, 1e-4);
+  EXPECT_NEAR(r.tool().z(), r.config.press.travel_height, 1e-4);
+  EXPECT_EQ(r.controller->status().presses_done, 1);
+  for (const auto& d : r.drives) EXPECT_EQ(d->modeDisplay(), 1);
+  std::printf(
+      "stroke 20 N over 0.16 m (drive torque): force error RMS %.2f N, worst %.2f N; path error worst %.2f mm\n", rms,
+      worst_force, 1e3 * worst_path);
+}
+
+TEST(Controller, AStopOrAnEstopDuringAStrokeBacksOffStraightUpWhereTheToolIs) {
+  Rig r;
+  putSlopedBack(r, true);
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  r.run(100ms);
+  const auto mid_glide = [&] {
+    return r.controller->status().press_phase == "glide" && r.tool().x() > 0.33;  // half way
+  };
+  Accepted m = r.controller->massage(strokeRequest());
+  ASSERT_TRUE(r.runUntil(mid_glide, 30s)) << r.log;
+  const double x_stopped = r.tool().x();
+  ASSERT_TRUE(r.controller->stop("stop requested"));
+  EXPECT_FALSE(r.finish(m));
+  EXPECT_TRUE(contains(r.message(m), "stop requested")) << r.message(m);
+  // Up where it was (not dragged back across the skin to the start), at the travel height, touching nothing.
+  EXPECT_NEAR(r.tool().x(), x_stopped, 0.002);
+  EXPECT_NEAR(r.tool().z(), r.config.press.travel_height, 1e-4);
+  EXPECT_LT(r.drives[2]->externalForce(), 0.1);
+
+  m = r.controller->massage(strokeRequest());
+  ASSERT_TRUE(r.runUntil(mid_glide, 30s)) << r.log;
+  const Eigen::Vector3d pressing = r.tool();
+  r.controller->setEstop(true);
+  ASSERT_TRUE(r.runUntil([&] { return r.controller->mode() == Mode::kEstop; }, 20s)) << r.log;
+  EXPECT_LT(r.drives[2]->externalForce(), 0.1);  // the pressure released
+  EXPECT_NEAR(r.tool().x(), pressing.x(), 0.002);
+  EXPECT_GT(r.tool().z(), slopedSkin(r.tool().x()) + 0.02);  // up to the approach height over the skin there
+  r.controller->setEstop(false);
+  ASSERT_TRUE(r.finish(r.controller->resetFault())) << r.log;
+  for (const auto& d : r.drives) EXPECT_EQ(d->modeDisplay(), 1);
+}
+
 TEST(Controller, ALoadCellTakesPrecedenceAndHoldsTheForceTighter) {
   Rig r;
   putBack(r, 0.15);

@@ -15,33 +15,61 @@ using namespace massage_cell::arm;
 struct PressRun {
   double rms = 0.0, peak = 0.0, end_z = 0.0;
   int hold_cycles = 0;
+  // A stroke: the force error while gliding (RMS, worst), the tool's farthest distance from the path across the
+  // skin, and where it ended (x, y).
+  double glide_rms = 0.0, glide_worst = 0.0, path_error = 0.0;
+  int glide_cycles = 0;
+  Eigen::Vector2d end_xy{NAN, NAN};
   ForcePress::Phase phase = ForcePress::Phase::kSeek;
   std::string failure;
 };
 
 /// Presses `goal` into `body` at (0.3, 0.2) at 100 Hz: the servo reaches each command by the next cycle, the force
 /// is read with 1 N RMS of noise through a 20 ms low-pass; errors are taken while holding.
+/// Distance across the skin (x, y) from `p` to the polyline `path`.
+double distanceToPath(const Eigen::Vector2d& p, const std::vector<Eigen::Vector3d>& path) {
+  double best = INFINITY;
+  for (std::size_t i = 1; i < path.size(); ++i) {
+    const Eigen::Vector2d a = path[i - 1].head<2>(), b = path[i].head<2>();
+    const double f = std::clamp((p - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+    best = std::min(best, (p - (a + f * (b - a))).norm());
+  }
+  return best;
+}
+
 PressRun press(const SimBody& body, ForcePressGoal goal, ForceControlConfig config = {}, int abort_at = -1) {
   ForcePress p(config, goal);
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 1.0);
-  double z = goal.start_z, cmd = z, filtered = 0.0, t = 0.0, sq = 0.0;
+  double z = goal.start_z, cmd = z, filtered = 0.0, t = 0.0, sq = 0.0, glide_sq = 0.0;
+  // Across the skin the servo also follows one cycle late; a press stays at (0.3, 0.2).
+  Eigen::Vector2d xy = goal.path.empty() ? Eigen::Vector2d(0.3, 0.2) : goal.path.front().head<2>(), xy_cmd = xy;
   PressRun r;
   for (int k = 0; k < 6000 && !p.finished(); ++k, t += 0.01) {
     const double vz = (cmd - z) / 0.01;
     z = cmd;  // the servo, one cycle late
-    const double truth = body.force(Eigen::Vector3d(0.3, 0.2, z), vz, t);
+    xy = xy_cmd;
+    const double truth = body.force(Eigen::Vector3d(xy.x(), xy.y(), z), vz, t);
     filtered += 0.01 / 0.03 * (truth + noise(rng) - filtered);
     if (k == abort_at) p.abort("stop requested");
     cmd = p.update(filtered, z, 0.01);
+    if (!goal.path.empty()) xy_cmd = p.xy();
     if (p.phase() == ForcePress::Phase::kHold) {
       sq += (truth - goal.force) * (truth - goal.force);
       ++r.hold_cycles;
     }
+    if (p.phase() == ForcePress::Phase::kGlide) {
+      glide_sq += (truth - goal.force) * (truth - goal.force);
+      r.glide_worst = std::max(r.glide_worst, std::abs(truth - goal.force));
+      r.path_error = std::max(r.path_error, distanceToPath(xy, goal.path));
+      ++r.glide_cycles;
+    }
     r.peak = std::max(r.peak, truth);
   }
   r.rms = r.hold_cycles ? std::sqrt(sq / r.hold_cycles) : NAN;
+  r.glide_rms = r.glide_cycles ? std::sqrt(glide_sq / r.glide_cycles) : NAN;
   r.end_z = z;
+  r.end_xy = xy;
   r.phase = p.phase();
   r.failure = p.failure();
   return r;
@@ -111,6 +139,69 @@ TEST(ForcePress, EachLimitStopsThePressAndBacksOff) {
   EXPECT_EQ(r.phase, ForcePress::Phase::kFailed);
   EXPECT_EQ(r.failure, "stop requested");
   EXPECT_NEAR(r.end_z, 0.18, 0.001);
+}
+
+/// A back that rises 8 cm over 20 cm along x and curves across it (the spine's line), not where vision saw it:
+/// the stroke's points carry +-3 mm of error in z.
+SimBody curvedBack(double breathing_mm = 3.0) {
+  Breathing b;
+  b.amplitude = breathing_mm / 1000.0;
+  return SimBody([](double x, double y) { return 0.15 + 0.4 * (x - 0.25) - 1.5 * (x - 0.35) * (x - 0.35) + 0.0 * y; },
+                 [](double, double) { return Tissue{}; }, b);
+}
+
+ForcePressGoal stroke(const SimBody& body, double force, bool downhill = false) {
+  ForcePressGoal g = goal(force);
+  const double vision_error[] = {0.003, -0.003, 0.002, -0.002, 0.003, -0.001};
+  for (int i = 0; i < 6; ++i) {
+    const double x = downhill ? 0.45 - 0.04 * i : 0.25 + 0.04 * i, y = 0.2 + 0.01 * (i % 2);
+    g.path.emplace_back(x, y, body.skinHeight(x, y, 0.0) + vision_error[i]);
+  }
+  g.expected_skin_z = g.path.front().z();
+  g.start_z = g.expected_skin_z + 0.03;
+  g.glide_speed = 0.015;
+  return g;
+}
+
+TEST(ForcePress, AStrokeGlidesAlongItsPathAtItsForceOverACurvedBreathingBack) {
+  const SimBody body = curvedBack();
+  for (double force : {10.0, 20.0, 40.0}) {
+    const ForcePressGoal g = stroke(body, force);
+    const PressRun r = press(body, g);
+    EXPECT_EQ(r.phase, ForcePress::Phase::kDone) << r.failure;
+    // 0.2 m at 15 mm/s: ~14 s of glide.
+    EXPECT_GT(r.glide_cycles, 1300);
+    // 1 N of noise on the force, breathing, and the skin's slope fed forward from vision's points: 0.8-1.0 N RMS,
+    // worst 1.9-3.2 N (without the slope: 1.2-2.3 N RMS, worst 4.7-7.2 N).
+    EXPECT_LT(r.glide_rms, 1.1) << force << " N";
+    EXPECT_LT(r.glide_worst, 4.0) << force << " N";
+    EXPECT_LT(r.path_error, 0.001) << force << " N";
+    EXPECT_NEAR((r.end_xy - g.path.back().head<2>()).norm(), 0.0, 1e-6);  // it went the whole way
+    // ... and backed off, up to the approach height over the end's skin (as vision's points give it, smoothed)
+    EXPECT_NEAR(r.end_z, g.path.back().z() + 0.03, 0.004);
+    std::printf("stroke %.0f N over 0.2 m: force error RMS %.2f N, worst %.2f N\n", force, r.glide_rms, r.glide_worst);
+  }
+}
+
+TEST(ForcePress, AStrokeFollowsTheSkinNotTheHeightItStartedAt) {
+  // Down the back's 8 cm slope: guarded from the contact height, the fall would read as the tool sinking 8 cm; it
+  // is guarded from the skin along the path.
+  const SimBody body = curvedBack(0.0);
+  ForcePressGoal g = stroke(body, 20.0, true);
+  g.max_indentation = 0.010;  // 20 N needs ~4 mm of this tissue
+  const PressRun r = press(body, g);
+  EXPECT_EQ(r.phase, ForcePress::Phase::kDone) << r.failure;
+}
+
+TEST(ForcePress, AStrokeOverAGapInTheBodyStops) {
+  // The path runs off the body half way (a gap where vision put skin): the tool sinks looking for its force.
+  const SimBody body([](double x, double) { return x < 0.33 ? 0.15 : NAN; }, [](double, double) { return Tissue{}; },
+                     Breathing{0.0, 4.0});
+  ForcePressGoal g = stroke(SimBody::flat(0.15, Tissue{}), 20.0);
+  const PressRun r = press(body, g);
+  EXPECT_EQ(r.phase, ForcePress::Phase::kFailed);
+  EXPECT_NE(r.failure.find("past the skin along the stroke"), std::string::npos) << r.failure;
+  EXPECT_LT(r.end_xy.x(), 0.36);  // stopped there, not at the path's end
 }
 
 }  // namespace

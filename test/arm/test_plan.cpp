@@ -261,6 +261,69 @@ TEST(Plan, RetractStepsGoBackToTheApproachPointThenUp) {
   EXPECT_TRUE(r[1].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.28)));
 }
 
+PressRequest stroke(std::vector<PressTarget> path, double force = 0.0) {
+  PressRequest r;
+  r.technique = Technique::kStroke;
+  r.mode = PressConfig::Mode::kForce;
+  r.force = force;
+  r.targets = std::move(path);
+  return r;
+}
+
+TEST(Plan, AStrokeIsOnePressByForceGlidingThroughItsPoints) {
+  const ArmConfig c = config();
+  const PressRequest r =
+      stroke({target("BL11_L", "upper_back", {0.30, 0.20, 0.15}), target("BL17_L", "upper_back", {0.36, 0.20, 0.16}),
+              target("BL25_L", "lower_back", {0.45, 0.21, 0.15})});
+  std::vector<Step> steps;
+  ASSERT_EQ(planMassage(c, kHome, r, &steps), "");
+  // up / travel over the first point / approach / the glide / up over the last point
+  ASSERT_EQ(steps.size(), 4u);
+  EXPECT_EQ(steps[0].label, "stroke BL11_L -> BL25_L: travel");
+  EXPECT_TRUE(steps[1].tool.isApprox(Eigen::Vector3d(0.30, 0.20, 0.15 + c.press.approach_height)));
+  const Step& glide = steps[2];
+  EXPECT_EQ(glide.kind, Step::Kind::kForcePress);
+  EXPECT_EQ(glide.label, "stroke BL11_L -> BL25_L: glide at 20 N");  // the lower default of both regions
+  ASSERT_EQ(glide.force.path.size(), 3u);
+  EXPECT_TRUE(glide.force.path[1].isApprox(r.targets[1].point));
+  EXPECT_DOUBLE_EQ(glide.force.glide_speed, c.force_control.stroke_speed);
+  // The most conservative limits of the regions it crosses: upper back's cap and indentation guard.
+  EXPECT_DOUBLE_EQ(glide.force.max_force, c.regions.at("upper_back").forceCap(c.press.contact_area));
+  EXPECT_DOUBLE_EQ(glide.force.max_indentation, c.regions.at("upper_back").max_indentation);
+  EXPECT_TRUE(glide.press_done);
+  EXPECT_TRUE(steps[3].tool.isApprox(Eigen::Vector3d(0.45, 0.21, c.press.travel_height)));
+}
+
+TEST(Plan, StrokeRefusals) {
+  const ArmConfig c = config();
+  std::vector<Step> steps;
+  const auto plan = [&](const PressRequest& r) { return planMassage(c, kHome, r, &steps); };
+  const PressTarget a = target("BL11_L", "upper_back", {0.30, 0.20, 0.15});
+  const PressTarget b = target("BL25_L", "lower_back", {0.45, 0.20, 0.15});
+  EXPECT_EQ(plan(stroke({a})), "a stroke needs a path of at least two points (frames or points)");
+  PressRequest by_depth = stroke({a, b});
+  by_depth.mode = PressConfig::Mode::kDepth;
+  EXPECT_EQ(plan(by_depth), "a stroke glides at a force: mode force, not depth");
+  PressRequest held = stroke({a, b});
+  held.hold = 2.0;
+  EXPECT_EQ(plan(held), "a stroke holds its force while it glides: give no hold");
+  // Over the spine the whole stroke takes the midline's cap (15 N), whatever the other points allow.
+  const PressTarget spine = target("GV4", "midline", {0.40, 0.23, 0.15});
+  EXPECT_NE(plan(stroke({a, spine, b}, 30.0)).find("above the midline limit 15.0 N"), std::string::npos)
+      << plan(stroke({a, spine, b}, 30.0));
+  EXPECT_EQ(plan(stroke({a, spine, b}, 12.0)), "");
+  const PressTarget twice = target("BL11_L again", "upper_back", {0.301, 0.20, 0.15});
+  EXPECT_EQ(plan(stroke({a, twice, b})),
+            "stroke: BL11_L and BL11_L again are 1.0 mm apart across the skin (at least 5.0 mm)");
+  const PressTarget cliff = target("edge", "upper_back", {0.32, 0.20, 0.20});  // 5 cm up over 2 cm
+  EXPECT_NE(plan(stroke({a, cliff})).find("the skin from BL11_L to edge rises 68.2 deg (limit 45.0 deg)"),
+            std::string::npos)
+      << plan(stroke({a, cliff}));
+  const PressTarget outside = target("far", "upper_back", {0.90, 0.20, 0.15});
+  EXPECT_NE(plan(stroke({a, outside})).find("stroke point far: the approach point"), std::string::npos)
+      << plan(stroke({a, outside}));
+}
+
 TEST(Plan, PressSettingsOfAServiceCall) {
   const ArmConfig c = config();
   MassageFields f;
@@ -296,7 +359,7 @@ TEST(Plan, PressSettingsRefusals) {
   EXPECT_NE(refusal([](MassageFields& f) { f.hold = std::nan(""); }).find("hold must be a finite"), std::string::npos);
   EXPECT_EQ(refusal([](MassageFields& f) { f.regions = 1; }), "regions has 1 entries for 2 targets");
   EXPECT_EQ(refusal([](MassageFields& f) { f.normals = 3; }), "normals has 3 entries for 2 targets");
-  EXPECT_EQ(refusal([](MassageFields& f) { f.technique = "tap"; }), "unknown technique 'tap' (press or knead)");
+  EXPECT_EQ(refusal([](MassageFields& f) { f.technique = "tap"; }), "unknown technique 'tap' (press, knead or stroke)");
   EXPECT_EQ(refusal([](MassageFields& f) { f.regions = 2; }), "");
 }
 

@@ -252,6 +252,10 @@ class Controller {
   // A press by force (controller_force.cpp): the Z drive streams the heights ForcePress returns.
   void startForcePress(const Step& s);
   bool tickForcePress(const Step& s);  ///< true when done (ok); faults or fails the command otherwise
+  /// The axes a press by force streams: Z, a stroke X, Y and Z (a bit per axis).
+  static unsigned streamingAxes(const Step& s);
+  /// Whether every streaming axis has taken its new mode of operation; faults (naming the axis and `what`) on failure.
+  bool streamingModeSet(const Step& s, const std::string& what);
   void abortForcePress(const std::string& why);
   void finishForceCalibration();
   /// After homing, with force sensing: Z down and back up by force.calibration_travel at each calibration speed.

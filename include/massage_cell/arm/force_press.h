@@ -12,9 +12,21 @@
 // or no contact within no_contact_band below where vision put the skin stop
 // the press and back it off; the press then ends failed with the reason.
 // abort() backs off the same way (a stop, the watchdog, a lost target).
+//
+// A stroke is a press whose hold glides: with a path (points on the skin,
+// the first under the approach point) the tool, once at its force, moves
+// along the path at the glide speed (accelerating and braking at
+// glide_accel), its height still set by the force, with the skin's slope
+// between the path's points (where vision put them) as feed-forward. The
+// indentation guard then counts from the skin along the path (shifted by how
+// far the contact point lay from where vision put the first point), not from
+// one contact height.
 #pragma once
 
 #include <string>
+#include <vector>
+
+#include <Eigen/Core>
 
 namespace massage_cell::arm {
 
@@ -35,6 +47,8 @@ struct ForceControlConfig {
   double max_speed = 0.02;         ///< m/s the loop may move the tool
   double max_force_rate = 1000.0;  ///< N/s: a faster rise stops the press (a hit, not tissue)
   double release_speed = 0.01;     ///< m/s back to the approach point
+  double stroke_speed = 0.015;     ///< m/s along a stroke's path (a request's 0)
+  double glide_accel = 0.05;       ///< m/s^2 along a stroke's path, starting and braking
 };
 
 /// One press: where it starts and what it may do.
@@ -44,18 +58,23 @@ struct ForcePressGoal {
   double force = 0.0;          ///< N to hold
   double max_force = 0.0;      ///< N: the cap (the region's force and pressure limits); above it the press stops
   double max_indentation = 0;  ///< m past the contact point: beyond it the press stops
-  double hold = 0.0;           ///< s at the force
+  double hold = 0.0;           ///< s at the force (a press; a stroke holds while it glides)
+  /// A stroke: points on the skin (arm base frame; z where vision put the skin), the first under the approach point;
+  /// empty: a press in place.
+  std::vector<Eigen::Vector3d> path;
+  double glide_speed = 0.0;  ///< m/s along the path
 };
 
 class ForcePress {
  public:
-  enum class Phase { kSeek, kRamp, kHold, kRelease, kBackOff, kDone, kFailed };
+  enum class Phase { kSeek, kRamp, kHold, kGlide, kRelease, kBackOff, kDone, kFailed };
 
   ForcePress(const ForceControlConfig& config, const ForcePressGoal& goal);
   /// One cycle of `dt` s: the measured force (N, + pushing the tool up) and the tool's measured height (m). Returns
   /// the height to command (m).
   double update(double force, double z, double dt);
-  /// Stop pressing: ramp nothing down, back off to the start at release_speed; the press then ends failed with `why`.
+  /// Stop pressing: ramp nothing down, back off at release_speed (straight up, to the approach height over the skin
+  /// where the tool is); the press then ends failed with `why`.
   void abort(const std::string& why);
 
   Phase phase() const { return phase_; }
@@ -68,6 +87,13 @@ class ForcePress {
   double limit() const { return g_.max_force; }
   /// Where contact was found (m; NaN before).
   double contactZ() const { return contact_z_; }
+  /// Where the tool should be across the skin now (x, y; m): the path's first point until the glide, then along it.
+  /// A press: its path is empty, (NaN, NaN).
+  Eigen::Vector2d xy() const { return xy_; }
+  /// How far along the path the glide has come (0..1; 0 for a press).
+  double progress() const;
+  /// Where backing off ends: the approach height over the skin vision gave under the tool (a press: start_z).
+  double backOffZ() const;
   /// "seeking the skin", "ramping to 30 N", "holding 30 N", "releasing", "backing off: <why>".
   std::string describe() const;
 
@@ -76,6 +102,12 @@ class ForcePress {
   double localStiffness(double force, double z) const;
   std::string checkLimits(double force, double z, double dt);
   void fail(const std::string& why);
+  /// Where vision put the skin under the tool now (the path's height at the current arc length), m.
+  double expectedSkin() const;
+  /// How deep the tool is past the skin as found at contact, m (0 before contact).
+  double indentation(double z) const;
+  /// One cycle along the path; returns how far the skin's expected height changed (m).
+  double glide(double dt);
 
   ForceControlConfig c_;
   ForcePressGoal g_;
@@ -88,6 +120,10 @@ class ForcePress {
   double held_ = 0.0;
   int above_ = 0;  ///< cycles in a row the force has been above contact_force while seeking
   double last_force_;
+  std::vector<double> arc_;  ///< arc length (x, y) at each point of the path, m
+  double s_ = 0.0;           ///< arc length reached, m
+  double speed_ = 0.0;       ///< m/s along the path now
+  Eigen::Vector2d xy_;
 };
 
 const char* toString(ForcePress::Phase phase);

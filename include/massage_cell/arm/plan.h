@@ -5,7 +5,11 @@
 //   approach point (target + approach_height * n) -> [descend along -n to
 //   target - depth * n -> hold (knead: circles in the tangent plane at
 //   depth) -> retract to the approach point] x repeats -> up to the safe height,
-// n being the outward surface normal (default +z: a vertical press). Every
+// n being the outward surface normal (default +z: a vertical press). A
+// stroke (by force) takes the targets as one path: over its first point,
+// down to the approach point, then a press by force that glides through
+// every point in order (force_press.h) and backs off over the last, up to the
+// travel height; x repeats. Every
 // point a plan visits is inside the workspace envelope and the joint limits,
 // and no point is deeper than the target's region allows — or the plan is
 // refused with a message naming the target and the problem.
@@ -21,7 +25,7 @@
 
 namespace massage_cell::arm {
 
-enum class Technique { kPress, kKnead };
+enum class Technique { kPress, kKnead, kStroke };
 const char* toString(Technique t);
 
 /// One surface point to press, in the arm base frame.
@@ -39,7 +43,7 @@ struct PressRequest {
   double force = 0.0;                     ///< N to hold (force mode); 0: each region's default force
   double depth = 0.0;                     ///< m past the surface point (depth mode); 0: each region's default depth
   double hold = -1.0;                     ///< s at depth; < 0: config default
-  double speed = 0.0;                     ///< m/s approach / descent; 0: config default
+  double speed = 0.0;                     ///< m/s approach / descent (a stroke: along its path); 0: config default
   int repeats = 1;                        ///< presses per target
 };
 
@@ -48,7 +52,7 @@ struct MassageFields {
   std::size_t targets = 0;  ///< frames + points
   std::size_t regions = 0;  ///< entries of the per-target regions (0: none given)
   std::size_t normals = 0;  ///< entries of the per-target normals (0: none given)
-  std::string technique;    ///< "" or "press", "knead"
+  std::string technique;    ///< "" or "press", "knead", "stroke"
   std::string mode;         ///< "" (the configuration's), "force" or "depth"
   double force = 0.0;       ///< as PressRequest::force
   double depth = 0.0;       ///< as PressRequest::depth
