@@ -231,7 +231,7 @@ std::string ForcePress::describe() const {
     case Phase::kHold:
       return fmt("holding %.0f N", g_.force);
     case Phase::kGlide:
-      return fmt("stroking at %.0f N, %.0f %% of the path", g_.force, 100.0 * progress());
+      return fmt("gliding at %.0f N, %.0f %% of the path", g_.force, 100.0 * progress());
     case Phase::kRelease:
       return "releasing";
     case Phase::kBackOff:

@@ -398,6 +398,39 @@ TEST(Controller, AStopOrAnEstopDuringAStrokeBacksOffStraightUpWhereTheToolIs) {
   for (const auto& d : r.drives) EXPECT_EQ(d->modeDisplay(), 1);
 }
 
+TEST(Controller, KneadingByForceCirclesAtItsForce) {
+  Rig r;
+  putBack(r, 0.15);
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  r.run(100ms);
+  PressRequest request = byForce(30.0, 3.0);
+  request.technique = Technique::kKnead;
+  const Eigen::Vector2d centre = request.targets[0].point.head<2>();
+  double sq = 0.0, widest = 0.0, narrowest = 1.0;
+  int gliding = 0;
+  r.observer = [&] {
+    if (r.controller->status().press_phase != "glide") return;
+    const double e = r.drives[2]->externalForce() - 30.0;
+    sq += e * e;
+    const double radial = (r.tool().head<2>() - centre).norm();
+    widest = std::max(widest, radial);
+    if (radial > 0.002) narrowest = std::min(narrowest, radial);  // on the circle, past the way out
+    ++gliding;
+  };
+  const Accepted m = r.controller->massage(request);
+  ASSERT_TRUE(r.finish(m)) << r.message(m) << r.log;
+  EXPECT_TRUE(contains(r.log, "press 1/1 BL23_L: knead 30 N")) << r.log;
+  ASSERT_GT(gliding, 3000);  // three circles of 1 s, out and back
+  EXPECT_LT(std::sqrt(sq / gliding), 2.0);
+  // Round the circle: within its radius, and never cutting inside it by more than its 36-gon's sag (0.06 mm).
+  EXPECT_LT(widest, r.config.press.knead_radius + 1e-4);
+  EXPECT_GT(narrowest, 0.002);
+  EXPECT_EQ(r.controller->status().presses_done, 1);
+  EXPECT_NEAR(r.tool().head<2>().x(), centre.x(), 1e-4);  // up over the point
+  std::printf("knead 30 N, 3 circles of 4 mm: force error RMS %.2f N\n", std::sqrt(sq / gliding));
+}
+
 TEST(Controller, ALoadCellTakesPrecedenceAndHoldsTheForceTighter) {
   Rig r;
   putBack(r, 0.15);

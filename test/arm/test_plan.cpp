@@ -2,6 +2,7 @@
 // normals, kneading, refusals with messages naming the target.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 
@@ -292,6 +293,29 @@ TEST(Plan, AStrokeIsOnePressByForceGlidingThroughItsPoints) {
   EXPECT_DOUBLE_EQ(glide.force.max_indentation, c.regions.at("upper_back").max_indentation);
   EXPECT_TRUE(glide.press_done);
   EXPECT_TRUE(steps[3].tool.isApprox(Eigen::Vector3d(0.45, 0.21, c.press.travel_height)));
+}
+
+TEST(Plan, KneadingByForceGlidesRoundACircleAtItsForce) {
+  const ArmConfig c = config();
+  PressRequest r;
+  r.technique = Technique::kKnead;
+  r.mode = PressConfig::Mode::kForce;
+  r.hold = 2.0;
+  r.targets = {target("BL23_L", "lower_back", {0.40, 0.20, 0.15})};
+  std::vector<Step> steps;
+  ASSERT_EQ(planMassage(c, kHome, r, &steps), "");
+  const auto knead =
+      std::find_if(steps.begin(), steps.end(), [](const Step& s) { return s.kind == Step::Kind::kForcePress; });
+  ASSERT_NE(knead, steps.end());
+  EXPECT_EQ(knead->label, "press 1/1 BL23_L: knead 30 N");
+  const std::vector<Eigen::Vector3d>& path = knead->force.path;
+  // Out from the point, two circles (1 s each) of 36 segments, closed, back to the point.
+  ASSERT_EQ(path.size(), 1u + 2 * 36 + 2);
+  EXPECT_TRUE(path.front().isApprox(r.targets[0].point));
+  EXPECT_TRUE(path.back().isApprox(r.targets[0].point));
+  for (std::size_t k = 1; k + 1 < path.size(); ++k)
+    EXPECT_NEAR((path[k] - r.targets[0].point).norm(), c.press.knead_radius, 1e-12) << k;
+  EXPECT_NEAR(knead->force.glide_speed, 2.0 * M_PI * c.press.knead_radius / c.press.knead_period, 1e-12);
 }
 
 TEST(Plan, StrokeRefusals) {
