@@ -15,11 +15,11 @@ add_library(massage_cell_arm STATIC
   src/arm/tool_force.cpp
   src/arm/force_press.cpp
   src/arm/session.cpp)
-target_include_directories(massage_cell_arm PUBLIC include ${EIGEN3_INCLUDE_DIR} ${OpenCV_INCLUDE_DIRS})
-target_link_libraries(massage_cell_arm PUBLIC massage_cell_can yaml-cpp ${OpenCV_LIBS} Threads::Threads)
+target_include_directories(massage_cell_arm PUBLIC include ${EIGEN3_INCLUDE_DIR})
+target_link_libraries(massage_cell_arm PUBLIC massage_cell_can yaml-cpp Threads::Threads)
 
 # Cycle jitter, e-stop latency and move error against the simulated drives.
-add_executable(arm_bench src/tools/arm_bench.cpp)
+add_executable(arm_bench src/tools/arm_bench.cpp src/tools/arm_bench_force.cpp)
 target_link_libraries(arm_bench massage_cell_arm)
 massage_cell_tool_paths(arm_bench)
 install(TARGETS massage_cell_arm ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION})
@@ -29,7 +29,7 @@ install(TARGETS arm_bench RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
 # ROS wrapper: the arm nodelet (its own plugin library, see nodelet_plugins.xml)
 # and node; the plain URDF of the cell (urdf/massage_arm.urdf) for
 # robot_state_publisher; rostests with simulated drives.
-add_library(massage_cell_arm_nodelet src/nodes/arm_nodelet.cpp src/nodes/arm_interface.cpp)
+add_library(massage_cell_arm_nodelet src/nodes/arm_nodelet.cpp src/nodes/arm_interface.cpp src/nodes/arm_action.cpp)
 target_include_directories(massage_cell_arm_nodelet PRIVATE include ${CATKIN_DEVEL_PREFIX}/include ${catkin_INCLUDE_DIRS})
 target_link_libraries(massage_cell_arm_nodelet massage_cell_arm massage_cell_node_tf ${catkin_LIBRARIES})
 add_dependencies(massage_cell_arm_nodelet ${PROJECT_NAME}_generate_messages_cpp)

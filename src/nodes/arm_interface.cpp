@@ -165,7 +165,8 @@ std::string ArmTargets::pointsInBase(const massage_cell::AcupointArray& acupoint
   return "";
 }
 
-std::string ArmTargets::pressRequest(const massage_cell::Massage::Request& req, arm::PressRequest* press,
+template <class Request>
+std::string ArmTargets::pressRequest(const Request& req, arm::PressRequest* press,
                                      std::vector<FrameTarget>* frames) const {
   arm::MassageFields fields;
   fields.targets = req.frames.size() + req.points.size();
@@ -189,8 +190,9 @@ std::string ArmTargets::pressRequest(const massage_cell::Massage::Request& req, 
   return "";
 }
 
-std::string ArmTargets::pressTarget(const massage_cell::Massage::Request& req, std::size_t i,
-                                    const arm::BodySurface& body, arm::PressTarget* target) const {
+template <class Request>
+std::string ArmTargets::pressTarget(const Request& req, std::size_t i, const arm::BodySurface& body,
+                                    arm::PressTarget* target) const {
   geometry_msgs::TransformStamped t;
   std::string error;
   if (i < req.frames.size()) {  // an acupoint's (or any) tf frame
@@ -227,5 +229,11 @@ std::string ArmTargets::pressTarget(const massage_cell::Massage::Request& req, s
   }
   return "";
 }
+
+// The service's request and the action's goal: the same fields, one conversion.
+template std::string ArmTargets::pressRequest(const massage_cell::Massage::Request&, arm::PressRequest*,
+                                              std::vector<FrameTarget>*) const;
+template std::string ArmTargets::pressRequest(const massage_cell::MassageGoal&, arm::PressRequest*,
+                                              std::vector<FrameTarget>*) const;
 
 }  // namespace massage_cell::nodes

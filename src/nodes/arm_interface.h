@@ -16,6 +16,7 @@
 #include "massage_cell/AcupointArray.h"
 #include "massage_cell/ArmState.h"
 #include "massage_cell/Massage.h"
+#include "massage_cell/MassageGoal.h"
 #include "massage_cell/arm/controller.h"
 #include "massage_cell/arm/node_options.h"
 
@@ -58,22 +59,24 @@ class ArmTargets {
   std::string moveGoal(const geometry_msgs::PointStamped& target, const Eigen::Vector3d& tool,
                        Eigen::Vector3d* goal) const;
 
-  /// ~massage's request with every target resolved and checked, and its targets that are tf frames: "" or why the
-  /// request is refused.
   /// ~ft_sensor: the force a load cell or F/T sensor reports (the force on the tool, in the message's frame) along
   /// +z of the base frame (tf2: the sensor's rotation; the latest transform). Empty, or why it cannot be used (no
   /// frame, unknown frame, not finite).
   std::string sensorForce(const geometry_msgs::WrenchStamped& wrench, double* force_z) const;
   /// The valid points of `acupoints` in the base frame (tf2 at their stamp, else the latest): empty, or why not.
   std::string pointsInBase(const massage_cell::AcupointArray& acupoints, std::vector<Eigen::Vector3d>* out) const;
-  std::string pressRequest(const massage_cell::Massage::Request& req, arm::PressRequest* press,
-                           std::vector<FrameTarget>* frames) const;
+  /// ~massage's request with every target resolved and checked, and its targets that are tf frames: "" or why the
+  /// request is refused. `Request`: the service's massage_cell::Massage::Request or the action's
+  /// massage_cell::MassageGoal (the same fields; arm_interface.cpp instantiates both).
+  template <class Request>
+  std::string pressRequest(const Request& req, arm::PressRequest* press, std::vector<FrameTarget>* frames) const;
 
  private:
   /// Why `frame` is not there, beyond tf's "unknown": a model's acupoint CECT has no valid fix for, a name that is
   /// not an acupoint, an acupoint named without the prefix; empty for any other frame.
   std::string whyNoFrame(const std::string& frame) const;
-  std::string pressTarget(const massage_cell::Massage::Request& req, std::size_t i, const arm::BodySurface& body,
+  template <class Request>
+  std::string pressTarget(const Request& req, std::size_t i, const arm::BodySurface& body,
                           arm::PressTarget* target) const;
 
   const tf2_ros::Buffer& tf_;

@@ -2,7 +2,6 @@
 
 #include <cstdio>
 
-#include <geometry_msgs/TransformStamped.h>
 #include <ros/package.h>
 #include <sensor_msgs/JointState.h>
 #include <pluginlib/class_list_macros.hpp>
@@ -25,6 +24,7 @@ std::string fmt(const char* format, double v) {
 ArmNodelet::~ArmNodelet() {
   timer_.stop();
   if (spinner_) spinner_->stop();
+  massage_.reset();  // an active goal ends aborted
   if (sim_) sim_->stop();
   if (real_controller_) real_controller_->master().stop();
 }
@@ -69,7 +69,10 @@ void ArmNodelet::onInit() {
   stop_srv_ = pnh.advertiseService("stop", &ArmNodelet::stop, this);
   reset_srv_ = pnh.advertiseService("reset_fault", &ArmNodelet::resetFault, this);
   move_srv_ = pnh.advertiseService("move_to", &ArmNodelet::moveTo, this);
-  massage_srv_ = pnh.advertiseService("massage", &ArmNodelet::massage, this);
+  massage_ = std::make_unique<ArmMassage>(
+      pnh, *targets_, controller_, options_.publish_rate,
+      [this](const std::string& what, std::string* message) { return available(what, message); },
+      [this](const arm::Accepted& accepted, std::string* message) { return wait(accepted, message); });
   updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
   updater_->setHardwareID(options_.can_interface == "sim" ? "simulated drives (virtual CAN bus)"
                                                           : "CAN " + options_.can_interface);
@@ -180,7 +183,6 @@ void ArmNodelet::onTimer(const ros::WallTimerEvent&) {
     if (due) openInterface();
   } else {
     c->keepAlive();  // the command watchdog: this node is alive
-    checkPressTarget();
   }
   publishState();
   updater_->update();
@@ -201,22 +203,6 @@ void ArmNodelet::publishState() {
   joint_pub_.publish(jointStateMsg(s, config_, now));
   state_pub_.publish(armStateMsg(s, options_.base_frame, now));
   if (s.force.valid) wrench_pub_.publish(wrenchMsg(s, options_.tool_frame, now));  // only a force that is known
-}
-
-void ArmNodelet::checkPressTarget() {
-  std::string frame;
-  {
-    std::lock_guard<std::mutex> lock(targets_mutex_);
-    if (massage_command_ == 0 || controller()->result(massage_command_).done) return;
-    const int index = controller()->status().target;
-    for (const auto& [target, name] : frame_targets_) {
-      if (target == index) frame = name;
-    }
-  }
-  if (frame.empty()) return;
-  geometry_msgs::TransformStamped t;
-  std::string error;
-  if (!targets_->lookup(frame, ros::Time(0), &t, &error)) controller()->abortMassage("acupoint frame " + error);
 }
 
 // --------------------------------------------------------------- inputs --
@@ -319,28 +305,6 @@ bool ArmNodelet::moveTo(massage_cell::MoveTo::Request& req, massage_cell::MoveTo
     return true;
   }
   res.success = wait(c->moveTo(goal, req.speed), &res.message);
-  return true;
-}
-
-bool ArmNodelet::massage(massage_cell::Massage::Request& req, massage_cell::Massage::Response& res) {
-  res.success = false;
-  arm::Controller* c = available("massage", &res.message);
-  if (!c) return true;
-  arm::PressRequest press;
-  std::vector<ArmTargets::FrameTarget> frames;
-  if (std::string why = targets_->pressRequest(req, &press, &frames); !why.empty()) {
-    res.message = "massage refused: " + why;
-    NODELET_WARN_STREAM("arm: " << res.message);
-    return true;
-  }
-  const arm::Accepted accepted = c->massage(press);
-  if (accepted) {
-    std::lock_guard<std::mutex> lock(targets_mutex_);
-    massage_command_ = accepted.id;
-    frame_targets_ = frames;
-  }
-  res.success = wait(accepted, &res.message);
-  res.presses_done = accepted ? c->status().presses_done : 0;
   return true;
 }
 

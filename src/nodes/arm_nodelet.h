@@ -20,7 +20,9 @@
 //    (massage_cell/MoveTo: a PointStamped in any frame, tf2 into the arm base
 //    frame) and `~massage` (massage_cell/Massage: acupoint frames and points,
 //    refused with a message when outside the envelope, too deep for the
-//    region, in an unknown frame or stale);
+//    region, in an unknown frame or stale), the same massage also as the
+//    actionlib action `~massage` (massage_cell/MassageAction: feedback,
+//    cancel; ArmMassage, arm_action.h);
 //  - topic `~ft_sensor` (geometry_msgs/WrenchStamped): a load cell's / F/T
 //    sensor's force on the tool; while it reports (every 50 ms at least) it is
 //    the tool's force, in place of the Z drive's estimate;
@@ -34,9 +36,9 @@
 //    drive faults with that EMCY code), the simulator's test hook.
 // Service calls block until their command ends (or command_timeout), so they
 // run on the nodelet's own callback queue with several threads; a timer at
-// publish_rate publishes, feeds the controller's command watchdog, and
-// checks the acupoint frame of the press under way: lost or stale -> the
-// controller retracts.
+// publish_rate publishes and feeds the controller's command watchdog;
+// ArmMassage's timer checks the acupoint frame of the press under way (lost
+// or stale -> the controller retracts) and runs the action.
 #pragma once
 
 #include <atomic>
@@ -55,8 +57,8 @@
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 
+#include "arm_action.h"
 #include "arm_interface.h"
-#include "massage_cell/Massage.h"
 #include "massage_cell/MoveTo.h"
 #include "massage_cell/arm/controller.h"
 #include "massage_cell/arm/sim_cell.h"
@@ -85,7 +87,6 @@ class ArmNodelet : public nodelet::Nodelet {
   arm::Controller* available(const std::string& what, std::string* message) const;
   void onTimer(const ros::WallTimerEvent& event);
   void publishState();
-  void checkPressTarget();
   void estopCb(const std_msgs::BoolConstPtr& msg);
   void sensorCb(const geometry_msgs::WrenchStampedConstPtr& msg);
   void skinCb(const massage_cell::AcupointArrayConstPtr& msg);
@@ -94,7 +95,6 @@ class ArmNodelet : public nodelet::Nodelet {
   bool stop(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool resetFault(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool moveTo(massage_cell::MoveTo::Request& req, massage_cell::MoveTo::Response& res);
-  bool massage(massage_cell::Massage::Request& req, massage_cell::Massage::Response& res);
   /// Waits for the command: its success, and its message in `message`.
   bool wait(const arm::Accepted& accepted, std::string* message);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
@@ -121,17 +121,13 @@ class ArmNodelet : public nodelet::Nodelet {
   ros::Publisher joint_pub_, state_pub_, wrench_pub_;
   ros::Subscriber estop_sub_, fault_sub_, sensor_sub_, skin_sub_;
   std::shared_ptr<arm::SkinPoints> sim_skin_;  ///< sim: the back the simulated drives press (~sim/skin)
-  ros::ServiceServer home_srv_, stop_srv_, reset_srv_, move_srv_, massage_srv_;
+  ros::ServiceServer home_srv_, stop_srv_, reset_srv_, move_srv_;
   ros::WallTimer timer_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   std::unique_ptr<ArmTargets> targets_;  ///< the services' targets through tf_buffer_
   std::unique_ptr<diagnostic_updater::Updater> updater_;
-
-  // The running massage's frame targets (guarded by targets_mutex_).
-  std::mutex targets_mutex_;
-  std::uint64_t massage_command_ = 0;
-  std::vector<ArmTargets::FrameTarget> frame_targets_;  ///< its targets that are tf frames (monitored)
+  std::unique_ptr<ArmMassage> massage_;  ///< ~massage, the service and the action (arm_action.h)
 };
 
 }  // namespace massage_cell::nodes

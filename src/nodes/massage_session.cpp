@@ -15,8 +15,8 @@
 //   ("arm_base_link"), ~tolerance (0.005 m: the report counts the presses
 //   within it of the truth), ~max_error (0.02 m: a press further from the
 //   truth, about an acupoint's own size, fails the session), ~service_timeout
-//   (30 s), ~report (a folder: index.html and pictures are written there;
-//   empty: none).
+//   (30 s), ~report (a folder: index.html and pictures are written there,
+//   with a force plot per press by force from <arm>/state; empty: none).
 // Exit status: 0 every press done (and, with ground truth, within
 //   ~max_error); 1 a press failed or missed, no stable fix, or the arm was
 //   not there; 2 a bad session file.
@@ -37,6 +37,7 @@
 #include <cstdio>
 #include <deque>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -47,6 +48,7 @@
 #include "massage_cell/ArmState.h"
 #include "massage_cell/Massage.h"
 #include "massage_cell/arm/session.h"
+#include "massage_cell/session/report.h"
 #include "typed_param.h"
 
 namespace {
@@ -54,6 +56,7 @@ namespace {
 using massage_cell::nodes::readParam;
 
 namespace arm = massage_cell::arm;
+namespace report = massage_cell::session;
 
 class Session {
  public:
@@ -158,18 +161,22 @@ class Session {
       truth_holding_ = {};
       target_holding_ = {};
       force_holding_ = {};
+      force_trace_ = {};
+      trace_start_ = ros::Time();
       current_ = name;
       descending_ = false;
     }
     ROS_INFO("massage_session: pressing %s", name.c_str());
     const ros::WallTime t0 = ros::WallTime::now();
-    arm::PressRecord record;
+    report::PressRecord record;
     record.acupoint = name;
     record.success = massage_.call(srv) && srv.response.success;
     record.message = srv.response.message.empty() ? "the arm did not answer" : srv.response.message;
     record.seconds = (ros::WallTime::now() - t0).toSec();
     const std::lock_guard<std::mutex> lock(mutex_);
     current_.clear();
+    record.force_trace = std::move(force_trace_);
+    force_trace_.clear();
     // To a depth: the truth pushed that depth down; by force the depth is the body's answer (compared across).
     const double depth = config_.mode == "force" ? 0.0 : config_.depth;
     if (!holding_.empty() && !truth_holding_.empty()) {
@@ -193,7 +200,7 @@ class Session {
     std::printf("%s", report_.summary(tolerance_).c_str());
     std::fflush(stdout);
     bool ok = report_.faults.empty() && report_.presses.size() == config_.acupoints.size();
-    for (const arm::PressRecord& p : report_.presses) {
+    for (const report::PressRecord& p : report_.presses) {
       ok = ok && p.success && (!p.measured || p.error() <= max_error_);
       if (p.measured && p.error() > max_error_)
         std::printf("FAILED: %s was pressed %.1f mm from its true position (limit %.1f mm)\n", p.acupoint.c_str(),
@@ -217,7 +224,7 @@ class Session {
       };
       const cv::Mat left = leftImageOf(latest_acupoints_ ? latest_acupoints_->header.stamp : ros::Time());
       if (!left.empty() && latest_acupoints_) {
-        std::vector<arm::MarkedPixel> estimates, truth;
+        std::vector<report::MarkedPixel> estimates, truth;
         const auto inRoutine = [this](const std::string& name) {
           return std::find(config_.acupoints.begin(), config_.acupoints.end(), name) != config_.acupoints.end();
         };
@@ -229,12 +236,12 @@ class Session {
           cv::Point2d p;
           if (inRoutine(name) && projectCamera(X, &p)) truth.push_back({name, p});
         }
-        std::vector<arm::MarkedPixel> landmarks;
+        std::vector<report::MarkedPixel> landmarks;
         for (const auto& l : latest_acupoints_->landmarks) {
           if (std::isfinite(l.u) && std::isfinite(l.v))
             landmarks.push_back({l.name + " " + (l.source == "given" ? l.detail : l.source), {l.u, l.v}});
         }
-        write("acupoints.png", arm::drawAcupoints(left, estimates, truth, landmarks),
+        write("acupoints.png", report::drawAcupoints(left, estimates, truth, landmarks),
               "the left image with the routine's acupoints as CECT placed them (red, named) and their ground truth "
               "(green crosses); the model's other acupoints as small dots; the layout's landmarks (cyan diamonds: "
               "measured, "
@@ -244,11 +251,11 @@ class Session {
           cv::Point2d p;
           if (projectBase(X, &p)) path.push_back(p);
         }
-        write("trajectory.png", arm::drawTrajectory(left, path),
+        write("trajectory.png", report::drawTrajectory(left, path),
               "the tool tip's path over the back during the session (blue: early, red: late), seen by the left camera");
       }
       if (!disparity_.empty())
-        write("disparity.png", arm::colourDisparity(disparity_), "the HBDS node's disparity of the last pair");
+        write("disparity.png", report::colourDisparity(disparity_), "the HBDS node's disparity of the last pair");
       report_.writeHtml(report_dir_, tolerance_, pictures);
       std::printf("report: %s/index.html\n", report_dir_.c_str());
     } catch (const std::exception& e) {
@@ -354,6 +361,19 @@ class Session {
     for (const auto& a : msg->acupoints) truth_[a.name] = Eigen::Vector3d(a.position.x, a.position.y, a.position.z);
   }
 
+  /// A press by force's sample for its force plot (called with the mutex held): t from the press's first sample.
+  void recordForce(const massage_cell::ArmState& msg) {
+    const ros::Time stamp = msg.header.stamp.isZero() ? ros::Time::now() : msg.header.stamp;
+    if (trace_start_.isZero()) trace_start_ = stamp;
+    report::ForceSample s;
+    s.t = (stamp - trace_start_).toSec();
+    s.force = msg.force_valid ? msg.force : std::numeric_limits<double>::quiet_NaN();
+    s.target = msg.force_target;
+    s.limit = msg.force_limit;
+    s.phase = msg.press_phase;
+    force_trace_.push_back(std::move(s));
+  }
+
   /// While the current acupoint is held at depth: the tool tip, and the truth in the arm base frame.
   void onState(const massage_cell::ArmStateConstPtr& msg) {
     const std::lock_guard<std::mutex> lock(mutex_);
@@ -366,6 +386,7 @@ class Session {
       const auto tf = tf_stamps_.find(config_.frame_prefix + current_);
       if (tf != tf_stamps_.end()) latency(kPressStart).push_back((ros::Time::now() - tf->second).toSec());
     }
+    if (in_press && !msg->press_phase.empty()) recordForce(*msg);
     const bool holding = in_press && (msg->activity.find(current_ + ": hold") != std::string::npos ||
                                       msg->activity.find(": holding") != std::string::npos);
     if (!holding) return;
@@ -394,7 +415,7 @@ class Session {
 
   arm::SessionConfig config_;
   arm::StableFix fix_;
-  arm::SessionReport report_;
+  report::SessionReport report_;
   tf2_ros::Buffer tf_;
   tf2_ros::TransformListener listener_;
   std::string arm_ns_ = "/arm", base_frame_ = "arm_base_link";
@@ -416,7 +437,9 @@ class Session {
   std_msgs::Header truth_header_;
   std::string current_;
   std::vector<Eigen::Vector3d> holding_, truth_holding_, target_holding_;
-  std::vector<double> force_holding_;  ///< the arm's force while holding (mode force)
+  std::vector<double> force_holding_;             ///< the arm's force while holding (mode force)
+  std::vector<report::ForceSample> force_trace_;  ///< the current press by force, sample by sample
+  ros::Time trace_start_;                         ///< the stamp of its first sample
 };
 
 }  // namespace

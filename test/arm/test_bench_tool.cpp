@@ -131,6 +131,20 @@ TEST(ArmBenchTool, ForceRunEstimatesThePressingForce) {
   EXPECT_TRUE(std::isfinite(by_force_rms)) << r.out;
   EXPECT_LT(by_force_rms, 5.0) << r.out;
   EXPECT_TRUE(std::isfinite(values["force_20N_byforce_contact_mm"])) << r.out;
+  // The stroke at 20 N: the tool glided along its path (an XY that did not follow it would be centimetres off) at
+  // about its force.
+  for (const char* m : {"stroke_20N_error_rms_N", "stroke_20N_error_max_N", "stroke_20N_within_1N_pct",
+                        "stroke_20N_within_10pct_pct", "stroke_20N_path_error_max_mm"})
+    ASSERT_TRUE(values.count(m)) << m << "\n" << r.out;
+  EXPECT_LT(values["stroke_20N_path_error_max_mm"], 3.0) << r.out;
+  EXPECT_LT(values["stroke_20N_error_rms_N"], 5.0) << r.out;
+  EXPECT_GT(values["stroke_20N_within_10pct_pct"], 20.0) << r.out;
+  // The over-force: stopped by the cap (the bench fails otherwise), backing off within a cycle of seeing it.
+  ASSERT_TRUE(values.count("overforce_estimate_to_backoff_ms")) << r.out;
+  EXPECT_GE(values["overforce_estimate_to_backoff_ms"], 0.0) << r.out;
+  EXPECT_LE(values["overforce_estimate_to_backoff_ms"], 10.0) << r.out;
+  EXPECT_TRUE(std::isfinite(values["overforce_peak_over_cap_N"])) << r.out;
+  EXPECT_TRUE(std::isfinite(values["force_cycle_jitter_p99_ms"])) << r.out;
 }
 
 TEST(ArmBenchTool, ForceRunSkipsAForceDeeperThanTheRegionAllows) {

@@ -3,13 +3,17 @@
 // the camera's optical frame, a massage over two acupoint frames this node
 // publishes, each refusal (envelope, depth, unknown frame, stale frame), an
 // e-stop mid-move and its reset, an injected drive fault and its reset, an
-// acupoint frame lost during a press (the tool retracts), and the real-time
-// scheduling the diagnostics report (ArmNode.*). With a CAN interface that
+// acupoint frame lost during a press (the tool retracts), the massage as an
+// actionlib action (feedback and result, cancel during a press, a new goal
+// while one runs, refused goals), and the real-time scheduling the
+// diagnostics report (ArmNode.*). With a CAN interface that
 // does not exist (test/ros/arm_bad_interface.test, ArmNodeBadInterface.*):
 // one error naming it, the node keeps running and refuses every command.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <functional>
 #include <future>
 #include <limits>
 #include <map>
@@ -19,6 +23,7 @@
 #include <pthread.h>
 #include <sched.h>
 
+#include <actionlib/client/simple_action_client.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <geometry_msgs/WrenchStamped.h>
@@ -37,6 +42,7 @@
 #include "massage_cell/AcupointArray.h"
 #include "massage_cell/ArmState.h"
 #include "massage_cell/Massage.h"
+#include "massage_cell/MassageAction.h"
 #include "massage_cell/MoveTo.h"
 #include "massage_cell/arm/config.h"
 
@@ -582,6 +588,143 @@ TEST(ArmNode, LostAcupointFrameDuringAPressRetracts) {
   F->waitFor([] { return std::abs(F->latest().tool.z - F->config.press.travel_height) < 1e-4; }, 1.0);
   EXPECT_NEAR(F->latest().tool.z, F->config.press.travel_height, 1e-4);
   EXPECT_EQ(r.presses_done, 0);
+}
+
+// --- ~massage as an actionlib action ----------------------------------------------------------
+
+using MassageClient = actionlib::SimpleActionClient<massage_cell::MassageAction>;
+using GoalState = actionlib::SimpleClientGoalState;
+
+/// An action client of /arm/massage (spun by main's AsyncSpinner) that keeps every feedback of its goal.
+struct MassageGoal {
+  MassageClient client{"/arm/massage", false};
+  std::mutex mutex;
+  std::vector<massage_cell::MassageFeedback> feedback;
+
+  void send(const massage_cell::MassageGoal& goal) {
+    ASSERT_TRUE(client.waitForServer(ros::Duration(10.0)));
+    client.sendGoal(goal, MassageClient::SimpleDoneCallback(), MassageClient::SimpleActiveCallback(),
+                    [this](const massage_cell::MassageFeedbackConstPtr& f) {
+                      std::lock_guard<std::mutex> lock(mutex);
+                      feedback.push_back(*f);
+                    });
+  }
+  bool saw(const std::function<bool(const massage_cell::MassageFeedback&)>& pred) {
+    std::lock_guard<std::mutex> lock(mutex);
+    return std::any_of(feedback.begin(), feedback.end(), pred);
+  }
+  /// Waits up to `seconds` for a feedback whose activity contains `part`.
+  bool waitForActivity(const std::string& part, double seconds) {
+    return F->waitFor([&] { return saw([&](const auto& f) { return contains(f.activity, part); }); }, seconds);
+  }
+};
+
+/// A goal of one press on `frame`, holding `hold` s.
+massage_cell::MassageGoal pressGoal(const std::string& frame, double hold) {
+  massage_cell::MassageGoal goal;
+  goal.frames = {frame};
+  goal.hold = hold;
+  goal.speed = 0.03;
+  return goal;
+}
+
+/// The arm back to idle with the tool at the travel height (~state is sampled at 50 Hz: its latest message may
+/// predate the end of the retraction).
+void expectIdleAtTravelHeight() {
+  EXPECT_TRUE(F->waitFor([] { return F->latest().mode == "idle"; }, 1.0)) << F->latest().mode;
+  F->waitFor([] { return std::abs(F->latest().tool.z - F->config.press.travel_height) < 1e-4; }, 1.0);
+  EXPECT_NEAR(F->latest().tool.z, F->config.press.travel_height, 1e-4);
+}
+
+TEST(ArmNode, ActionMassageSucceedsWithFeedback) {
+  F->addFrame("acupoint/BL22_L", {0.45, 0.2, 0.18});
+  ASSERT_TRUE(F->buffer.canTransform(kBase, "acupoint/BL22_L", ros::Time(0), ros::Duration(5.0)));
+  MassageGoal run;
+  run.send(pressGoal("acupoint/BL22_L", 0.3));
+  ASSERT_TRUE(run.client.waitForResult(ros::Duration(60.0))) << F->latest().activity;
+  const GoalState state = run.client.getState();
+  EXPECT_EQ(state.toString(), "SUCCEEDED") << state.getText();
+  const auto result = run.client.getResult();
+  ASSERT_TRUE(result);
+  EXPECT_TRUE(result->success) << result->message;
+  EXPECT_EQ(result->message, "massage done: 1 press");
+  EXPECT_EQ(result->presses_done, 1);
+  // The feedback named the target (index and acupoint) and the arm's activity, and counted the press.
+  EXPECT_TRUE(run.saw([](const auto& f) {
+    return f.target == 0 && f.target_name == "BL22_L" && f.activity == "press 1/1 BL22_L: hold" && f.presses_done == 0;
+  }));
+  EXPECT_TRUE(run.saw([](const auto& f) { return f.presses_done == 1; }));
+  expectIdleAtTravelHeight();
+}
+
+TEST(ArmNode, ActionCancelDuringAPressBacksOff) {
+  F->addFrame("acupoint/BL22_L", {0.45, 0.2, 0.18});
+  ASSERT_TRUE(F->buffer.canTransform(kBase, "acupoint/BL22_L", ros::Time(0), ros::Duration(5.0)));
+  MassageGoal run;
+  run.send(pressGoal("acupoint/BL22_L", 20.0));
+  ASSERT_TRUE(run.waitForActivity("hold", 30.0)) << F->latest().activity;
+  // One massage at a time: the service is refused while the goal runs.
+  massage_cell::Massage::Request req;
+  req.frames = {"acupoint/BL22_L"};
+  const auto busy = F->massage(req);
+  EXPECT_FALSE(busy.success);
+  EXPECT_TRUE(contains(busy.message, "busy: massaging")) << busy.message;
+  run.client.cancelGoal();
+  ASSERT_TRUE(run.client.waitForResult(ros::Duration(10.0))) << F->latest().activity;  // not the 20 s hold
+  const GoalState state = run.client.getState();
+  EXPECT_EQ(state.toString(), "PREEMPTED") << state.getText();
+  const auto result = run.client.getResult();
+  ASSERT_TRUE(result);
+  EXPECT_FALSE(result->success);
+  EXPECT_TRUE(contains(result->message, "massage goal canceled; tool retracted to")) << result->message;
+  EXPECT_EQ(result->presses_done, 0);
+  // Preempted once the arm stands: backed off the body, up at the travel height.
+  expectIdleAtTravelHeight();
+}
+
+TEST(ArmNode, ActionNewGoalStopsTheRunningMassageFirst) {
+  F->addFrame("acupoint/BL22_L", {0.45, 0.2, 0.18});
+  ASSERT_TRUE(F->buffer.canTransform(kBase, "acupoint/BL22_L", ros::Time(0), ros::Duration(5.0)));
+  MassageGoal first, second;
+  first.send(pressGoal("acupoint/BL22_L", 20.0));
+  ASSERT_TRUE(first.waitForActivity("hold", 30.0)) << F->latest().activity;
+  second.send(pressGoal("acupoint/BL22_L", 0.3));
+  ASSERT_TRUE(first.client.waitForResult(ros::Duration(10.0))) << F->latest().activity;
+  const GoalState state = first.client.getState();
+  EXPECT_EQ(state.toString(), "PREEMPTED") << state.getText();
+  ASSERT_TRUE(first.client.getResult());
+  EXPECT_TRUE(contains(first.client.getResult()->message, "massage goal preempted by a new goal; tool retracted to"))
+      << first.client.getResult()->message;
+  // The new goal started after the old massage backed off: it retracted first, then pressed once.
+  EXPECT_TRUE(first.saw([](const auto& f) { return contains(f.activity, "retract"); }));
+  ASSERT_TRUE(second.client.waitForResult(ros::Duration(60.0))) << F->latest().activity;
+  EXPECT_EQ(second.client.getState().toString(), "SUCCEEDED") << second.client.getState().getText();
+  ASSERT_TRUE(second.client.getResult());
+  EXPECT_EQ(second.client.getResult()->presses_done, 1);
+  EXPECT_TRUE(second.saw([](const auto& f) { return f.activity == "press 1/1 BL22_L: hold"; }));
+  expectIdleAtTravelHeight();
+}
+
+TEST(ArmNode, ActionRefusedGoalsAreAborted) {
+  F->addFrame("acupoint/BL22_L", {0.45, 0.2, 0.18});
+  ASSERT_TRUE(F->buffer.canTransform(kBase, "acupoint/BL22_L", ros::Time(0), ros::Duration(5.0)));
+  const auto expectAborted = [](const massage_cell::MassageGoal& goal, const std::string& why) {
+    MassageGoal run;
+    run.send(goal);
+    ASSERT_TRUE(run.client.waitForResult(ros::Duration(10.0)));
+    const GoalState state = run.client.getState();
+    EXPECT_EQ(state.toString(), "ABORTED") << state.getText();
+    EXPECT_TRUE(contains(state.getText(), why)) << state.getText();
+    ASSERT_TRUE(run.client.getResult());
+    EXPECT_FALSE(run.client.getResult()->success);
+    EXPECT_TRUE(contains(run.client.getResult()->message, why)) << run.client.getResult()->message;
+  };
+  expectAborted(massage_cell::MassageGoal(), "massage refused: no target (frames or points) given");
+  expectAborted(pressGoal("acupoint/NOPE", 0.3), "the frame 'acupoint/NOPE' is unknown");
+  massage_cell::MassageGoal deep = pressGoal("acupoint/BL22_L", 0.3);
+  deep.depth = 0.02;
+  expectAborted(deep, "BL22_L: depth 20.0 mm is deeper than the lower_back limit 12.0 mm");
+  EXPECT_EQ(F->latest().mode, "idle");
 }
 
 /// Whether this machine lets a process use SCHED_FIFO 50 (the node's default realtime_priority).
