@@ -89,6 +89,18 @@ double maxLineSpeed(const ArmConfig& c) {
   return std::sqrt(sum);
 }
 
+double distanceFromPath(const Eigen::Vector2d& p, const std::vector<Eigen::Vector3d>& path) {
+  if (path.size() == 1) return (p - path[0].head<2>()).norm();
+  double best = INFINITY;
+  for (std::size_t i = 1; i < path.size(); ++i) {
+    const Eigen::Vector2d a = path[i - 1].head<2>(), b = path[i].head<2>();
+    const double len2 = (b - a).squaredNorm();
+    const double f = len2 > 0.0 ? std::clamp((p - a).dot(b - a) / len2, 0.0, 1.0) : 0.0;
+    best = std::min(best, (p - (a + f * (b - a))).norm());
+  }
+  return best;
+}
+
 std::string formatPoint(const Eigen::Vector3d& p) {
   return "(" + m3(p.x()) + ", " + m3(p.y()) + ", " + m3(p.z()) + ") m";
 }

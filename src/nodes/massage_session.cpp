@@ -1,9 +1,11 @@
 // massage_session: the cell's main job. Waits until the CECT node's acupoints
 // of the routine (config/session.yaml) have settled, homes the arm, presses
-// each acupoint by its tf frame through the arm's ~massage service, and
-// prints a report: the fix and every press against the recording's ground
-// truth (the tool tip while it holds at depth against the true acupoint
-// pushed to that depth), the verdict.
+// each acupoint by its tf frame through the arm's ~massage service, strokes
+// the routine's paths (technique stroke), and prints a report: the fix and
+// every press against the recording's ground truth (the tool tip while it
+// holds at depth against the true acupoint pushed to that depth), every
+// stroke against the path through the acupoints' true positions (the tool's
+// farthest distance across the skin while it glides), the verdict.
 //
 // Subscribes (in its namespace, e.g. /stereo): acupoints
 //   (massage_cell/AcupointArray), ground_truth/acupoints (the session
@@ -17,9 +19,9 @@
 //   truth, about an acupoint's own size, fails the session), ~service_timeout
 //   (30 s), ~report (a folder: index.html and pictures are written there,
 //   with a force plot per press by force from <arm>/state; empty: none).
-// Exit status: 0 every press done (and, with ground truth, within
-//   ~max_error); 1 a press failed or missed, no stable fix, or the arm was
-//   not there; 2 a bad session file.
+// Exit status: 0 every press and stroke done (and, with ground truth, within
+//   ~max_error); 1 one failed or missed, no stable fix, or the arm was not
+//   there; 2 a bad session file.
 #include <algorithm>
 
 #include <cv_bridge/cv_bridge.h>
@@ -47,6 +49,7 @@
 #include "massage_cell/AcupointArray.h"
 #include "massage_cell/ArmState.h"
 #include "massage_cell/Massage.h"
+#include "massage_cell/arm/plan.h"
 #include "massage_cell/arm/session.h"
 #include "massage_cell/session/report.h"
 #include "typed_param.h"
@@ -88,6 +91,7 @@ class Session {
     const ros::WallTime start = ros::WallTime::now();
     if (!waitForArm() || !waitForFix(start) || !homeArm()) return finish();
     for (const std::string& name : config_.acupoints) press(name);
+    for (const std::vector<std::string>& path : config_.strokes) stroke(path);
     return finish();
   }
 
@@ -102,13 +106,14 @@ class Session {
   }
 
   bool waitForFix(const ros::WallTime& start) {
-    ROS_INFO("massage_session: waiting for a stable fix of %zu acupoints", config_.acupoints.size());
+    const std::vector<std::string> all = config_.allAcupoints();
+    ROS_INFO("massage_session: waiting for a stable fix of %zu acupoints", all.size());
     ros::WallRate poll(10.0);
-    std::vector<std::string> unstable = config_.acupoints;
+    std::vector<std::string> unstable = all;
     while (ros::ok() && (ros::WallTime::now() - start).toSec() < config_.fix_timeout) {
       {
         const std::lock_guard<std::mutex> lock(mutex_);
-        unstable = fix_.unstable(config_.acupoints, latest_stamp_);
+        unstable = fix_.unstable(all, latest_stamp_);
         if (unstable.empty()) {
           report_.seconds_to_fix = (ros::WallTime::now() - start).toSec();
           recordFix();
@@ -125,7 +130,7 @@ class Session {
   }
 
   void recordFix() {
-    for (const std::string& name : config_.acupoints) {
+    for (const std::string& name : config_.allAcupoints()) {
       const auto t = truth_.find(name);
       if (t == truth_.end()) continue;
       const Eigen::Vector3d estimate = fix_.mean(name, latest_stamp_);
@@ -146,6 +151,34 @@ class Session {
     return false;
   }
 
+  /// Starts recording the arm's work on `name` (an acupoint, or a stroke's "A -> B"; called with the mutex held).
+  void beginRecord(const std::string& name) {
+    holding_ = {};
+    truth_holding_ = {};
+    target_holding_ = {};
+    force_holding_ = {};
+    force_trace_ = {};
+    gliding_ = {};
+    trace_start_ = ros::Time();
+    current_ = name;
+    descending_ = false;
+  }
+
+  /// Calls ~massage with `srv`: the record of `name` with the arm's answer, its time and force trace.
+  report::PressRecord callArm(massage_cell::Massage& srv, const std::string& name) {
+    const ros::WallTime t0 = ros::WallTime::now();
+    report::PressRecord record;
+    record.acupoint = name;
+    record.success = massage_.call(srv) && srv.response.success;
+    record.message = srv.response.message.empty() ? "the arm did not answer" : srv.response.message;
+    record.seconds = (ros::WallTime::now() - t0).toSec();
+    const std::lock_guard<std::mutex> lock(mutex_);
+    current_.clear();
+    record.force_trace = std::move(force_trace_);
+    force_trace_.clear();
+    return record;
+  }
+
   void press(const std::string& name) {
     massage_cell::Massage srv;
     srv.request.frames = {config_.frame_prefix + name};
@@ -157,26 +190,11 @@ class Session {
     srv.request.repeats = config_.repeats;
     {
       const std::lock_guard<std::mutex> lock(mutex_);
-      holding_ = {};
-      truth_holding_ = {};
-      target_holding_ = {};
-      force_holding_ = {};
-      force_trace_ = {};
-      trace_start_ = ros::Time();
-      current_ = name;
-      descending_ = false;
+      beginRecord(name);
     }
     ROS_INFO("massage_session: pressing %s", name.c_str());
-    const ros::WallTime t0 = ros::WallTime::now();
-    report::PressRecord record;
-    record.acupoint = name;
-    record.success = massage_.call(srv) && srv.response.success;
-    record.message = srv.response.message.empty() ? "the arm did not answer" : srv.response.message;
-    record.seconds = (ros::WallTime::now() - t0).toSec();
+    report::PressRecord record = callArm(srv, name);
     const std::lock_guard<std::mutex> lock(mutex_);
-    current_.clear();
-    record.force_trace = std::move(force_trace_);
-    force_trace_.clear();
     // To a depth: the truth pushed that depth down; by force the depth is the body's answer (compared across).
     const double depth = config_.mode == "force" ? 0.0 : config_.depth;
     if (!holding_.empty() && !truth_holding_.empty()) {
@@ -194,17 +212,84 @@ class Session {
     report_.presses.push_back(record);
   }
 
+  /// A stroke along `path` (acupoint names) at the routine's stroke force: its record, with how far the tool glided
+  /// from the path through the acupoints' true positions and from the path it was given (their frames).
+  void stroke(const std::vector<std::string>& path) {
+    massage_cell::Massage srv;
+    for (const std::string& name : path) srv.request.frames.push_back(config_.frame_prefix + name);
+    srv.request.technique = "stroke";
+    srv.request.mode = "force";
+    srv.request.force = config_.stroke_force;
+    srv.request.repeats = 1;
+    const std::string label = path.front() + " -> " + path.back();
+    std::vector<Eigen::Vector3d> given, truth;  // arm base frame
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      beginRecord(label);
+      for (const std::string& name : path) {
+        Eigen::Vector3d p;
+        if (frameInBase(config_.frame_prefix + name, &p)) given.push_back(p);
+        if (truthInBase(name, &p)) truth.push_back(p);
+      }
+    }
+    ROS_INFO("massage_session: stroking %s", label.c_str());
+    report::PressRecord record = callArm(srv, label);
+    record.stroke = true;
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (!gliding_.empty() && truth.size() == path.size() && given.size() == path.size()) {
+      record.path_error = record.tracking_error = 0.0;
+      for (const Eigen::Vector2d& at : gliding_) {
+        record.path_error = std::max(record.path_error, arm::distanceFromPath(at, truth));
+        record.tracking_error = std::max(record.tracking_error, arm::distanceFromPath(at, given));
+      }
+    }
+    ROS_INFO("massage_session: %s %s (%.1f s)", label.c_str(), record.success ? "done" : "FAILED", record.seconds);
+    report_.presses.push_back(record);
+  }
+
+  /// Where tf puts `frame` in the base frame now (called with the mutex held).
+  bool frameInBase(const std::string& frame, Eigen::Vector3d* out) const {
+    try {
+      const auto t = tf_.lookupTransform(base_frame_, frame, ros::Time(0)).transform.translation;
+      *out = Eigen::Vector3d(t.x, t.y, t.z);
+      return true;
+    } catch (const tf2::TransformException&) {
+      return false;
+    }
+  }
+
+  /// The recording's true position of acupoint `name` in the base frame (called with the mutex held).
+  bool truthInBase(const std::string& name, Eigen::Vector3d* out) {
+    const auto t = truth_.find(name);
+    if (t == truth_.end()) return false;
+    geometry_msgs::PointStamped in, moved;
+    in.header = truth_header_;
+    in.header.stamp = ros::Time(0);  // the camera's mount is static: the latest transform
+    in.point.x = t->second.x();
+    in.point.y = t->second.y();
+    in.point.z = t->second.z();
+    try {
+      tf_.transform(in, moved, base_frame_, ros::Duration(0.05));
+    } catch (const tf2::TransformException& e) {
+      ROS_WARN_THROTTLE(5.0, "massage_session: the truth cannot be put in %s: %s", base_frame_.c_str(), e.what());
+      return false;
+    }
+    *out = Eigen::Vector3d(moved.point.x, moved.point.y, moved.point.z);
+    return true;
+  }
+
   int finish() {
     const std::lock_guard<std::mutex> lock(mutex_);
     if (!report_dir_.empty()) writeReport();
     std::printf("%s", report_.summary(tolerance_).c_str());
     std::fflush(stdout);
-    bool ok = report_.faults.empty() && report_.presses.size() == config_.acupoints.size();
+    bool ok = report_.faults.empty() && report_.presses.size() == config_.acupoints.size() + config_.strokes.size();
     for (const report::PressRecord& p : report_.presses) {
-      ok = ok && p.success && (!p.measured || p.error() <= max_error_);
-      if (p.measured && p.error() > max_error_)
-        std::printf("FAILED: %s was pressed %.1f mm from its true position (limit %.1f mm)\n", p.acupoint.c_str(),
-                    1e3 * p.error(), 1e3 * max_error_);
+      const double error = p.stroke ? p.path_error : p.measured ? p.error() : 0.0;
+      ok = ok && p.success && !(error > max_error_);
+      if (error > max_error_)
+        std::printf("FAILED: %s was %s %.1f mm from its true %s (limit %.1f mm)\n", p.acupoint.c_str(),
+                    p.stroke ? "stroked" : "pressed", 1e3 * error, p.stroke ? "path" : "position", 1e3 * max_error_);
     }
     std::printf("%s\n", ok ? "the session went well" : "the session FAILED (see above)");
     return ok ? 0 : 1;
@@ -387,30 +472,16 @@ class Session {
       if (tf != tf_stamps_.end()) latency(kPressStart).push_back((ros::Time::now() - tf->second).toSec());
     }
     if (in_press && !msg->press_phase.empty()) recordForce(*msg);
+    if (in_press && msg->press_phase == "glide") gliding_.emplace_back(msg->tool.x, msg->tool.y);
     const bool holding = in_press && (msg->activity.find(current_ + ": hold") != std::string::npos ||
                                       msg->activity.find(": holding") != std::string::npos);
     if (!holding) return;
     holding_.emplace_back(msg->tool.x, msg->tool.y, msg->tool.z);
     if (msg->force_valid) force_holding_.push_back(msg->force);
-    try {  // where the arm was sent: the acupoint's frame now
-      const auto target = tf_.lookupTransform(base_frame_, config_.frame_prefix + current_, ros::Time(0)).transform;
-      target_holding_.emplace_back(target.translation.x, target.translation.y, target.translation.z);
-    } catch (const tf2::TransformException&) {
-    }
-    const auto t = truth_.find(current_);
-    if (t == truth_.end()) return;
-    geometry_msgs::PointStamped in, out;
-    in.header = truth_header_;
-    in.header.stamp = ros::Time(0);  // the camera's mount is static: the latest transform
-    in.point.x = t->second.x();
-    in.point.y = t->second.y();
-    in.point.z = t->second.z();
-    try {
-      tf_.transform(in, out, base_frame_, ros::Duration(0.05));
-      truth_holding_.emplace_back(out.point.x, out.point.y, out.point.z);
-    } catch (const tf2::TransformException& e) {
-      ROS_WARN_THROTTLE(5.0, "massage_session: the truth cannot be put in %s: %s", base_frame_.c_str(), e.what());
-    }
+    Eigen::Vector3d target;  // where the arm was sent: the acupoint's frame now
+    if (frameInBase(config_.frame_prefix + current_, &target)) target_holding_.push_back(target);
+    Eigen::Vector3d truth;
+    if (truthInBase(current_, &truth)) truth_holding_.push_back(truth);
   }
 
   arm::SessionConfig config_;
@@ -439,6 +510,7 @@ class Session {
   std::vector<Eigen::Vector3d> holding_, truth_holding_, target_holding_;
   std::vector<double> force_holding_;             ///< the arm's force while holding (mode force)
   std::vector<report::ForceSample> force_trace_;  ///< the current press by force, sample by sample
+  std::vector<Eigen::Vector2d> gliding_;          ///< the tool across the skin while the current stroke glides
   ros::Time trace_start_;                         ///< the stamp of its first sample
 };
 

@@ -91,9 +91,9 @@ cv::Mat drawForcePlot(const std::vector<ForceSample>& trace, const std::string& 
   cv::Mat out(size, CV_8UC3, cv::Scalar::all(255));
   const cv::Rect& area = a.area;
   const int bottom = area.y + area.height - 1, right = area.x + area.width - 1;
-  // The hold phase, shaded: each hold sample until the next one.
+  // The hold phase (a stroke's glide), shaded: each such sample until the next one.
   for (std::size_t i = 0; i < trace.size(); ++i) {
-    if (trace[i].phase != "hold") continue;
+    if (trace[i].phase != "hold" && trace[i].phase != "glide") continue;
     const double t_next = i + 1 < trace.size() ? trace[i + 1].t : trace[i].t;
     const int x0 = a.col(trace[i].t), x1 = std::max(a.col(t_next), x0 + 1);
     cv::rectangle(out, cv::Rect(x0, area.y, x1 - x0, area.height), kHoldShade, cv::FILLED);

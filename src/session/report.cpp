@@ -31,7 +31,7 @@ ForceFigures forceFigures(const std::vector<ForceSample>& trace) {
     const ForceSample& s = trace[i];
     if (std::isfinite(s.force)) f.peak = std::max(f.peak, s.force);
     if (std::isfinite(s.limit)) f.limit = std::max(f.limit, s.limit);
-    if (s.phase != "hold") continue;
+    if (s.phase != "hold" && s.phase != "glide") continue;
     f.has_hold = true;
     // The sample stands until the next one; the last one for the spacing before it.
     double dt = 0.0;
@@ -66,7 +66,10 @@ double LatencyRecord::quantile(double q) const {
 
 int SessionReport::within(double tolerance) const {
   int n = 0;
-  for (const PressRecord& p : presses) n += (p.success && p.measured && p.error() <= tolerance) ? 1 : 0;
+  for (const PressRecord& p : presses) {
+    const double error = p.stroke ? p.path_error : p.measured ? p.error() : NAN;
+    n += p.success && error <= tolerance ? 1 : 0;
+  }
   return n;
 }
 
@@ -81,8 +84,12 @@ std::string SessionReport::summary(double tolerance) const {
         << "\n";
   if (!landmarks.empty()) out << "  layout: " << landmarks << "\n";
   for (const PressRecord& p : presses) {
-    out << "  press " << p.acupoint << ": " << (p.success ? "done" : "FAILED") << format(" in %.1f s", p.seconds);
-    if (p.measured && p.by_force) {
+    out << (p.stroke ? "  stroke " : "  press ") << p.acupoint << ": " << (p.success ? "done" : "FAILED")
+        << format(" in %.1f s", p.seconds);
+    if (p.stroke && std::isfinite(p.path_error)) {
+      out << format(", tool within %.1f mm of the true path across the skin (%.1f mm of the path it was given)",
+                    1e3 * p.path_error, 1e3 * p.tracking_error);
+    } else if (p.measured && p.by_force) {
       out << format(", %.1f N held, tool %.1f mm from the ground truth across the skin", p.force_held, 1e3 * p.error())
           << format(" and %.1f mm into it", 1e3 * p.indentation());
     } else if (p.measured) {
@@ -100,10 +107,14 @@ std::string SessionReport::summary(double tolerance) const {
         << ")\n";
   }
   for (const std::string& f : faults) out << "  fault: " << f << "\n";
-  int done = 0;
-  for (const PressRecord& p : presses) done += p.success ? 1 : 0;
-  out << "result: " << done << " of " << presses.size() << " presses done, " << within(tolerance) << " within "
-      << format("%.0f mm", 1e3 * tolerance) << " of the ground truth"
+  int done = 0, strokes = 0, stroked = 0;
+  for (const PressRecord& p : presses) {
+    (p.stroke ? stroked : done) += p.success ? 1 : 0;
+    strokes += p.stroke ? 1 : 0;
+  }
+  out << "result: " << done << " of " << presses.size() - strokes << " presses"
+      << (strokes ? " and " + std::to_string(stroked) + " of " + std::to_string(strokes) + " strokes" : std::string())
+      << " done, " << within(tolerance) << " within " << format("%.0f mm", 1e3 * tolerance) << " of the ground truth"
       << (faults.empty() ? "" : ", " + std::to_string(faults.size()) + " fault(s)") << "\n";
   return out.str();
 }

@@ -43,7 +43,7 @@ std::vector<std::pair<std::string, std::string>> writeForcePlots(const std::stri
     const PressRecord& p = presses[i];
     if (p.force_trace.empty()) continue;
     const std::string file = forcePlotFile(i, p.acupoint);
-    const std::string title = "press " + std::to_string(i + 1) + ": " + p.acupoint;
+    const std::string title = (p.stroke ? "stroke " : "press ") + std::to_string(i + 1) + ": " + p.acupoint;
     if (!cv::imwrite(dir + "/" + file, drawForcePlot(p.force_trace, title)))
       throw std::runtime_error("cannot write " + dir + "/" + file);
     plots.emplace_back(file, title + ": " + detail::forceLine(p.force()) + format(" (cap %.1f N)", p.force().limit));
@@ -65,7 +65,8 @@ void SessionReport::writeHtml(const std::string& dir, double tolerance,
       << "</style></head><body>\n<h1>Massage session</h1>\n<pre>" << escape(summary(tolerance)) << "</pre>\n";
   out << "<h2>Presses</h2>\n<table><tr><th>acupoint</th><th>result</th><th>s</th><th>tool at depth vs truth (mm; by "
          "force: across the skin, the force held)</th>"
-      << "<th>vs CECT's acupoint (mm)</th><th>peak force (N)</th><th>hold within ±10 % of the set-point (s of s)</th>"
+      << "<th>vs CECT's acupoint (mm)</th><th>peak force (N)</th><th>hold (a stroke: glide) within ±10 % of the "
+         "set-point (s of s)</th>"
       << "<th>arm's answer</th></tr>\n";
   for (const PressRecord& p : presses) {
     const ForceFigures f = p.force();
@@ -76,7 +77,9 @@ void SessionReport::writeHtml(const std::string& dir, double tolerance,
                    : "no hold";
     out << "<tr" << (p.success ? "" : " class=\"bad\"") << "><td>" << escape(p.acupoint) << "</td><td>"
         << (p.success ? "done" : "failed") << "</td><td>" << format("%.1f", p.seconds) << "</td><td>"
-        << (p.measured ? format("%.1f", 1e3 * p.error()) + (p.by_force ? format(" (%.1f N)", p.force_held) : "") : "-")
+        << (p.stroke     ? format("stroke: %.1f from the true path", 1e3 * p.path_error)
+            : p.measured ? format("%.1f", 1e3 * p.error()) + (p.by_force ? format(" (%.1f N)", p.force_held) : "")
+                         : "-")
         << "</td><td>" << (p.targeted ? format("%.1f", 1e3 * p.placement()) : "-") << "</td><td>"
         << (p.force_trace.empty() ? "-" : format("%.1f", f.peak)) << "</td><td>" << within << "</td><td>"
         << escape(p.message) << "</td></tr>\n";
@@ -94,7 +97,7 @@ void SessionReport::writeHtml(const std::string& dir, double tolerance,
   out << "</table>\n";
   if (!plots.empty()) {
     out << "<h2>Force</h2>\n<p>Each press by force: the measured force (blue), the set-point (green), the press's cap "
-           "(red); the hold phase shaded.</p>\n";
+           "(red); the hold phase (a stroke's glide) shaded.</p>\n";
     for (const auto& [file, caption] : plots) figure(out, file, caption);
   }
   out << "<h2>Pictures</h2>\n";

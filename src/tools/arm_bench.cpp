@@ -66,9 +66,10 @@ target force two presses at the same point, sampled every controller cycle:
               the estimate's error RMS. A press by force refused or stopped by
               a limit (the region's force cap: lower_back's is 60 N) is
               reported as failed, with the controller's message.
-  strokes     each target force the upper back allows, a stroke of 0.16 m
-              along a back rising 2 cm, through 5 points placed within
-              +-3 mm (--seed): while gliding, the true force's error (RMS,
+  strokes     each target force up to 3/4 of upper_back's cap (40 N): a
+              stroke of 0.16 m along a back rising 2 cm, through 5 points
+              placed within +-3 mm (--seed): while gliding, the true force's
+              error (RMS,
               max |e|, time within 1 N and within 10 %) and the tool's
               farthest distance from the path across the skin
   over-force  a press holding 3/4 of lower_back's cap when the back pushes

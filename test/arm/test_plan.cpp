@@ -318,6 +318,15 @@ TEST(Plan, KneadingByForceGlidesRoundACircleAtItsForce) {
   EXPECT_NEAR(knead->force.glide_speed, 2.0 * M_PI * c.press.knead_radius / c.press.knead_period, 1e-12);
 }
 
+TEST(Plan, DistanceFromAPathIsAcrossTheSkin) {
+  const std::vector<Eigen::Vector3d> path = {{0.0, 0.0, 0.1}, {0.1, 0.0, 0.2}, {0.1, 0.1, 0.2}};
+  EXPECT_NEAR(distanceFromPath({0.05, 0.003}, path), 0.003, 1e-12);     // beside the first leg (z does not count)
+  EXPECT_NEAR(distanceFromPath({0.104, 0.05}, path), 0.004, 1e-12);     // beside the second
+  EXPECT_NEAR(distanceFromPath({-0.003, -0.004}, path), 0.005, 1e-12);  // before its start: from the end point
+  EXPECT_NEAR(distanceFromPath({0.2, 0.2}, {{0.1, 0.2, 0.0}}), 0.1, 1e-12);
+  EXPECT_TRUE(std::isinf(distanceFromPath({0.0, 0.0}, {})));
+}
+
 TEST(Plan, StrokeRefusals) {
   const ArmConfig c = config();
   std::vector<Step> steps;

@@ -130,6 +130,37 @@ TEST(SessionReport, APressByForceIsMeasuredAcrossTheSkinWithItsForce) {
   EXPECT_NEAR(p.error(), std::hypot(0.003, 0.005), 1e-12);
 }
 
+TEST(SessionReport, AStrokeIsMeasuredFromItsTruePathWithItsGlideAtTheForce) {
+  report::SessionReport r;
+  report::PressRecord press;
+  press.acupoint = "BL23_L";
+  press.success = true;
+  report::PressRecord stroke;
+  stroke.acupoint = "BL13_L -> BL23_L";
+  stroke.stroke = true;
+  stroke.success = true;
+  stroke.path_error = 0.0042;
+  stroke.tracking_error = 0.0003;
+  // 1 s gliding: 0.5 s within 10 % of 20 N, 0.5 s out; the ramp before it does not count.
+  stroke.force_trace = {{0.0, 5.0, 10.0, 40.0, "ramp"},
+                        {0.5, 21.0, 20.0, 40.0, "glide"},
+                        {1.0, 25.0, 20.0, 40.0, "glide"},
+                        {1.5, 10.0, 5.0, 40.0, "release"}};
+  r.presses = {press, stroke};
+  const report::ForceFigures f = r.presses[1].force();
+  EXPECT_TRUE(f.has_hold);
+  EXPECT_DOUBLE_EQ(f.hold_seconds, 1.0);
+  EXPECT_DOUBLE_EQ(f.within_seconds, 0.5);
+  EXPECT_EQ(r.within(0.005), 1);  // the stroke, 4.2 mm from its true path; the press was not measured
+  EXPECT_EQ(r.within(0.004), 0);
+  const std::string s = r.summary(0.005);
+  EXPECT_NE(s.find("stroke BL13_L -> BL23_L: done in 0.0 s, tool within 4.2 mm of the true path across the skin "
+                   "(0.3 mm of the path it was given)"),
+            std::string::npos)
+      << s;
+  EXPECT_NE(s.find("result: 1 of 1 presses and 1 of 1 strokes done, 1 within 5 mm"), std::string::npos) << s;
+}
+
 TEST(SessionReport, LatencyQuantilesAndTheHtmlPage) {
   report::LatencyRecord l{"camera stamp -> acupoint tf", {}};
   EXPECT_TRUE(std::isnan(l.quantile(0.5)));

@@ -121,6 +121,10 @@ std::string checkBodyClearance(const ArmConfig& config, const BodySurface& body,
 /// velocity limits (all three at their limits: their norm), m/s.
 double maxLineSpeed(const ArmConfig& config);
 
+/// How far `p` lies across the skin (x, y) from the polyline through `path` (a stroke's), m; infinite for an empty
+/// path.
+double distanceFromPath(const Eigen::Vector2d& p, const std::vector<Eigen::Vector3d>& path);
+
 /// Formats a point "(x, y, z) m" with mm resolution.
 std::string formatPoint(const Eigen::Vector3d& p);
 

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -24,13 +25,13 @@ struct ForceSample {
   double force = 0.0;   ///< N measured on the tool (NaN: not known then)
   double target = 0.0;  ///< N, the press's set-point then (ramps included)
   double limit = 0.0;   ///< N, the press's cap
-  std::string phase;    ///< seek, ramp, hold, release, back off
+  std::string phase;    ///< seek, ramp, hold (glide: a stroke's, a knead's), release, back off
 };
 
 /// What a force trace says. Each sample stands for the time to the next one
 /// (the last for the spacing before it).
 struct ForceFigures {
-  bool has_hold = false;        ///< the trace has samples in the hold phase
+  bool has_hold = false;        ///< the trace has samples at the force: the hold phase (or the glide, a stroke's)
   double peak = 0.0;            ///< N, the highest measured force (0: none measured)
   double limit = 0.0;           ///< N, the press's cap (the highest of the trace; 0: none)
   double hold_seconds = 0.0;    ///< s in the hold phase
@@ -38,12 +39,17 @@ struct ForceFigures {
   /// within_seconds / hold_seconds (0 with no hold).
   double withinFraction() const { return hold_seconds > 0.0 ? within_seconds / hold_seconds : 0.0; }
 };
-/// Peak, hold and time within ±10 % of the set-point (counted over hold samples only).
+/// Peak, hold and time within ±10 % of the set-point (counted over hold and glide samples only).
 ForceFigures forceFigures(const std::vector<ForceSample>& trace);
 
-/// One acupoint's press, as the session saw it.
+/// One acupoint's press, or a stroke along a path of acupoints, as the session saw it.
 struct PressRecord {
-  std::string acupoint;
+  std::string acupoint;  ///< a stroke: "BL13_L -> BL23_L"
+  /// A stroke: while it glided, the tool's farthest distance across the skin from the path through the acupoints'
+  /// true positions (path_error) and from the path it was given, their tf frames (tracking_error); m, NaN unknown.
+  bool stroke = false;
+  double path_error = std::numeric_limits<double>::quiet_NaN();
+  double tracking_error = std::numeric_limits<double>::quiet_NaN();
   bool success = false;
   std::string message;  ///< the arm's answer
   double seconds = 0.0;
@@ -93,7 +99,7 @@ struct SessionReport {
   std::vector<PressRecord> presses;
   std::vector<std::string> faults;  ///< what went wrong (empty: nothing)
   std::vector<LatencyRecord> latencies;
-  /// Presses done and within `tolerance` m of the truth.
+  /// Presses done and within `tolerance` m of the truth (strokes: their path_error).
   int within(double tolerance) const;
   /// Lines for the terminal: the fix, every press (by force: its peak and time within ±10 % of the set-point),
   /// the verdict.
