@@ -217,14 +217,15 @@ void readForce(Reader& r, const YAML::Node& f, ForceConfig* out) {
 
 void readForceControl(Reader& r, const YAML::Node& f, ForceControlConfig* out) {
   r.checkKeys(f, "force_control",
-              {"contact_force", "seek_speed", "no_contact_band", "ramp_rate", "bandwidth", "integral",
-               "tissue_exponent", "min_stiffness", "max_stiffness", "max_speed", "max_force_rate", "release_speed",
-               "stroke_speed", "glide_accel"});
+              {"contact_force", "seek_speed", "no_contact_band", "early_contact_band", "ramp_rate", "bandwidth",
+               "integral", "tissue_exponent", "min_stiffness", "max_stiffness", "max_speed", "max_force_rate",
+               "release_speed", "stroke_speed", "glide_accel"});
   ForceControlConfig& c = *out;
   const std::string p = "force_control.";
   c.contact_force = r.number(f["contact_force"], p + "contact_force", c.contact_force);
   c.seek_speed = r.number(f["seek_speed"], p + "seek_speed", c.seek_speed);
   c.no_contact_band = r.number(f["no_contact_band"], p + "no_contact_band", c.no_contact_band);
+  c.early_contact_band = r.number(f["early_contact_band"], p + "early_contact_band", c.early_contact_band);
   c.ramp_rate = r.number(f["ramp_rate"], p + "ramp_rate", c.ramp_rate);
   c.bandwidth = r.number(f["bandwidth"], p + "bandwidth", c.bandwidth);
   c.integral = r.number(f["integral"], p + "integral", c.integral);
@@ -395,13 +396,16 @@ void validateForce(const ArmConfig& c, const Fail& fail) {
 template <typename Fail>
 void validateForceControl(const ArmConfig& c, const Fail& fail) {
   const ForceControlConfig& f = c.force_control;
-  const bool positive = f.contact_force > 0.0 && f.seek_speed > 0.0 && f.no_contact_band > 0.0 && f.ramp_rate > 0.0 &&
-                        f.bandwidth > 0.0 && f.integral >= 0.0 && f.tissue_exponent >= 1.0 && f.min_stiffness > 0.0 &&
-                        f.max_stiffness >= f.min_stiffness && f.max_speed > 0.0 && f.max_force_rate > 0.0 &&
-                        f.release_speed > 0.0 && f.stroke_speed > 0.0 && f.glide_accel > 0.0;
+  const bool positive = f.contact_force > 0.0 && f.seek_speed > 0.0 && f.no_contact_band > 0.0 &&
+                        f.early_contact_band > 0.0 && f.ramp_rate > 0.0 && f.bandwidth > 0.0 && f.integral >= 0.0 &&
+                        f.tissue_exponent >= 1.0 && f.min_stiffness > 0.0 && f.max_stiffness >= f.min_stiffness &&
+                        f.max_speed > 0.0 && f.max_force_rate > 0.0 && f.release_speed > 0.0 && f.stroke_speed > 0.0 &&
+                        f.glide_accel > 0.0;
   if (!positive)
     fail("force_control", "every setting must be > 0 (integral >= 0, tissue_exponent >= 1, max_stiffness >= min)");
   if (f.seek_speed > c.press.max_speed) fail("force_control.seek_speed", "must be <= press.max_speed");
+  if (f.early_contact_band >= c.press.approach_height)
+    fail("force_control.early_contact_band", "must be < press.approach_height (the seek starts there)");
   if (f.stroke_speed > c.press.max_speed) fail("force_control.stroke_speed", "must be <= press.max_speed");
   if (!(c.press.contact_area > 0.0)) fail("press.contact_area", "must be > 0 cm^2");
   if (c.press.mode == PressConfig::Mode::kForce && !c.force.enabled)

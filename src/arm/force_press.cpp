@@ -172,7 +172,12 @@ double ForcePress::update(double force, double z, double dt) {
       // Contact: the force above contact_force for kContactCycles cycles in a row (one noisy sample in the air is
       // not the skin; at 5 mm/s the wait costs 0.1 mm of indentation).
       above_ = force > c_.contact_force ? above_ + 1 : 0;
-      if (above_ >= kContactCycles) {
+      if (above_ >= kContactCycles && z > expectedSkin() + c_.early_contact_band) {
+        fail(
+            fmt("contact (%.1f N) %.1f mm above where vision put the skin (band %.1f mm): not the skin where it was "
+                "seen",
+                force, 1000.0 * (z - expectedSkin()), 1000.0 * c_.early_contact_band));
+      } else if (above_ >= kContactCycles) {
         contact_z_ = z;
         set_point_ = force;
         integral_ = 0.0;

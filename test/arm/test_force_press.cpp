@@ -117,6 +117,18 @@ TEST(ForcePress, NoBodyWhereVisionSaidStopsWithinItsBand) {
   EXPECT_NEAR(r.end_z, 0.18, 0.001);
 }
 
+TEST(ForcePress, AContactFarAboveWhereVisionPutTheSkinStops) {
+  // The back is 2.5 cm higher than vision said (a pillow, the client rose): the press stops at the contact instead of
+  // pressing there; 1 cm higher (within the 1.5 cm band) is pressed.
+  PressRun r = press(SimBody::flat(0.175, Tissue{}, Breathing{0.0, 4.0}), goal(30.0));
+  EXPECT_EQ(r.phase, ForcePress::Phase::kFailed);
+  EXPECT_NE(r.failure.find("above where vision put the skin"), std::string::npos) << r.failure;
+  EXPECT_LT(r.peak, 10.0);
+  EXPECT_NEAR(r.end_z, 0.18, 0.001);
+  r = press(SimBody::flat(0.16, Tissue{}, Breathing{0.0, 4.0}), goal(30.0));
+  EXPECT_EQ(r.phase, ForcePress::Phase::kDone) << r.failure;
+}
+
 TEST(ForcePress, EachLimitStopsThePressAndBacksOff) {
   ForcePressGoal capped = goal(30.0);
   capped.max_force = 20.0;  // asked beyond the cap (the plan refuses it; the loop still holds the line)

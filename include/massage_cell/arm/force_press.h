@@ -9,8 +9,9 @@
 // The limits hold whatever was asked: a force above the press's cap (the
 // region's force and pressure limits), an indentation past the region's
 // guard, a force rising faster than max_force_rate (the tool hit something),
-// or no contact within no_contact_band below where vision put the skin stop
-// the press and back it off; the press then ends failed with the reason.
+// no contact within no_contact_band below where vision put the skin, or a
+// contact more than early_contact_band above it stop the press and back it
+// off; the press then ends failed with the reason.
 // abort() backs off the same way (a stop, the watchdog, a lost target).
 //
 // A stroke is a press whose hold glides: with a path (points on the skin,
@@ -35,7 +36,10 @@ struct ForceControlConfig {
   double contact_force = 3.0;     ///< N: above this the tool touches
   double seek_speed = 0.005;      ///< m/s down from the approach point until contact
   double no_contact_band = 0.02;  ///< m below the expected skin without contact: the body is not there
-  double ramp_rate = 40.0;        ///< N/s of the force set-point, up and down
+  /// m above the expected skin: a contact higher up is not the skin where vision saw it (an arm, a pillow, a body
+  /// moved, a force reading off) and stops the press instead of pressing there
+  double early_contact_band = 0.015;
+  double ramp_rate = 40.0;  ///< N/s of the force set-point, up and down
   /// The admittance loop, normalised by the tissue's local stiffness k (so soft and stiff backs respond alike): the
   /// tool moves at v = (ramp feed-forward + bandwidth e + integral ∫e) / k for a force error e. k is the power law's
   /// slope n F / x at the indentation x past the contact point, within [min_stiffness, max_stiffness].
