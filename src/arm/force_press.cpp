@@ -21,6 +21,10 @@ constexpr double kArrived = 0.0005;
 constexpr double kContactIndentation = 0.0005;
 /// Cycles in a row the force must stay above contact_force to be a contact.
 constexpr int kContactCycles = 3;
+/// Cycles the press stands at the approach point before seeking, averaging the force in the air: its zero. The
+/// estimate's own zero (taken as the step starts) is one filtered sample: +-1 N of torque noise, several N when a
+/// sample comes late on a loaded machine, enough to read as contact in the air (a run_cell under load did).
+constexpr int kAirCycles = 10;
 /// m of arc length over which a stroke's skin heights are smoothed (a local linear fit): vision puts each point's
 /// height within 3-5 mm, and between points 4 cm apart that is a slope error of up to 0.2 fed forward at the glide
 /// speed; over +-8 cm (3-4 points) the fit halves it, while a back's curvature bends the fit by ~1 mm
@@ -157,8 +161,26 @@ double ForcePress::admittance(double force, double z, double feed_forward, doubl
   return z_cmd_ - v * dt;
 }
 
+bool ForcePress::measureAir(double force) {
+  if (!std::isfinite(force)) {
+    fail("the force is not known (the estimate is not valid)");
+  } else if (std::abs(force) > c_.contact_force) {
+    fail(
+        fmt("the force reads %.1f N at the approach point, in the air (more than the contact force %.1f N): "
+            "something touches the tool, or the force is off",
+            force, c_.contact_force));
+  } else {
+    air_ += force / kAirCycles;
+    ++air_cycles_;
+  }
+  return phase_ == Phase::kSeek && air_cycles_ < kAirCycles;
+}
+
 double ForcePress::update(double force, double z, double dt) {
   if (finished()) return z_cmd_;
+  if (phase_ == Phase::kSeek && air_cycles_ < kAirCycles && measureAir(force)) return z_cmd_;
+  if (phase_ == Phase::kBackOff && air_cycles_ < kAirCycles) force = 0.0;  // failed in the air: nothing to check
+  force -= air_;
   if (phase_ != Phase::kBackOff) {
     if (!std::isfinite(force)) {
       fail("the force is not known (the estimate is not valid)");

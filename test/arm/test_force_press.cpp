@@ -37,7 +37,8 @@ double distanceToPath(const Eigen::Vector2d& p, const std::vector<Eigen::Vector3
   return best;
 }
 
-PressRun press(const SimBody& body, ForcePressGoal goal, ForceControlConfig config = {}, int abort_at = -1) {
+PressRun press(const SimBody& body, ForcePressGoal goal, ForceControlConfig config = {}, int abort_at = -1,
+               double offset = 0.0) {
   ForcePress p(config, goal);
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 1.0);
@@ -50,7 +51,7 @@ PressRun press(const SimBody& body, ForcePressGoal goal, ForceControlConfig conf
     z = cmd;  // the servo, one cycle late
     xy = xy_cmd;
     const double truth = body.force(Eigen::Vector3d(xy.x(), xy.y(), z), vz, t);
-    filtered += 0.01 / 0.03 * (truth + noise(rng) - filtered);
+    filtered += 0.01 / 0.03 * (truth + offset + noise(rng) - filtered);
     if (k == abort_at) p.abort("stop requested");
     cmd = p.update(filtered, z, 0.01);
     if (!goal.path.empty()) xy_cmd = p.xy();
@@ -115,6 +116,21 @@ TEST(ForcePress, NoBodyWhereVisionSaidStopsWithinItsBand) {
   EXPECT_EQ(r.phase, ForcePress::Phase::kFailed);
   EXPECT_NE(r.failure.find("no contact"), std::string::npos) << r.failure;
   EXPECT_NEAR(r.end_z, 0.18, 0.001);
+}
+
+TEST(ForcePress, TheForceInTheAirIsItsZero) {
+  // The estimate's zero off by 2.5 N (one late sample): taken out in the air, the press holds the true 30 N; without
+  // the air's zero it would find "contact" at once and sink past its guard looking for 30 N (contact + 15 mm).
+  const PressRun r = press(back(1.0, 0.0), goal(30.0), {}, -1, 2.5);
+  EXPECT_EQ(r.phase, ForcePress::Phase::kDone) << r.failure;
+  EXPECT_LT(r.rms, 1.0);
+  // Off by 5 N (more than the contact force): the press does not start.
+  const PressRun off = press(back(1.0, 0.0), goal(30.0), {}, -1, 5.0);
+  EXPECT_EQ(off.phase, ForcePress::Phase::kFailed);
+  EXPECT_NE(off.failure.find("N at the approach point, in the air (more than the contact force 3.0 N)"),
+            std::string::npos)
+      << off.failure;
+  EXPECT_EQ(off.peak, 0.0);
 }
 
 TEST(ForcePress, AContactFarAboveWhereVisionPutTheSkinStops) {

@@ -1,6 +1,8 @@
-// A press by force, cycle by cycle, ROS-free and CAN-free: from the approach
-// point above the skin the tool seeks the body at a slow speed until the
-// force says it touches, ramps the force up to the target, holds it while the
+// A press by force, cycle by cycle, ROS-free and CAN-free: at the approach
+// point above the skin the tool stands 0.1 s, the force it reads there (the
+// mean) taken as its zero (more than the contact force there, the press
+// stops: something touches the tool, or the force is off); then it seeks the
+// body at a slow speed until the force says it touches, ramps the force up to the target, holds it while the
 // back breathes under it (an admittance loop: the tool's height moves with the
 // force error), ramps it down and backs off to where it started. The
 // controller streams the z it returns to the Z drive (cyclic synchronous
@@ -110,6 +112,9 @@ class ForcePress {
   double expectedSkin() const;
   /// How deep the tool is past the skin as found at contact, m (0 before contact).
   double indentation(double z) const;
+  /// One cycle standing in the air before the seek, averaging the force: whether the standing goes on (false once
+  /// the air's force is known, or the press failed: a force above contact_force in the air, or none known).
+  bool measureAir(double force);
   /// One cycle along the path; returns how far the skin's expected height changed (m).
   double glide(double dt);
 
@@ -127,6 +132,8 @@ class ForcePress {
   std::vector<double> arc_;  ///< arc length (x, y) at each point of the path, m
   double s_ = 0.0;           ///< arc length reached, m
   double speed_ = 0.0;       ///< m/s along the path now
+  double air_ = 0.0;         ///< N the force read in the air before the seek (its mean): the press's zero
+  int air_cycles_ = 0;       ///< cycles of it measured
   Eigen::Vector2d xy_;
 };
 
