@@ -42,7 +42,7 @@ PressRun press(const SimBody& body, ForcePressGoal goal, ForceControlConfig conf
   ForcePress p(config, goal);
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 1.0);
-  double z = goal.start_z, cmd = z, filtered = 0.0, t = 0.0, sq = 0.0, glide_sq = 0.0;
+  double z = goal.start_z, cmd = z, filtered = offset, t = 0.0, sq = 0.0, glide_sq = 0.0;  // the bias was there before
   // Across the skin the servo also follows one cycle late; a press stays at (0.3, 0.2).
   Eigen::Vector2d xy = goal.path.empty() ? Eigen::Vector2d(0.3, 0.2) : goal.path.front().head<2>(), xy_cmd = xy;
   PressRun r;
