@@ -24,8 +24,8 @@ build=${1:-"$root/_build_sanitize"}
 fuzz_runs=${2:-1000}
 export PYENV_VERSION=system
 tests=(test_can_bus test_can_canopen test_can_config test_can_master test_can_cia402 test_can_sim_drive test_can_drive
-       test_arm_config test_arm_profile test_arm_plan test_arm_controller test_arm_session
-       test_camera)
+       test_arm_config test_arm_profile test_arm_plan test_arm_controller test_arm_session test_arm_force_fuzz
+       test_session_report test_camera)
 fuzzers=(fuzz_can_frames fuzz_can_master fuzz_stereo_match)
 if [ $all = 1 ]; then
   tests+=(test_stereo_cost_volume test_stereo_graph_cuts test_stereo_hbds test_stereo_refine)
