@@ -124,11 +124,10 @@ TEST(ForcePress, TheForceInTheAirIsItsZero) {
   const PressRun r = press(back(1.0, 0.0), goal(30.0), {}, -1, 2.5);
   EXPECT_EQ(r.phase, ForcePress::Phase::kDone) << r.failure;
   EXPECT_LT(r.rms, 1.0);
-  // Off by 5 N (more than the contact force): the press does not start.
-  const PressRun off = press(back(1.0, 0.0), goal(30.0), {}, -1, 5.0);
+  // Off by 8 N (more than twice the contact force): the press does not start.
+  const PressRun off = press(back(1.0, 0.0), goal(30.0), {}, -1, 8.0);
   EXPECT_EQ(off.phase, ForcePress::Phase::kFailed);
-  EXPECT_NE(off.failure.find("N at the approach point, in the air (more than the contact force 3.0 N)"),
-            std::string::npos)
+  EXPECT_NE(off.failure.find("N leaving the approach point, in the air (more than 6.0 N)"), std::string::npos)
       << off.failure;
   EXPECT_EQ(off.peak, 0.0);
 }

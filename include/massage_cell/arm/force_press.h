@@ -1,7 +1,8 @@
-// A press by force, cycle by cycle, ROS-free and CAN-free: at the approach
-// point above the skin the tool stands 0.1 s, the force it reads there (the
-// mean) taken as its zero (more than the contact force there, the press
-// stops: something touches the tool, or the force is off); then it seeks the
+// A press by force, cycle by cycle, ROS-free and CAN-free: from the approach
+// point above the skin the tool seeks the body at a slow speed, the force it
+// reads over its first 0.25 s (the mean of the last 0.1 s, sliding) taken as
+// its zero (more than the contact force there, the press stops: something
+// touches the tool, or the force is off), until the force says it touches,
 // body at a slow speed until the force says it touches, ramps the force up to the target, holds it while the
 // back breathes under it (an admittance loop: the tool's height moves with the
 // force error), ramps it down and backs off to where it started. The
@@ -112,8 +113,9 @@ class ForcePress {
   double expectedSkin() const;
   /// How deep the tool is past the skin as found at contact, m (0 before contact).
   double indentation(double z) const;
-  /// One cycle standing in the air before the seek, averaging the force: whether the standing goes on (false once
-  /// the air's force is known, or the press failed: a force above contact_force in the air, or none known).
+  /// One of the seek's first cycles, in the air, averaging the force once settled: whether the measuring goes on
+  /// (false once the air's force is known, or the press failed: above contact_force in the air, none known, or
+  /// above the cap at any cycle).
   bool measureAir(double force);
   /// One cycle along the path; returns how far the skin's expected height changed (m).
   double glide(double dt);
