@@ -239,6 +239,17 @@ void Cia402Axis::fail(const std::string& text) {
 void Cia402Axis::enable() { begin(Operation::kEnable); }
 void Cia402Axis::disable() { begin(Operation::kDisable); }
 void Cia402Axis::quickStop() { begin(Operation::kQuickStop); }
+
+bool Cia402Axis::quickStopNow() {
+  std::lock_guard<RecursivePiMutex> lock(master_.mutex());
+  // The target the drive has (a set-point not yet sent, e.g. a move started but not ticked, is dropped).
+  if (const auto last = master_.rpdoTarget(config_.node_id)) target_ = *last;
+  command(cw::kQuickStop);
+  const bool sent = master_.sendRpdoNow(config_.node_id);
+  begin(Operation::kQuickStop);  // after the frame: ending the running operation posts its event
+  return sent;
+}
+
 void Cia402Axis::faultReset() { begin(Operation::kFaultReset); }
 void Cia402Axis::home() { begin(Operation::kHoming); }
 

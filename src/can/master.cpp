@@ -441,6 +441,29 @@ std::uint16_t Master::controlword(std::uint8_t id) const {
   return node(id).controlword;
 }
 
+std::optional<std::int32_t> Master::rpdoTarget(std::uint8_t id) const {
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
+  const Node& n = node(id);
+  if (!n.rpdo_set) return std::nullopt;
+  return n.target;
+}
+
+bool Master::sendRpdoNow(std::uint8_t id) {
+  std::lock_guard<RecursivePiMutex> lock(mutex_);
+  Node& n = node(id);
+  if (n.state != NodeState::kOperational || !n.rpdo_set) return false;
+  return sendRpdo(id, n);
+}
+
+bool Master::sendRpdo(std::uint8_t id, Node& n) {
+  const Result<can_frame> f =
+      packPdo(kRpdoBase[0] + id, rpdo1Mapping(), {n.controlword, static_cast<std::uint32_t>(n.target)});
+  if (!f || !send(*f)) return false;
+  ++stats_.rpdos;
+  ++n.rpdos_sent;
+  return true;
+}
+
 // --- receive ---------------------------------------------------------------------
 
 void Master::process(const TimedFrame& tf) {
@@ -613,12 +636,7 @@ void Master::timers(TimePoint now) {
     for (auto& [id, np] : nodes_) {
       Node& n = *np;
       if (n.state != NodeState::kOperational || !n.rpdo_set) continue;
-      const Result<can_frame> f =
-          packPdo(kRpdoBase[0] + id, rpdo1Mapping(), {n.controlword, static_cast<std::uint32_t>(n.target)});
-      if (f && send(*f)) {
-        ++stats_.rpdos;
-        ++n.rpdos_sent;
-      }
+      sendRpdo(id, n);
     }
     if (send(encodeSync())) ++stats_.syncs;
     next_sync_ += period;

@@ -345,6 +345,40 @@ TEST_F(MasterFixture, SendsRpdoBeforeEachSyncAtThePeriod) {
   EXPECT_EQ(master->controlword(1), 0x000F);
 }
 
+TEST_F(MasterFixture, SendRpdoNowSendsTheRpdoAtOnceBetweenSyncs) {
+  EXPECT_FALSE(master->sendRpdoNow(1));  // not operational yet
+  bringUp();
+  auto sniffer = bus.open("sniffer");
+  master->setRpdo(1, 0x000F, -1234);
+  EXPECT_FALSE(master->rpdoTarget(2));
+  EXPECT_FALSE(master->sendRpdoNow(2));  // no RPDO set
+  const TimePoint t0 = clock.now();
+  while (clock.now() - t0 < 25ms) step();
+  while (sniffer->receive(0ns)) {
+  }
+  const std::uint64_t sent = master->rpdosSent(1);
+  const MasterStats stats = master->stats();
+  // The target stays; the new controlword goes out now, without a poll or the clock moving on.
+  EXPECT_EQ(master->rpdoTarget(1), std::optional<std::int32_t>(-1234));
+  master->setRpdo(1, 0x0002, *master->rpdoTarget(1));
+  ASSERT_TRUE(master->sendRpdoNow(1));
+  const auto f = sniffer->receive(0ns);
+  ASSERT_TRUE(f);
+  EXPECT_EQ(formatFrame(f->frame), "201#02002EFBFFFF");
+  EXPECT_EQ(f->stamp, clock.now());
+  EXPECT_FALSE(sniffer->receive(0ns));  // no SYNC with it
+  EXPECT_EQ(master->rpdosSent(1), sent + 1);
+  EXPECT_EQ(master->stats().rpdos, stats.rpdos + 1);
+  EXPECT_EQ(master->stats().syncs, stats.syncs);
+  // The next SYNC carries it again, as usual.
+  ASSERT_TRUE(runUntil([&] { return master->stats().syncs > stats.syncs; }, 20ms));
+  std::vector<std::string> frames;
+  while (auto g = sniffer->receive(0ns)) frames.push_back(formatFrame(g->frame));
+  ASSERT_GE(frames.size(), 2u);
+  EXPECT_EQ(frames[frames.size() - 2], "201#02002EFBFFFF");
+  EXPECT_EQ(frames.back(), "080#");
+}
+
 TEST_F(MasterFixture, TpdoUpdatesFeedbackAndMalformedOnesAreIgnored) {
   bringUp();
   master->takeEvents();

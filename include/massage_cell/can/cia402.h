@@ -113,6 +113,12 @@ class Cia402Axis {
   /// Quick stop: done when stopped in quick stop active, or switch on
   /// disabled (quick stop option 0..3).
   void quickStop();
+  /// Quick stop (as quickStop()) whose first RPDO1 leaves at once
+  /// (Master::sendRpdoNow), not with the next SYNC: the quick-stop
+  /// controlword with the target the drive last got, which the axis then
+  /// keeps commanding (the e-stop). True when that frame was sent (the node
+  /// operational and the bus took it); else it goes with the next SYNC.
+  bool quickStopNow();
   /// Rising edge of controlword bit 7: fault -> switch on disabled.
   void faultReset();
   /// Homing with retries (config homing.*), then back to profile position.

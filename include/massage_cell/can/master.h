@@ -6,7 +6,8 @@
 //    before-SYNC hook runs (setBeforeSyncHook: a cyclic controller computes
 //    its set-points there), then the RPDO1 of every operational node
 //    (controlword 0x6040 + target position 0x607A) is sent, so synchronous
-//    drives apply it at that SYNC;
+//    drives apply it at that SYNC; sendRpdoNow() sends a node's RPDO1 at
+//    once, between two SYNCs (the e-stop's quick stop);
 //  - TPDO consumer: TPDO1 = statusword 0x6041 + position actual 0x6064,
 //    TPDO2 (velocity_pdo) = velocity actual 0x606C + mode display 0x6061,
 //    TPDO3 (torque_pdo) = torque actual 0x6077;
@@ -201,6 +202,14 @@ class Master {
   void setRpdo(std::uint8_t node, std::uint16_t controlword, std::int32_t target);
   /// The controlword currently being sent.
   std::uint16_t controlword(std::uint8_t node) const;
+  /// The target position the node's RPDO1 carries (the last setRpdo; nullopt before the first).
+  std::optional<std::int32_t> rpdoTarget(std::uint8_t node) const;
+  /// Sends the node's RPDO1 (what setRpdo last set) now instead of waiting
+  /// for the next SYNC (a synchronous drive applies it at that SYNC, which
+  /// also carries it again as usual): a command that must not wait up to a
+  /// SYNC period, the e-stop's quick stop (Cia402Axis::quickStopNow). False
+  /// when nothing was sent: node not operational, no RPDO set, bus refused.
+  bool sendRpdoNow(std::uint8_t node);
 
   // --- events / hooks ----------------------------------------------------------
   // Events reach their readers two ways: a queue with ONE reader, who drains
@@ -237,6 +246,7 @@ class Master {
   struct Node;
   Node& node(std::uint8_t id) const;
   bool send(const can_frame& frame);
+  bool sendRpdo(std::uint8_t id, Node& n);  // its RPDO1 as set; counted
   void process(const TimedFrame& frame);
   void timers(TimePoint now);
   void startConfiguration(Node& n);
