@@ -219,7 +219,7 @@ void readForceControl(Reader& r, const YAML::Node& f, ForceControlConfig* out) {
   r.checkKeys(f, "force_control",
               {"contact_force", "seek_speed", "no_contact_band", "early_contact_band", "ramp_rate", "bandwidth",
                "integral", "tissue_exponent", "min_stiffness", "max_stiffness", "max_speed", "max_force_rate",
-               "release_speed", "stroke_speed", "glide_accel"});
+               "release_speed", "stroke_speed", "glide_accel", "move_guard"});
   ForceControlConfig& c = *out;
   const std::string p = "force_control.";
   c.contact_force = r.number(f["contact_force"], p + "contact_force", c.contact_force);
@@ -237,6 +237,7 @@ void readForceControl(Reader& r, const YAML::Node& f, ForceControlConfig* out) {
   c.release_speed = r.number(f["release_speed"], p + "release_speed", c.release_speed);
   c.stroke_speed = r.number(f["stroke_speed"], p + "stroke_speed", c.stroke_speed);
   c.glide_accel = r.number(f["glide_accel"], p + "glide_accel", c.glide_accel);
+  c.move_guard = r.number(f["move_guard"], p + "move_guard", c.move_guard);
 }
 
 ArmConfig armConfig(const std::string& yaml_text, const std::string& source, const std::string& base_dir) {
@@ -296,11 +297,13 @@ ArmConfig armConfig(const std::string& yaml_text, const std::string& source, con
 
   if (const YAML::Node p = root["press"]) {
     r.checkKeys(p, "press",
-                {"approach_height", "travel_height", "speed", "max_speed", "acceleration", "retract_speed", "hold",
-                 "max_hold", "max_repeats", "max_targets", "estop_release", "max_normal_tilt_deg", "knead_radius",
-                 "knead_period", "knead_segments", "mode", "contact_area"});
+                {"approach_height", "approach_clearance", "approach_speed", "travel_height", "speed", "max_speed",
+                 "acceleration", "retract_speed", "hold", "max_hold", "max_repeats", "max_targets", "estop_release",
+                 "max_normal_tilt_deg", "knead_radius", "knead_period", "knead_segments", "mode", "contact_area"});
     PressConfig& pc = c.press;
     pc.approach_height = r.number(p["approach_height"], "press.approach_height", pc.approach_height);
+    pc.approach_clearance = r.number(p["approach_clearance"], "press.approach_clearance", pc.approach_clearance);
+    pc.approach_speed = r.number(p["approach_speed"], "press.approach_speed", pc.approach_speed);
     pc.travel_height = r.number(p["travel_height"], "press.travel_height", pc.travel_height);
     pc.speed = r.number(p["speed"], "press.speed", pc.speed);
     pc.max_speed = r.number(p["max_speed"], "press.max_speed", pc.max_speed);
@@ -400,9 +403,11 @@ void validateForceControl(const ArmConfig& c, const Fail& fail) {
                         f.early_contact_band > 0.0 && f.ramp_rate > 0.0 && f.bandwidth > 0.0 && f.integral >= 0.0 &&
                         f.tissue_exponent >= 1.0 && f.min_stiffness > 0.0 && f.max_stiffness >= f.min_stiffness &&
                         f.max_speed > 0.0 && f.max_force_rate > 0.0 && f.release_speed > 0.0 && f.stroke_speed > 0.0 &&
-                        f.glide_accel > 0.0;
+                        f.glide_accel > 0.0 && f.move_guard > f.contact_force;
   if (!positive)
-    fail("force_control", "every setting must be > 0 (integral >= 0, tissue_exponent >= 1, max_stiffness >= min)");
+    fail("force_control",
+         "every setting must be > 0 (integral >= 0, tissue_exponent >= 1, max_stiffness >= min, move_guard > "
+         "contact_force)");
   if (f.seek_speed > c.press.max_speed) fail("force_control.seek_speed", "must be <= press.max_speed");
   if (f.early_contact_band >= c.press.approach_height)
     fail("force_control.early_contact_band", "must be < press.approach_height (the seek starts there)");
@@ -464,6 +469,8 @@ void validate(const ArmConfig& c) {
   if (!(c.position_tolerance > 0.0)) fail("position_tolerance", "must be > 0");
   const PressConfig& p = c.press;
   if (!(p.approach_height > 0.0)) fail("press.approach_height", "must be > 0");
+  if (!(p.approach_clearance >= 0.0)) fail("press.approach_clearance", "must be >= 0 (0: none)");
+  if (!(p.approach_speed > 0.0)) fail("press.approach_speed", "must be > 0");
   if (p.travel_height < c.workspace_min.z() || p.travel_height > c.workspace_max.z()) {
     fail("press.travel_height", num(p.travel_height) + " m is outside the workspace's z range");
   }

@@ -56,43 +56,13 @@ const char* toString(Mode mode) {
   return "?";
 }
 
-// --- TapBus ----------------------------------------------------------------------------------------
-
-bool TapBus::send(const can_frame& frame) {
-  const bool ok = inner_.send(frame);
-  if (!ok) return false;
-  Observer observer;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    const canid_t id = frame.can_id;
-    if (!(id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) && id > 0x200 && id < 0x280) {
-      rpdo1_[static_cast<std::uint8_t>(id - 0x200)] = frame;
-    }
-    observer = observer_;
-  }
-  if (observer) observer(frame);
-  return true;
-}
-
-std::optional<can_frame> TapBus::lastRpdo1(std::uint8_t node) const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  const auto it = rpdo1_.find(node);
-  if (it == rpdo1_.end()) return std::nullopt;
-  return it->second;
-}
-
-void TapBus::setObserver(Observer observer) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  observer_ = std::move(observer);
-}
-
 // --- set-up ------------------------------------------------------------------------------------------
 
 Controller::Controller(can::Bus& bus, const can::Clock& clock, ArmConfig config)
-    : config_(std::move(config)), clock_(clock), tap_(bus) {
+    : config_(std::move(config)), clock_(clock), bus_(bus) {
   validate(config_);
   tool_force_ = std::make_unique<ToolForce>(config_);
-  master_ = std::make_unique<can::Master>(tap_, clock_, config_.can);
+  master_ = std::make_unique<can::Master>(bus_, clock_, config_.can);
   for (int i = 0; i < 3; ++i) axes_[i] = std::make_unique<can::Cia402Axis>(*master_, config_.axis(i));
   listener_id_ = master_->addEventListener([this](const can::Event& e) { events_.push_back(e); });
   master_->setBeforeSyncHook([this](can::TimePoint now) { cycle(now); });
@@ -202,6 +172,7 @@ void Controller::cycle(can::TimePoint now) {
       }
     }
   }
+  if (mode_ == Mode::kMassaging) guardForce();
   runQueue(now);
 }
 
@@ -251,10 +222,10 @@ void Controller::checkFaults() {
       fault(text + ")");
     }
   }
-  const can::BusState bs = tap_.status().state;
+  const can::BusState bs = bus_.status().state;
   bus_state_ = bs;
   if (bs == can::BusState::kBusOff || bs == can::BusState::kDown) {
-    fault("CAN bus " + tap_.name() + " is " + can::toString(bs));
+    fault("CAN bus " + bus_.name() + " is " + can::toString(bs));
   }
 }
 
@@ -694,9 +665,9 @@ Accepted Controller::resetFault() {
     setResult(a.id, true, std::string("nothing to reset (") + toString(mode_) + ")");
     return a;
   }
-  const can::BusState bs = tap_.status().state;
+  const can::BusState bs = bus_.status().state;
   if (bs == can::BusState::kBusOff || bs == can::BusState::kDown) {
-    return refuse("reset refused: the CAN bus " + tap_.name() + " is still " + can::toString(bs));
+    return refuse("reset refused: the CAN bus " + bus_.name() + " is still " + can::toString(bs));
   }
   for (int i = 0; i < 3; ++i) {
     const can::AxisConfig& a = config_.axis(i);
@@ -737,16 +708,8 @@ void Controller::setEstop(bool pressed) {
   // The quick-stop controlword leaves at once (RPDO1 with the last target);
   // the axes keep sending it with every SYNC.
   for (int i = 0; i < 3; ++i) {
-    const std::uint8_t node = config_.axis(i).node_id;
-    if (master_->nodeState(node) != can::NodeState::kOperational) continue;
-    if (const auto last = tap_.lastRpdo1(node)) {
-      const auto values = can::unpackPdo(*last, can::rpdo1Mapping());
-      if (values.ok() && values->size() == 2) {
-        const auto frame = can::packPdo(last->can_id, can::rpdo1Mapping(), {can::cw::kQuickStop, (*values)[1]});
-        if (frame.ok()) tap_.send(*frame);
-      }
-    }
-    axes_[i]->quickStop();
+    if (master_->nodeState(config_.axis(i).node_id) != can::NodeState::kOperational) continue;
+    axes_[i]->quickStopNow();
   }
   finish(false, release_from ? "e-stop pressed: the tool backs off to the approach point" : "e-stop pressed");
   queue_.clear();
@@ -866,7 +829,7 @@ ArmStatus Controller::status() const {
     if (current_->kind == Action::Kind::kStep) s.target = current_->step.target;
   }
   s.last_error = last_error_;
-  s.bus = tap_.status().state;
+  s.bus = bus_.status().state;
   s.cycles = cycles_;
   s.command = command_;
   s.presses_done = presses_done_;

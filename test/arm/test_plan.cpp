@@ -58,21 +58,28 @@ TEST(Plan, VerticalPressSequence) {
   r.hold = 1.5;
   std::vector<Step> steps;
   ASSERT_EQ(planMassage(c, kHome, r, &steps), "");
-  // up (already at 0.30 > travel 0.28: no), travel, approach, descend, hold, retract, up.
+  // up (already at 0.30 > travel 0.28: no), travel, down, approach (its last 3 cm slowly), descend, hold, retract, up.
   std::vector<std::string> kinds;
   for (const Step& s : steps) kinds.push_back(s.label.substr(s.label.find(": ") + 2));
-  EXPECT_EQ(kinds,
-            (std::vector<std::string>{"travel", "approach", "descend", "hold", "retract", "up to the travel height"}));
+  EXPECT_EQ(kinds, (std::vector<std::string>{"travel", "down", "approach", "descend", "hold", "retract",
+                                             "up to the travel height"}));
   EXPECT_TRUE(steps[0].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.28)));
-  EXPECT_TRUE(steps[1].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.21)));   // 3 cm above the skin
-  EXPECT_TRUE(steps[2].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.174)));  // 6 mm in
-  EXPECT_DOUBLE_EQ(steps[2].speed, c.press.speed);
-  EXPECT_EQ(steps[3].kind, Step::Kind::kHold);
-  EXPECT_DOUBLE_EQ(steps[3].duration, 1.5);
-  EXPECT_TRUE(steps[3].contact);
-  EXPECT_TRUE(steps[4].press_done);
-  EXPECT_TRUE(steps[4].retract);
-  EXPECT_FALSE(steps[1].contact);
+  EXPECT_TRUE(steps[1].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.24)));  // fast to 3 cm above the approach point
+  EXPECT_DOUBLE_EQ(steps[1].speed, 0.0);
+  EXPECT_TRUE(steps[2].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.21)));  // 3 cm above the skin
+  EXPECT_DOUBLE_EQ(steps[2].speed, c.press.approach_speed);
+  EXPECT_TRUE(steps[3].tool.isApprox(Eigen::Vector3d(0.5, 0.2, 0.174)));  // 6 mm in
+  EXPECT_DOUBLE_EQ(steps[3].speed, c.press.speed);
+  EXPECT_EQ(steps[4].kind, Step::Kind::kHold);
+  EXPECT_DOUBLE_EQ(steps[4].duration, 1.5);
+  EXPECT_TRUE(steps[4].contact);
+  EXPECT_TRUE(steps[5].press_done);
+  EXPECT_TRUE(steps[5].retract);
+  EXPECT_FALSE(steps[2].contact);
+  // Its contact steps carry the region's force cap (the controller's guard when the force is known); the others none.
+  const double cap = c.regions.at("lower_back").forceCap(c.press.contact_area);
+  for (int k : {3, 4, 5}) EXPECT_DOUBLE_EQ(steps[k].force_cap, cap) << k;
+  for (int k : {0, 1, 2, 6}) EXPECT_DOUBLE_EQ(steps[k].force_cap, 0.0) << k;
   for (const Step& s : steps) EXPECT_EQ(checkTool(c, s.tool), "") << s.label;
   EXPECT_NEAR(deepest(steps, r.targets[0], 0), -0.006, 1e-12);
   // From below the travel height the plan goes up first.
@@ -278,11 +285,11 @@ TEST(Plan, AStrokeIsOnePressByForceGlidingThroughItsPoints) {
               target("BL25_L", "lower_back", {0.45, 0.21, 0.15})});
   std::vector<Step> steps;
   ASSERT_EQ(planMassage(c, kHome, r, &steps), "");
-  // up / travel over the first point / approach / the glide / up over the last point
-  ASSERT_EQ(steps.size(), 4u);
+  // travel over the first point / down / approach / the glide / up over the last point
+  ASSERT_EQ(steps.size(), 5u);
   EXPECT_EQ(steps[0].label, "stroke BL11_L -> BL25_L: travel");
-  EXPECT_TRUE(steps[1].tool.isApprox(Eigen::Vector3d(0.30, 0.20, 0.15 + c.press.approach_height)));
-  const Step& glide = steps[2];
+  EXPECT_TRUE(steps[2].tool.isApprox(Eigen::Vector3d(0.30, 0.20, 0.15 + c.press.approach_height)));
+  const Step& glide = steps[3];
   EXPECT_EQ(glide.kind, Step::Kind::kForcePress);
   EXPECT_EQ(glide.label, "stroke BL11_L -> BL25_L: glide at 20 N");  // the lower default of both regions
   ASSERT_EQ(glide.force.path.size(), 3u);
@@ -292,7 +299,7 @@ TEST(Plan, AStrokeIsOnePressByForceGlidingThroughItsPoints) {
   EXPECT_DOUBLE_EQ(glide.force.max_force, c.regions.at("upper_back").forceCap(c.press.contact_area));
   EXPECT_DOUBLE_EQ(glide.force.max_indentation, c.regions.at("upper_back").max_indentation);
   EXPECT_TRUE(glide.press_done);
-  EXPECT_TRUE(steps[3].tool.isApprox(Eigen::Vector3d(0.45, 0.21, c.press.travel_height)));
+  EXPECT_TRUE(steps[4].tool.isApprox(Eigen::Vector3d(0.45, 0.21, c.press.travel_height)));
 }
 
 TEST(Plan, KneadingByForceGlidesRoundACircleAtItsForce) {

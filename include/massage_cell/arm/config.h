@@ -55,15 +55,19 @@ struct RegionLimits {
 /// normal to the depth, hold, retract; travel between targets at a safe height.
 struct PressConfig {
   double approach_height = 0.03;  ///< m above the surface point along the normal
-  double travel_height = 0.28;    ///< m, tool-tip z in the arm base frame for moves between targets
-  double speed = 0.01;            ///< m/s, default approach / descent speed
-  double max_speed = 0.03;        ///< m/s, the most a request may ask for
-  double acceleration = 0.1;      ///< m/s^2 along the press path
-  double retract_speed = 0.02;    ///< m/s
-  double hold = 2.0;              ///< s, default hold time at depth
-  double max_hold = 30.0;         ///< s
-  int max_repeats = 10;           ///< presses per target
-  int max_targets = 50;           ///< targets in one request
+  /// The last approach_clearance m down to the approach point are at approach_speed (m/s): a body higher than vision
+  /// saw is met slowly (the force guard stops it: force_control.move_guard); above them the joints' limits.
+  double approach_clearance = 0.03;
+  double approach_speed = 0.02;
+  double travel_height = 0.28;  ///< m, tool-tip z in the arm base frame for moves between targets
+  double speed = 0.01;          ///< m/s, default approach / descent speed
+  double max_speed = 0.03;      ///< m/s, the most a request may ask for
+  double acceleration = 0.1;    ///< m/s^2 along the press path
+  double retract_speed = 0.02;  ///< m/s
+  double hold = 2.0;            ///< s, default hold time at depth
+  double max_hold = 30.0;       ///< s
+  int max_repeats = 10;         ///< presses per target
+  int max_targets = 50;         ///< targets in one request
   /// After an e-stop with the tool in contact: back off along the press line to
   /// the approach point at retract_speed, then stay stopped (false: stop in place).
   bool estop_release = true;

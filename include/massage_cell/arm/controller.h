@@ -20,10 +20,10 @@
 //    start at the same SYNC, arrive together and the tool follows the line;
 //  - the press routine (plan.h) never goes deeper than its region allows;
 //  - e-stop latch: setEstop(true) sends RPDO1 with the quick-stop
-//    controlword to every drive at once (the drives, synchronous RPDOs, apply
-//    it at the next SYNC) and the axes keep commanding quick stop; the latch
-//    holds, whatever the e-stop input does, until resetFault() with the input
-//    released;
+//    controlword to every drive at once (Cia402Axis::quickStopNow; the
+//    drives, synchronous RPDOs, apply it at the next SYNC) and the axes keep
+//    commanding quick stop; the latch holds, whatever the e-stop input does,
+//    until resetFault() with the input released;
 //  - faults: heartbeat loss, an EMCY, the bus going bus-off / down, an SDO
 //    failure (timeout, abort), a drive in fault or an axis operation failing
 //    stop all axes (quick stop), end the running command and enter kFault;
@@ -73,28 +73,6 @@ enum class Mode {
   kReleasing,  ///< e-stop latched during a press: the tool backs off to the approach point, then kEstop
 };
 const char* toString(Mode mode);
-
-/// A Bus that forwards to another one and remembers the last RPDO1 sent to
-/// each node (so an e-stop can resend it with the quick-stop controlword at
-/// once); an optional observer sees every frame sent.
-class TapBus final : public can::Bus {
- public:
-  using Observer = std::function<void(const can_frame&)>;
-  explicit TapBus(can::Bus& inner) : inner_(inner) {}
-  std::string name() const override { return inner_.name(); }
-  bool send(const can_frame& frame) override;
-  std::optional<can::TimedFrame> receive(can::Duration timeout) override { return inner_.receive(timeout); }
-  void setFilters(const std::vector<can_filter>& filters) override { inner_.setFilters(filters); }
-  can::BusStatus status() const override { return inner_.status(); }
-  std::optional<can_frame> lastRpdo1(std::uint8_t node) const;
-  void setObserver(Observer observer);
-
- private:
-  can::Bus& inner_;
-  mutable std::mutex mutex_;
-  std::map<std::uint8_t, can_frame> rpdo1_;
-  Observer observer_;
-};
 
 struct AxisStatus {
   std::string name;
@@ -163,7 +141,7 @@ class Controller {
   using Log = std::function<void(const std::string& text)>;
   using CycleObserver = std::function<void(can::TimePoint now)>;
 
-  /// Builds the master (on `bus`, through a TapBus) and the three axes.
+  /// Builds the master (on `bus`) and the three axes.
   /// Throws ArmConfigError / can::ConfigError on a bad configuration.
   Controller(can::Bus& bus, const can::Clock& clock, ArmConfig config);
   ~Controller();
@@ -212,8 +190,6 @@ class Controller {
   void setLog(Log log);
   /// Called at the start of every cycle (under the lock, in the thread that sends the SYNC).
   void setCycleObserver(CycleObserver observer);
-  /// Sees every frame the master sends (TapBus).
-  void setFrameObserver(TapBus::Observer observer) { tap_.setObserver(std::move(observer)); }
 
  private:
   struct Action {
@@ -258,12 +234,17 @@ class Controller {
   bool streamingModeSet(const Step& s, const std::string& what);
   void abortForcePress(const std::string& why);
   void finishForceCalibration();
+  /// With the tool's force known, guards a massage's steps that are not presses by force (those guard themselves):
+  /// a move toward the body (travel, approach) meeting more than force_control.move_guard quick-stops and goes
+  /// straight up to the travel height; a press to a depth meeting its region's cap retracts. The command fails with
+  /// the reason.
+  void guardForce();
   /// After homing, with force sensing: Z down and back up by force.calibration_travel at each calibration speed.
   std::deque<Action> forceCalibration() const;
 
   ArmConfig config_;
   const can::Clock& clock_;
-  TapBus tap_;
+  can::Bus& bus_;
   std::unique_ptr<can::Master> master_;
   std::array<std::unique_ptr<can::Cia402Axis>, 3> axes_;
   int listener_id_ = 0;

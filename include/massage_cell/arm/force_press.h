@@ -55,7 +55,10 @@ struct ForceControlConfig {
   double max_force_rate = 1000.0;  ///< N/s: a faster rise stops the press (a hit, not tissue)
   double release_speed = 0.01;     ///< m/s back to the approach point
   double stroke_speed = 0.015;     ///< m/s along a stroke's path (a request's 0)
-  double glide_accel = 0.05;       ///< m/s^2 along a stroke's path, starting and braking
+  /// N: a massage's moves toward the body (travel, approach) meeting more stop and go straight up (the body is not
+  /// where vision saw it); the controller's guard, with the force known
+  double move_guard = 10.0;
+  double glide_accel = 0.05;  ///< m/s^2 along a stroke's path, starting and braking
 };
 
 /// One press: where it starts and what it may do.

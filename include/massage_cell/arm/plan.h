@@ -82,7 +82,10 @@ struct Step {
   bool press_done = false;  ///< finishing this step completes one press (the retract after a hold)
   Eigen::Vector3d retreat = Eigen::Vector3d::Zero();  ///< where an abort during a contact step retracts to
   bool force_calibration = false;  ///< a free move after homing whose torque samples identify the Z axis' baseline
-  ForcePressGoal force;            ///< kForcePress: what to press and its limits
+  /// A contact step of a press to a depth: the region's force cap (N; 0: none), which the tool's force, when known,
+  /// may not pass (the controller then retracts).
+  double force_cap = 0.0;
+  ForcePressGoal force;  ///< kForcePress: what to press and its limits
 };
 
 /// Empty when `tool` is inside the workspace envelope and its joints inside
