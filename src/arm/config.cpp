@@ -219,7 +219,7 @@ void readForceControl(Reader& r, const YAML::Node& f, ForceControlConfig* out) {
   r.checkKeys(f, "force_control",
               {"contact_force", "seek_speed", "no_contact_band", "early_contact_band", "ramp_rate", "bandwidth",
                "integral", "tissue_exponent", "min_stiffness", "max_stiffness", "max_speed", "max_force_rate",
-               "release_speed", "stroke_speed", "glide_accel", "move_guard"});
+               "release_speed", "escape_speed", "stroke_speed", "glide_accel", "move_guard"});
   ForceControlConfig& c = *out;
   const std::string p = "force_control.";
   c.contact_force = r.number(f["contact_force"], p + "contact_force", c.contact_force);
@@ -235,6 +235,7 @@ void readForceControl(Reader& r, const YAML::Node& f, ForceControlConfig* out) {
   c.max_speed = r.number(f["max_speed"], p + "max_speed", c.max_speed);
   c.max_force_rate = r.number(f["max_force_rate"], p + "max_force_rate", c.max_force_rate);
   c.release_speed = r.number(f["release_speed"], p + "release_speed", c.release_speed);
+  c.escape_speed = r.number(f["escape_speed"], p + "escape_speed", c.escape_speed);
   c.stroke_speed = r.number(f["stroke_speed"], p + "stroke_speed", c.stroke_speed);
   c.glide_accel = r.number(f["glide_accel"], p + "glide_accel", c.glide_accel);
   c.move_guard = r.number(f["move_guard"], p + "move_guard", c.move_guard);
@@ -402,8 +403,8 @@ void validateForceControl(const ArmConfig& c, const Fail& fail) {
   const bool positive = f.contact_force > 0.0 && f.seek_speed > 0.0 && f.no_contact_band > 0.0 &&
                         f.early_contact_band > 0.0 && f.ramp_rate > 0.0 && f.bandwidth > 0.0 && f.integral >= 0.0 &&
                         f.tissue_exponent >= 1.0 && f.min_stiffness > 0.0 && f.max_stiffness >= f.min_stiffness &&
-                        f.max_speed > 0.0 && f.max_force_rate > 0.0 && f.release_speed > 0.0 && f.stroke_speed > 0.0 &&
-                        f.glide_accel > 0.0 && f.move_guard > f.contact_force;
+                        f.max_speed > 0.0 && f.max_force_rate > 0.0 && f.release_speed > 0.0 && f.escape_speed > 0.0 &&
+                        f.stroke_speed > 0.0 && f.glide_accel > 0.0 && f.move_guard > f.contact_force;
   if (!positive)
     fail("force_control",
          "every setting must be > 0 (integral >= 0, tissue_exponent >= 1, max_stiffness >= min, move_guard > "
@@ -412,6 +413,8 @@ void validateForceControl(const ArmConfig& c, const Fail& fail) {
   if (f.early_contact_band >= c.press.approach_height)
     fail("force_control.early_contact_band", "must be < press.approach_height (the seek starts there)");
   if (f.stroke_speed > c.press.max_speed) fail("force_control.stroke_speed", "must be <= press.max_speed");
+  if (f.escape_speed > c.joints[2].max_velocity)
+    fail("force_control.escape_speed", "must be <= the Z joint's max_velocity");
   if (!(c.press.contact_area > 0.0)) fail("press.contact_area", "must be > 0 cm^2");
   if (c.press.mode == PressConfig::Mode::kForce && !c.force.enabled)
     fail("press.mode", "force needs the force: section (the Z drive's torque)");

@@ -252,7 +252,8 @@ double ForcePress::update(double force, double z, double dt) {
       // Up only, to the approach height over the skin where the tool is (a stroke's end may lie above its start).
       const double to = backOffZ();
       const double from = std::max(z_cmd_, z);
-      z_cmd_ = from >= to ? from : std::min(to, from + c_.release_speed * dt);
+      const double speed = failure_.empty() ? c_.release_speed : c_.escape_speed;
+      z_cmd_ = from >= to ? from : std::min(to, from + speed * dt);
       if (z_cmd_ >= to && z >= to - kArrived) phase_ = failure_.empty() ? Phase::kDone : Phase::kFailed;
       break;
     }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <random>
 
 #include "massage_cell/arm/force_press.h"
@@ -130,6 +131,40 @@ TEST(ForcePress, TheForceInTheAirIsItsZero) {
   EXPECT_NE(off.failure.find("N leaving the approach point, in the air (more than 6.0 N)"), std::string::npos)
       << off.failure;
   EXPECT_EQ(off.peak, 0.0);
+}
+
+TEST(ForcePress, AClientPushingUpIsEscapedFasterThanAPressIsReleased) {
+  // Holding 45 N (cap 60 N) when the back rises 10 mm at 40 mm/s (a startle): the cap stops the press and the tool
+  // backs off at escape_speed; at release_speed (10 mm/s) the rising back would catch it (~130 N).
+  auto lift = std::make_shared<double>(0.0);
+  const SimBody body([lift](double, double) { return 0.15 + *lift; }, [](double, double) { return Tissue{}; },
+                     Breathing{0.0, 4.0});
+  ForcePressGoal g = goal(45.0);
+  g.max_force = 60.0;
+  for (double escape : {0.04, 0.01}) {
+    ForceControlConfig c;
+    c.escape_speed = escape;
+    ForcePress p(c, g);
+    *lift = 0.0;
+    double z = g.start_z, cmd = z, filtered = 0.0, peak = 0.0, t_hold = -1.0;
+    for (int k = 0; k < 3000 && !p.finished(); ++k) {
+      const double t = 0.01 * k;
+      if (p.phase() == ForcePress::Phase::kHold && t_hold < 0.0) t_hold = t;
+      if (t_hold >= 0.0) *lift = std::clamp(0.04 * (t - t_hold - 0.5), 0.0, 0.010);
+      const double vz = (cmd - z) / 0.01;
+      z = cmd;
+      const double truth = body.force(Eigen::Vector3d(0.3, 0.2, z), vz, t);
+      filtered += 0.01 / 0.03 * (truth - filtered);
+      cmd = p.update(filtered, z, 0.01);
+      peak = std::max(peak, truth);
+    }
+    EXPECT_EQ(p.phase(), ForcePress::Phase::kFailed);
+    EXPECT_NE(p.failure().find("limit 60.0 N"), std::string::npos) << p.failure();
+    if (escape == 0.04) EXPECT_LT(peak, 80.0);
+    if (escape == 0.01) EXPECT_GT(peak, 100.0);  // the case the escape speed is for
+    std::printf("a back rising 10 mm at 40 mm/s under 45 N, backing off at %.0f mm/s: peak %.1f N\n", 1e3 * escape,
+                peak);
+  }
 }
 
 TEST(ForcePress, AContactFarAboveWhereVisionPutTheSkinStops) {

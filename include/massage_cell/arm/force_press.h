@@ -54,7 +54,11 @@ struct ForceControlConfig {
   double max_speed = 0.02;         ///< m/s the loop may move the tool
   double max_force_rate = 1000.0;  ///< N/s: a faster rise stops the press (a hit, not tissue)
   double release_speed = 0.01;     ///< m/s back to the approach point
-  double stroke_speed = 0.015;     ///< m/s along a stroke's path (a request's 0)
+  /// m/s backing off a press that failed (a limit, a stop): away from a client pushing up or a hit, faster than a
+  /// back rises under a startle (arm_bench --force: 10 mm at 40 mm/s under a 45 N press went to 133 N backing off at
+  /// release_speed)
+  double escape_speed = 0.04;
+  double stroke_speed = 0.015;  ///< m/s along a stroke's path (a request's 0)
   /// N: a massage's moves toward the body (travel, approach) meeting more stop and go straight up (the body is not
   /// where vision saw it); the controller's guard, with the force known
   double move_guard = 10.0;
@@ -83,7 +87,7 @@ class ForcePress {
   /// One cycle of `dt` s: the measured force (N, + pushing the tool up) and the tool's measured height (m). Returns
   /// the height to command (m).
   double update(double force, double z, double dt);
-  /// Stop pressing: ramp nothing down, back off at release_speed (straight up, to the approach height over the skin
+  /// Stop pressing: ramp nothing down, back off at escape_speed (straight up, to the approach height over the skin
   /// where the tool is); the press then ends failed with `why`.
   void abort(const std::string& why);
 
