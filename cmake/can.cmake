@@ -28,6 +28,8 @@ foreach(tool can_sim_drive can_probe can_bench)
   add_executable(${tool} src/tools/${tool}.cpp)
   target_link_libraries(${tool} massage_cell_can)
 endforeach()
+# can_sim_drive --body: arm::SimBody (massage_cell_arm, defined in arm.cmake) as the Z drive's external force.
+target_link_libraries(can_sim_drive massage_cell_arm)
 massage_cell_tool_paths(can_bench)
 install(TARGETS can_sim_drive can_probe can_bench
   RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
