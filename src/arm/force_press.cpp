@@ -193,7 +193,6 @@ double ForcePress::update(double force, double z, double dt) {
     z_cmd_ -= c_.seek_speed * dt;
     return z_cmd_;
   }
-  if (phase_ == Phase::kBackOff && air_cycles_ <= in_air) force = 0.0;  // failed in the air: nothing to check
   force -= air_;
   if (phase_ != Phase::kBackOff) {
     if (!std::isfinite(force)) {

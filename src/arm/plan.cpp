@@ -292,6 +292,41 @@ constexpr double kMinStrokeLeg = 0.005;
 /// guard, the lowest default force); no leg rises or falls steeper than press.max_normal_tilt; every point of the
 /// path (down to the seek's and the indentation guard's lowest), its approach points and the travel points over its
 /// ends lie within the arm's reach.
+/// Why the leg of a stroke from `a` to `b` (named `from`, `to`) cannot be glided: its points (nearly) one, or the
+/// skin between them steeper than press.max_normal_tilt; empty when it can.
+std::string strokeLeg(const ArmConfig& c, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const std::string& from,
+                      const std::string& to) {
+  const Eigen::Vector3d d = b - a;
+  const double leg = d.head<2>().norm();
+  char buf[200];
+  if (leg < kMinStrokeLeg) {
+    std::snprintf(buf, sizeof buf, "stroke: %s and %s are %.1f mm apart across the skin (at least %.1f mm)",
+                  from.c_str(), to.c_str(), 1e3 * leg, 1e3 * kMinStrokeLeg);
+    return buf;
+  }
+  if (const double slope = std::atan2(std::abs(d.z()), leg); slope > c.press.max_normal_tilt + 1e-9) {
+    std::snprintf(buf, sizeof buf, "stroke: the skin from %s to %s %s %.1f deg (limit %.1f deg)", from.c_str(),
+                  to.c_str(), d.z() > 0 ? "rises" : "falls", slope * 180.0 / M_PI,
+                  c.press.max_normal_tilt * 180.0 / M_PI);
+    return buf;
+  }
+  return "";
+}
+
+/// Why a stroke's point `t` (named `who`) cannot be glided over: not finite, an unknown region, its approach point or
+/// its lowest point (the seek's band or the region's indentation guard below it) out of reach; empty when it can.
+/// Its region in `region`.
+std::string strokePoint(const ArmConfig& c, const PressTarget& t, const std::string& who, std::string* region) {
+  if (!t.point.allFinite()) return who + ": the point is not finite";
+  if (std::string bad = regionOf(c, t, who, region); !bad.empty()) return bad;
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  if (std::string bad = checkTool(c, t.point + c.press.approach_height * up); !bad.empty())
+    return who + ": the approach point " + bad;
+  const double lowest = std::max(c.force_control.no_contact_band, c.regions.at(*region).max_indentation);
+  if (std::string bad = checkTool(c, t.point - lowest * up); !bad.empty()) return who + ": the lowest point " + bad;
+  return "";
+}
+
 std::string strokeGeometry(const ArmConfig& c, const PressRequest& req, double speed, PressGeometry* g) {
   const auto name = [&](int i) {
     const PressTarget& t = req.targets[i];
@@ -299,16 +334,19 @@ std::string strokeGeometry(const ArmConfig& c, const PressRequest& req, double s
   };
   const int n = static_cast<int>(req.targets.size());
   g->who = name(0) + " -> " + name(n - 1);
+  // 1. Every point and leg, and the most conservative limits of the regions it crosses.
   std::string cap_region;
   const RegionLimits* cap_limits = nullptr;
   double indentation = INFINITY, default_force = INFINITY, highest = -INFINITY;
   ForcePressGoal goal;
   for (int i = 0; i < n; ++i) {
     const PressTarget& t = req.targets[i];
-    const std::string who = "stroke point " + name(i);
-    if (!t.point.allFinite()) return who + ": the point is not finite";
     std::string region;
-    if (std::string bad = regionOf(c, t, who, &region); !bad.empty()) return bad;
+    if (std::string bad = strokePoint(c, t, "stroke point " + name(i), &region); !bad.empty()) return bad;
+    if (i > 0) {
+      if (std::string bad = strokeLeg(c, req.targets[i - 1].point, t.point, name(i - 1), name(i)); !bad.empty())
+        return bad;
+    }
     const RegionLimits& lim = c.regions.at(region);
     if (!cap_limits || lim.forceCap(c.press.contact_area) < cap_limits->forceCap(c.press.contact_area)) {
       cap_limits = &lim;
@@ -317,31 +355,12 @@ std::string strokeGeometry(const ArmConfig& c, const PressRequest& req, double s
     indentation = std::min(indentation, lim.max_indentation);
     default_force = std::min(default_force, lim.default_force);
     highest = std::max(highest, t.point.z());
-    if (i > 0) {
-      const Eigen::Vector3d d = t.point - req.targets[i - 1].point;
-      const double leg = d.head<2>().norm();
-      char buf[200];
-      if (leg < kMinStrokeLeg) {
-        std::snprintf(buf, sizeof buf, "stroke: %s and %s are %.1f mm apart across the skin (at least %.1f mm)",
-                      name(i - 1).c_str(), name(i).c_str(), 1e3 * leg, 1e3 * kMinStrokeLeg);
-        return buf;
-      }
-      if (const double slope = std::atan2(std::abs(d.z()), leg); slope > c.press.max_normal_tilt + 1e-9) {
-        std::snprintf(buf, sizeof buf, "stroke: the skin from %s to %s %s %.1f deg (limit %.1f deg)",
-                      name(i - 1).c_str(), name(i).c_str(), d.z() > 0 ? "rises" : "falls", slope * 180.0 / M_PI,
-                      c.press.max_normal_tilt * 180.0 / M_PI);
-        return buf;
-      }
-    }
-    const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
-    if (std::string bad = checkTool(c, t.point + c.press.approach_height * up); !bad.empty())
-      return who + ": the approach point " + bad;
-    const double lowest = std::max(c.force_control.no_contact_band, lim.max_indentation);
-    if (std::string bad = checkTool(c, t.point - lowest * up); !bad.empty()) return who + ": the lowest point " + bad;
     goal.path.push_back(t.point);
   }
+  // 2. Its force within those limits.
   const double force = req.force > 0.0 ? req.force : default_force;
   if (std::string bad = forceRefusal(c, "stroke " + g->who, cap_region, *cap_limits, force); !bad.empty()) return bad;
+  // 3. Over its ends: the approach points and the travel height above the highest point.
   g->approach = goal.path.front() + c.press.approach_height * Eigen::Vector3d::UnitZ();
   g->bottom = goal.path.front() - c.force_control.no_contact_band * Eigen::Vector3d::UnitZ();
   g->travel_z = std::max(c.press.travel_height, highest + c.press.approach_height);

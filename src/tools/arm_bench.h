@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "cli.h"
 #include "massage_cell/arm/sim_cell.h"
 
 namespace massage_cell::tools {
@@ -219,16 +220,6 @@ struct Row {
   std::string unit;
   std::string label;
 };
-
-inline std::string format(const char* f, ...) __attribute__((format(printf, 1, 2)));
-inline std::string format(const char* f, ...) {
-  char buf[512];
-  va_list args;
-  va_start(args, f);
-  std::vsnprintf(buf, sizeof buf, f, args);
-  va_end(args);
-  return buf;
-}
 
 struct Section {
   std::string title;

@@ -48,6 +48,8 @@
 #include <thread>
 #include <vector>
 
+#include "cli.h"
+#include "guest_test.h"
 #include "massage_cell/arm/config.h"
 #include "massage_cell/arm/controller.h"
 #include "massage_cell/arm/sim_body.h"
@@ -58,32 +60,8 @@ namespace {
 using namespace massage_cell;
 using Clock = std::chrono::steady_clock;
 
-struct Failure {
-  std::string why;
-};
-[[noreturn]] void fail(const std::string& why) { throw Failure{why}; }
-
-const auto g_start = Clock::now();
-double since() { return std::chrono::duration<double>(Clock::now() - g_start).count(); }
-
-std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
-std::string format(const char* fmt, ...) {
-  char b[512];
-  va_list args;
-  va_start(args, fmt);
-  std::vsnprintf(b, sizeof b, fmt, args);
-  va_end(args);
-  return b;
-}
-
-void step(const std::string& text) {
-  std::printf("[%7.3f] STEP %s\n", since(), text.c_str());
-  std::fflush(stdout);
-}
-void ok(const std::string& text) {
-  std::printf("[%7.3f]   ok: %s\n", since(), text.c_str());
-  std::fflush(stdout);
-}
+using namespace massage_cell::tools::guest;
+using massage_cell::tools::format;
 
 struct Options {
   std::string config_path;
@@ -102,12 +80,7 @@ struct Options {
 arm::ArmConfig loadConfig(const Options& o) {
   arm::ArmConfig config = arm::loadArmConfig(o.config_path);
   can::CanConfig& c = config.can;
-  c.sdo_timeout_ms = std::max<std::uint32_t>(c.sdo_timeout_ms, 300);
-  c.boot_timeout_ms = std::max<std::uint32_t>(c.boot_timeout_ms, 5000);
-  for (can::AxisConfig& a : c.axes) {
-    a.heartbeat_timeout_ms = std::max<std::uint32_t>(a.heartbeatTimeoutMs(), 1000);
-    a.enable_timeout_ms = std::max<std::uint32_t>(a.enable_timeout_ms, 2000);
-  }
+  relaxTimeouts(&c);
   if (o.sync_ms > 0) c.sync_period_us = static_cast<std::uint32_t>(o.sync_ms) * 1000u;
   config.bringup_timeout = std::max(config.bringup_timeout, 15.0);
   config.watchdog_timeout = std::max(config.watchdog_timeout, 2.0);

@@ -61,6 +61,7 @@
 #include <string>
 #include <vector>
 
+#include "guest_test.h"
 #include "massage_cell/can/canopen.h"
 #include "massage_cell/can/cia402.h"
 #include "massage_cell/can/master.h"
@@ -72,22 +73,7 @@ using namespace massage_cell::can;
 using std::chrono::milliseconds;
 using std::chrono::seconds;
 
-struct Failure {
-  std::string why;
-};
-[[noreturn]] void fail(const std::string& why) { throw Failure{why}; }
-
-const auto g_start = std::chrono::steady_clock::now();
-double since() { return std::chrono::duration<double>(std::chrono::steady_clock::now() - g_start).count(); }
-
-void step(const std::string& text) {
-  std::printf("[%7.3f] STEP %s\n", since(), text.c_str());
-  std::fflush(stdout);
-}
-void ok(const std::string& text) {
-  std::printf("[%7.3f]   ok: %s\n", since(), text.c_str());
-  std::fflush(stdout);
-}
+using namespace massage_cell::tools::guest;
 
 std::string hex(unsigned v, int width = 4) {
   char b[16];
@@ -337,12 +323,7 @@ CanConfig systemConfig(const std::string& config_path) {
   step("load " + config_path);
   CanConfig config = loadCanConfig(config_path);
   if (config.axes.size() < 2) fail(config_path + ": the test needs at least two axes");
-  config.sdo_timeout_ms = std::max<std::uint32_t>(config.sdo_timeout_ms, 300);
-  config.boot_timeout_ms = std::max<std::uint32_t>(config.boot_timeout_ms, 5000);
-  for (AxisConfig& a : config.axes) {
-    a.heartbeat_timeout_ms = std::max<std::uint32_t>(a.heartbeatTimeoutMs(), 1000);
-    a.enable_timeout_ms = std::max<std::uint32_t>(a.enable_timeout_ms, 2000);
-  }
+  relaxTimeouts(&config);
   ok(std::to_string(config.axes.size()) + " axes; SDO timeout " + std::to_string(config.sdo_timeout_ms) +
      " ms, boot timeout " + std::to_string(config.boot_timeout_ms) + " ms, heartbeat consumer >= 1000 ms, SYNC " +
      std::to_string(config.sync_period_us / 1000) + " ms");
