@@ -21,6 +21,10 @@ constexpr double kArrived = 0.0005;
 constexpr double kContactIndentation = 0.0005;
 /// Cycles in a row the force must stay above contact_force to be a contact.
 constexpr int kContactCycles = 3;
+/// Cycles in a row the force must rise faster than max_force_rate to be a hit: a hit keeps rising, one late sample
+/// on a loaded machine is a single step (arm.test's stroke read 1178 N/s once, qemu_can_force 1881 N/s, both on soft
+/// tissue); the second cycle costs 10 ms against bone.
+constexpr int kRateCycles = 2;
 /// The seek's first cycles, in the air (1.25 mm at 5 mm/s, 28 mm above where vision put the skin): after
 /// kAirSettleCycles (the estimate's filters settled after the start: its acceleration low-pass is 50 ms), the mean of
 /// kAirCycles is the press's zero. Taken sliding, where the friction is known (coulomb, in the seek's direction): the
@@ -138,7 +142,8 @@ std::string ForcePress::checkLimits(double force, double z, double dt) {
   if (force > g_.max_force)
     return fmt("the force %.1f N passed the press's limit %.1f N (the region's force and pressure limits)", force,
                g_.max_force);
-  if (rate > c_.max_force_rate)
+  rising_ = rate > c_.max_force_rate ? rising_ + 1 : 0;
+  if (rising_ >= kRateCycles)
     return fmt("the force rose at %.0f N/s (limit %.0f N/s): the tool hit something, not soft tissue", rate,
                c_.max_force_rate);
   if (indentation(z) > g_.max_indentation)

@@ -48,6 +48,7 @@ arm::Accepted ArmMassage::start(const Request& req, std::vector<std::string>* na
     std::lock_guard<std::mutex> lock(monitor_mutex_);
     monitored_command_ = accepted.id;
     frame_targets_ = std::move(frames);
+    whole_path_ = press.technique == arm::Technique::kStroke;
   }
   names->clear();
   for (const arm::PressTarget& t : press.targets) names->push_back(t.name);
@@ -71,19 +72,23 @@ void ArmMassage::onTimer(const ros::WallTimerEvent&) {
 void ArmMassage::checkPressTarget() {
   arm::Controller* c = controller_.load();
   if (!c) return;
-  std::string frame;
+  std::vector<std::string> frames;  // the target's frame; a stroke's: every frame of its path
   {
     std::lock_guard<std::mutex> lock(monitor_mutex_);
     if (monitored_command_ == 0 || c->result(monitored_command_).done) return;
     const int index = c->status().target;
     for (const auto& [target, name] : frame_targets_) {
-      if (target == index) frame = name;
+      if (whole_path_ || target == index) frames.push_back(name);
     }
   }
-  if (frame.empty()) return;
-  geometry_msgs::TransformStamped t;
-  std::string error;
-  if (!targets_.lookup(frame, ros::Time(0), &t, &error)) c->abortMassage("acupoint frame " + error);
+  for (const std::string& frame : frames) {
+    geometry_msgs::TransformStamped t;
+    std::string error;
+    if (!targets_.lookup(frame, ros::Time(0), &t, &error)) {
+      c->abortMassage("acupoint frame " + error);
+      return;
+    }
+  }
 }
 
 // --------------------------------------------------------------- the action --

@@ -74,7 +74,8 @@ class ArmMassage {
   arm::Accepted start(const Request& req, std::vector<std::string>* names);
   bool serve(massage_cell::Massage::Request& req, massage_cell::Massage::Response& res);
   void onTimer(const ros::WallTimerEvent& event);
-  /// The frame of the target being pressed, still there and fresh? Otherwise the controller retracts.
+  /// The frame of the target being pressed (a stroke: every frame of its path), still there and fresh? Otherwise the
+  /// controller retracts.
   void checkPressTarget();
   /// The goal callback and the preempt callback (under the action server's lock): step() now if nobody else runs it.
   void onGoalOrPreempt();
@@ -93,6 +94,7 @@ class ArmMassage {
   std::mutex monitor_mutex_;
   std::uint64_t monitored_command_ = 0;
   std::vector<ArmTargets::FrameTarget> frame_targets_;
+  bool whole_path_ = false;  ///< a stroke: every frame of its path is watched, not only the target's
 
   // The action (guarded by mutex_; the server has its own lock, taken after mutex_, never before it).
   std::mutex mutex_;

@@ -570,6 +570,37 @@ TEST(ArmNode, InjectedDriveFaultAndReset) {
   EXPECT_TRUE(F->moveTo(kBase, {0.3, 0.3, 0.25}).success);
 }
 
+TEST(ArmNode, AStrokeOnTheSimulatedSkinWatchesEveryFrameOfItsPath) {
+  // Three acupoint frames on the simulated skin (APressByForceOnTheSimulatedSkin's grid, latched: z 0.16 m around
+  // (0.40, 0.25)), 4 cm apart along x: a stroke glides through them at 20 N ...
+  const std::vector<std::string> names = {"acupoint/BL13_L", "acupoint/BL17_L", "acupoint/BL21_L"};
+  for (int i = 0; i < 3; ++i) F->addFrame(names[i], {0.36 + 0.04 * i, 0.25, 0.16});
+  for (const std::string& n : names)
+    ASSERT_TRUE(F->buffer.canTransform(kBase, n, ros::Time(0), ros::Duration(5.0))) << n;
+  if (!F->latest().homed) ASSERT_TRUE(F->trigger("/arm/home").success);
+  ASSERT_TRUE(F->waitFor([] { return F->latest().force_valid; }, 5.0)) << F->latest().force_source;
+  massage_cell::Massage::Request req;
+  req.frames = names;
+  req.technique = "stroke";
+  req.mode = "force";
+  req.force = 20.0;
+  auto r = F->massage(req);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_EQ(r.presses_done, 1);
+  EXPECT_NEAR(F->latest().tool.x, 0.44, 0.002);  // up over the path's end
+  // ... and when a frame of its path (not the one it started at) is no longer refreshed, it backs off.
+  auto call = std::async(std::launch::async, [&] { return F->massage(req); });
+  ASSERT_TRUE(F->waitFor([] { return F->latest().press_phase == "glide"; }, 60.0)) << F->latest().activity;
+  F->removeFrame(names[2]);
+  r = call.get();
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(contains(r.message, "acupoint frame 'acupoint/BL21_L' is stale")) << r.message;
+  EXPECT_LT(F->latest().tool.x, 0.435);  // stopped on its way, not at the end
+  F->waitFor([] { return std::abs(F->latest().tool.z - F->config.press.travel_height) < 1e-4; }, 1.0);
+  EXPECT_NEAR(F->latest().tool.z, F->config.press.travel_height, 1e-4);
+  for (int i = 0; i < 2; ++i) F->removeFrame(names[i]);
+}
+
 TEST(ArmNode, LostAcupointFrameDuringAPressRetracts) {
   F->addFrame("acupoint/BL22_L", {0.45, 0.2, 0.18});
   ASSERT_TRUE(F->buffer.canTransform(kBase, "acupoint/BL22_L", ros::Time(0), ros::Duration(5.0)));

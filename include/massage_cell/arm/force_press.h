@@ -136,7 +136,8 @@ class ForcePress {
   double integral_ = 0.0;
   double contact_z_;
   double held_ = 0.0;
-  int above_ = 0;  ///< cycles in a row the force has been above contact_force while seeking
+  int above_ = 0;   ///< cycles in a row the force has been above contact_force while seeking
+  int rising_ = 0;  ///< cycles in a row the force has risen faster than max_force_rate
   double last_force_;
   std::vector<double> arc_;  ///< arc length (x, y) at each point of the path, m
   double s_ = 0.0;           ///< arc length reached, m
