@@ -112,11 +112,8 @@ struct Rig {
 
 inline bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
-/// The rig with a flat back 15 cm above the table under the Z drive (breathing 3 mm p-p / 4 s unless `still`).
-inline void putBack(Rig& r, double skin_z, bool still = false) {
-  Breathing b;
-  if (still) b.amplitude = 0.0;
-  const auto body = std::make_shared<SimBody>(SimBody::flat(skin_z, Tissue{}, b));
+/// `body` under the rig's tool: the Z drive feels it where the X and Y drives stand, on the rig's clock.
+inline void putBody(Rig& r, std::shared_ptr<const SimBody> body) {
   const can::SimDrive* x = r.drives[0].get();
   const can::SimDrive* y = r.drives[1].get();
   const can::VirtualClock* clock = &r.clock;
@@ -124,6 +121,14 @@ inline void putBack(Rig& r, double skin_z, bool still = false) {
     const double t = std::chrono::duration<double>(clock->now().time_since_epoch()).count();
     return body->force(Eigen::Vector3d(x->physicalPosition(), y->physicalPosition(), z), vz, t);
   });
+}
+
+/// The rig with a flat back 15 cm above the table under the Z drive (breathing 3 mm p-p / 4 s unless `still`).
+inline void putBack(Rig& r, double skin_z, bool still = false) {
+  Breathing b;
+  if (still) b.amplitude = 0.0;
+  const auto body = std::make_shared<SimBody>(SimBody::flat(skin_z, Tissue{}, b));
+  putBody(r, body);
 }
 
 inline PressRequest byForce(double force, double hold) {
@@ -143,13 +148,7 @@ inline void putSlopedBack(Rig& r, bool still = false) {
   if (still) b.amplitude = 0.0;
   const auto body = std::make_shared<SimBody>([](double x, double) { return slopedSkin(x); },
                                               [](double, double) { return Tissue{}; }, b);
-  const can::SimDrive* x = r.drives[0].get();
-  const can::SimDrive* y = r.drives[1].get();
-  const can::VirtualClock* clock = &r.clock;
-  r.drives[2]->setExternalForce([=](double z, double vz) {
-    const double t = std::chrono::duration<double>(clock->now().time_since_epoch()).count();
-    return body->force(Eigen::Vector3d(x->physicalPosition(), y->physicalPosition(), z), vz, t);
-  });
+  putBody(r, body);
 }
 
 /// A stroke at 20 N from x 0.25 to 0.41 m over the sloped back, its points where vision put them (+-2 mm).
