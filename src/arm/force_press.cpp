@@ -71,6 +71,11 @@ ForcePress::ForcePress(const ForceControlConfig& config, const ForcePressGoal& g
     : c_(config), g_(goal), z_cmd_(goal.start_z), contact_z_(NAN), last_force_(NAN), xy_(NAN, NAN) {
   if (g_.path.empty()) return;
   xy_ = g_.path.front().head<2>();
+  if (g_.path.size() < 2) {
+    g_.path.clear();  // a press in place where it is, backing off at once
+    fail("a stroke's path needs at least two points");
+    return;
+  }
   arc_.push_back(0.0);
   for (std::size_t i = 1; i < g_.path.size(); ++i)
     arc_.push_back(arc_.back() + (g_.path[i] - g_.path[i - 1]).head<2>().norm());
@@ -96,10 +101,9 @@ double ForcePress::expectedSkin() const {
   const double det = sw * saa - sa * sa;
   if (sw > 0.0 && det > 1e-12 * sw * sw) return (saa * sz - sa * saz) / det;
   // Too few points around (legs longer than the smoothing): straight between the two points either side.
-  const std::size_t i =
-      std::clamp<std::size_t>(std::upper_bound(arc_.begin(), arc_.end(), s_) - arc_.begin(), 1, arc_.size() - 1);
-  const double leg = arc_[i] - arc_[i - 1];
-  const double f = leg > 0.0 ? std::clamp((s_ - arc_[i - 1]) / leg, 0.0, 1.0) : 1.0;
+  const std::size_t i = leg();
+  const double span = arc_[i] - arc_[i - 1];
+  const double f = span > 0.0 ? std::clamp((s_ - arc_[i - 1]) / span, 0.0, 1.0) : 1.0;
   return g_.path[i - 1].z() + f * (g_.path[i].z() - g_.path[i - 1].z());
 }
 
@@ -107,6 +111,18 @@ double ForcePress::indentation(double z) const {
   // The skin found at contact, carried along the path as vision shaped it.
   if (!std::isfinite(contact_z_)) return 0.0;
   return contact_z_ + (expectedSkin() - g_.expected_skin_z) - z;
+}
+
+std::size_t ForcePress::leg() const {
+  return std::clamp<std::size_t>(std::upper_bound(arc_.begin(), arc_.end(), s_) - arc_.begin(), 1, arc_.size() - 1);
+}
+
+double ForcePress::maxIndentation() const {
+  // Each region's own guard (thin tissue over the lungs, thick lumbar muscles): a stroke from the upper to the lower
+  // back at one force sinks deeper where the tissue is softer.
+  if (g_.path_max_indentation.size() != g_.path.size() || g_.path.size() < 2) return g_.max_indentation;
+  const std::size_t i = leg();
+  return std::min(g_.path_max_indentation[i - 1], g_.path_max_indentation[i]);
 }
 
 double ForcePress::backOffZ() const { return g_.start_z + (expectedSkin() - g_.expected_skin_z); }
@@ -119,10 +135,9 @@ double ForcePress::glide(double dt) {
                                                    std::sqrt(2.0 * c_.glide_accel * std::max(0.0, remaining))}));
   const double before = expectedSkin();
   s_ = std::min(length, s_ + speed_ * dt);
-  const std::size_t i =
-      std::min<std::size_t>(std::upper_bound(arc_.begin(), arc_.end(), s_) - arc_.begin(), arc_.size() - 1);
-  const double leg = arc_[i] - arc_[i - 1];
-  const double f = leg > 0.0 ? std::clamp((s_ - arc_[i - 1]) / leg, 0.0, 1.0) : 1.0;
+  const std::size_t i = leg();
+  const double span = arc_[i] - arc_[i - 1];
+  const double f = span > 0.0 ? std::clamp((s_ - arc_[i - 1]) / span, 0.0, 1.0) : 1.0;
   xy_ = g_.path[i - 1].head<2>() + f * (g_.path[i] - g_.path[i - 1]).head<2>();
   return expectedSkin() - before;
 }
@@ -146,10 +161,10 @@ std::string ForcePress::checkLimits(double force, double z, double dt) {
   if (rising_ >= kRateCycles)
     return fmt("the force rose at %.0f N/s (limit %.0f N/s): the tool hit something, not soft tissue", rate,
                c_.max_force_rate);
-  if (indentation(z) > g_.max_indentation)
+  if (const double limit = maxIndentation(); indentation(z) > limit)
     return fmt(arc_.empty() ? "the tool sank %.1f mm past the contact point (limit %.1f mm)"
                             : "the tool sank %.1f mm past the skin along the stroke (limit %.1f mm)",
-               1000.0 * indentation(z), 1000.0 * g_.max_indentation);
+               1000.0 * indentation(z), 1000.0 * limit);
   if (phase_ == Phase::kSeek && z < expectedSkin() - c_.no_contact_band)
     return fmt("no contact %.1f mm below where vision put the skin (band %.1f mm): the body is not where it was seen",
                1000.0 * (expectedSkin() - z), 1000.0 * c_.no_contact_band);

@@ -334,7 +334,8 @@ std::string strokeGeometry(const ArmConfig& c, const PressRequest& req, double s
   };
   const int n = static_cast<int>(req.targets.size());
   g->who = name(0) + " -> " + name(n - 1);
-  // 1. Every point and leg, and the most conservative limits of the regions it crosses.
+  // 1. Every point and leg, and the most conservative limits of the regions it crosses (its force is one for the
+  //    whole stroke; the indentation guard is each region's where the tool is).
   std::string cap_region;
   const RegionLimits* cap_limits = nullptr;
   double indentation = INFINITY, default_force = INFINITY, highest = -INFINITY;
@@ -356,6 +357,7 @@ std::string strokeGeometry(const ArmConfig& c, const PressRequest& req, double s
     default_force = std::min(default_force, lim.default_force);
     highest = std::max(highest, t.point.z());
     goal.path.push_back(t.point);
+    goal.path_max_indentation.push_back(lim.max_indentation);
   }
   // 2. Its force within those limits.
   const double force = req.force > 0.0 ? req.force : default_force;

@@ -160,8 +160,11 @@ TEST(ForcePress, AClientPushingUpIsEscapedFasterThanAPressIsReleased) {
     }
     EXPECT_EQ(p.phase(), ForcePress::Phase::kFailed);
     EXPECT_NE(p.failure().find("limit 60.0 N"), std::string::npos) << p.failure();
-    if (escape == 0.04) EXPECT_LT(peak, 80.0);
-    if (escape == 0.01) EXPECT_GT(peak, 100.0);  // the case the escape speed is for
+    if (escape == 0.04) {
+      EXPECT_LT(peak, 80.0);
+    } else {
+      EXPECT_GT(peak, 100.0);  // the case the escape speed is for
+    }
     std::printf("a back rising 10 mm at 40 mm/s under 45 N, backing off at %.0f mm/s: peak %.1f N\n", 1e3 * escape,
                 peak);
   }
@@ -253,6 +256,34 @@ TEST(ForcePress, AStrokeFollowsTheSkinNotTheHeightItStartedAt) {
   g.max_indentation = 0.010;  // 20 N needs ~4 mm of this tissue
   const PressRun r = press(body, g);
   EXPECT_EQ(r.phase, ForcePress::Phase::kDone) << r.failure;
+}
+
+TEST(ForcePress, AStrokeIsGuardedByEachRegionsIndentationLimitWhereTheToolIs) {
+  // Firm tissue (20 N: ~4 mm) with a 6 mm guard, then soft lumbar tissue (20 N: ~10 mm) with a 15 mm guard.
+  Tissue soft;
+  soft.stiffness = 2.0e4;
+  const SimBody body([](double, double) { return 0.15; },
+                     [soft](double x, double) { return x < 0.38 ? Tissue{} : soft; }, Breathing{0.0, 4.0});
+  ForcePressGoal g = stroke(SimBody::flat(0.15, Tissue{}), 20.0);
+  g.max_indentation = 0.006;
+  g.path_max_indentation = {0.006, 0.006, 0.006, 0.015, 0.015, 0.015};
+  const PressRun r = press(body, g);
+  EXPECT_EQ(r.phase, ForcePress::Phase::kDone) << r.failure;
+  // The soft part under the firm part's guard: stopped where the tissue softens.
+  g.path_max_indentation = {0.006, 0.006, 0.006, 0.006, 0.006, 0.015};
+  const PressRun tight = press(body, g);
+  EXPECT_EQ(tight.phase, ForcePress::Phase::kFailed);
+  EXPECT_NE(tight.failure.find("past the skin along the stroke (limit 6.0 mm)"), std::string::npos) << tight.failure;
+  EXPECT_GT(tight.end_xy.x(), 0.37);
+  EXPECT_LT(tight.end_xy.x(), 0.42);
+}
+
+TEST(ForcePress, AStrokeOfOnePointIsRefused) {
+  ForcePressGoal g = goal(20.0);
+  g.path = {Eigen::Vector3d(0.3, 0.2, 0.15)};
+  const PressRun r = press(SimBody::flat(0.15, Tissue{}), g);
+  EXPECT_EQ(r.phase, ForcePress::Phase::kFailed);
+  EXPECT_EQ(r.failure, "a stroke's path needs at least two points");
 }
 
 TEST(ForcePress, AStrokeOverAGapInTheBodyStops) {

@@ -295,9 +295,12 @@ TEST(Plan, AStrokeIsOnePressByForceGlidingThroughItsPoints) {
   ASSERT_EQ(glide.force.path.size(), 3u);
   EXPECT_TRUE(glide.force.path[1].isApprox(r.targets[1].point));
   EXPECT_DOUBLE_EQ(glide.force.glide_speed, c.force_control.stroke_speed);
-  // The most conservative limits of the regions it crosses: upper back's cap and indentation guard.
+  // The most conservative force cap of the regions it crosses (upper back's); each point's own indentation guard.
   EXPECT_DOUBLE_EQ(glide.force.max_force, c.regions.at("upper_back").forceCap(c.press.contact_area));
   EXPECT_DOUBLE_EQ(glide.force.max_indentation, c.regions.at("upper_back").max_indentation);
+  EXPECT_EQ(glide.force.path_max_indentation,
+            (std::vector<double>{c.regions.at("upper_back").max_indentation, c.regions.at("upper_back").max_indentation,
+                                 c.regions.at("lower_back").max_indentation}));
   EXPECT_TRUE(glide.press_done);
   EXPECT_TRUE(steps[4].tool.isApprox(Eigen::Vector3d(0.45, 0.21, c.press.travel_height)));
 }

@@ -72,7 +72,10 @@ struct ForcePressGoal {
   double force = 0.0;          ///< N to hold
   double max_force = 0.0;      ///< N: the cap (the region's force and pressure limits); above it the press stops
   double max_indentation = 0;  ///< m past the contact point: beyond it the press stops
-  double hold = 0.0;           ///< s at the force (a press; a stroke holds while it glides)
+  /// A stroke: the indentation guard at each point of `path` (its region's), m past the skin; along a leg the lower
+  /// of its two ends. Empty: max_indentation everywhere.
+  std::vector<double> path_max_indentation;
+  double hold = 0.0;  ///< s at the force (a press; a stroke holds while it glides)
   /// A stroke: points on the skin (arm base frame; z where vision put the skin), the first under the approach point;
   /// empty: a press in place.
   std::vector<Eigen::Vector3d> path;
@@ -120,6 +123,10 @@ class ForcePress {
   double expectedSkin() const;
   /// How deep the tool is past the skin as found at contact, m (0 before contact).
   double indentation(double z) const;
+  /// The indentation guard where the tool is, m.
+  double maxIndentation() const;
+  /// The path's leg the tool is on: i, the leg from point i - 1 to i (a path has at least two points).
+  std::size_t leg() const;
   /// One of the seek's first cycles, in the air, averaging the force once settled: whether the measuring goes on
   /// (false once the air's force is known, or the press failed: above contact_force in the air, none known, or
   /// above the cap at any cycle).
