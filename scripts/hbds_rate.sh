@@ -47,8 +47,14 @@ params="$work/hbds.yaml"
 cp "$root/config/hbds.yaml" "$params"
 for kv in "${overrides[@]}"; do
   key=${kv%%=*} value=${kv#*=}
-  grep -q "^$key:" "$params" || { echo "hbds_rate.sh: $key is not a parameter of config/hbds.yaml" >&2; exit 2; }
-  sed -i "s|^$key:.*|$key: $value|" "$params"
+  if grep -q "^$key:" "$params"; then
+    sed -i "s|^$key:.*|$key: $value|" "$params"
+  elif grep -q "^gen.add(\"$key\"" "$root/cfg/HBDS.cfg"; then
+    echo "$key: $value" >> "$params"  # a parameter at its default (cfg/HBDS.cfg)
+  else
+    echo "hbds_rate.sh: $key is not a parameter of the hbds node (config/hbds.yaml, cfg/HBDS.cfg)" >&2
+    exit 2
+  fi
 done
 
 echo "hbds_rate: recording a ${width}x${height} session (fx $fx) ..."

@@ -23,7 +23,6 @@ inline stereo::StereoParams stereoParams(const HBDSConfig& config) {
   params.cost.eta = static_cast<float>(config.eta);
   params.cost.ncc_window = config.ncc_window;
   params.cost.gradient_saturation = static_cast<float>(config.gradient_saturation);
-  params.cost.threads = config.threads;
   params.smooth.tau = static_cast<float>(config.tau);
   params.smooth.u_min = static_cast<float>(config.u_min);
   params.smooth.u_max = static_cast<float>(config.u_max);
@@ -33,7 +32,6 @@ inline stereo::StereoParams stereoParams(const HBDSConfig& config) {
   params.hbds_coarse = config.coarse;
   params.refine = stereo::parseRefinement(refine);
   params.refine_params.window = config.refine_window;
-  params.refine_params.threads = config.threads;
   params.subpixel = config.subpixel != "none";
   if (params.subpixel) params.subpixel_params.fit = stereo::parseSubpixelFit(config.subpixel);
   params.lr_check = config.lr_check;

@@ -1,4 +1,4 @@
-#include "massage_cell/stereo/pipeline.h"
+#include "massage_cell/stereo/memory.h"
 #include "node_main.h"
 
 int main(int argc, char** argv) {

@@ -106,7 +106,7 @@ std::string toString(DataTerm term) {
   }
 }
 
-CostVolume computeCensusCostVolume(const cv::Mat& left, const cv::Mat& right, const CostParams& params) {
+CostVolume computeCensusCostVolume(const cv::Mat& left, const cv::Mat& right, const CostParams& params, int threads) {
   validateCostInputs(left, right, params);
   validateCensus(params);
   const int W = left.cols, H = left.rows, ch = left.channels();
@@ -122,7 +122,7 @@ CostVolume computeCensusCostVolume(const cv::Mat& left, const cv::Mat& right, co
 
   CostVolume vol(W, H, params.dmin, params.dmax, CostVolume::Uninitialised{});
   const int levels = vol.levels();
-  const double stripes = params.threads > 0 ? std::min(params.threads, levels) : -1.0;
+  const double stripes = threads > 0 ? std::min(threads, levels) : -1.0;
   cv::parallel_for_(
       cv::Range(0, levels),
       [&](const cv::Range& r) {

@@ -35,7 +35,7 @@
 //   Euclidean magnitude, cv::BORDER_REFLECT_101); an all-zero gradient gives
 //   w = 0.
 // * S = w T + (1 - w) C; where x - d < 0, S = 1.
-// * Multithreading: cv::parallel_for_ over the disparities. params.threads > 0
+// * Multithreading: cv::parallel_for_ over the disparities. threads > 0
 //   limits the number of stripes (hence of concurrently running workers) to
 //   `threads` without touching OpenCV's global thread setting; 0 (or a negative
 //   value) uses OpenCV's default. The hot row loops use OpenCV's universal
@@ -389,8 +389,8 @@ cv::Mat textureWeight(const cv::Mat& left, float gradient_saturation) {
   return mag;
 }
 
-CostVolume computeCostVolume(const cv::Mat& left, const cv::Mat& right, const CostParams& params) {
-  if (params.data_term != DataTerm::kThesis) return computeCensusCostVolume(left, right, params);
+CostVolume computeCostVolume(const cv::Mat& left, const cv::Mat& right, const CostParams& params, int threads) {
+  if (params.data_term != DataTerm::kThesis) return computeCensusCostVolume(left, right, params, threads);
   validateCostInputs(left, right, params);
   Inputs in;
   in.W = left.cols;
@@ -419,7 +419,7 @@ CostVolume computeCostVolume(const cv::Mat& left, const cv::Mat& right, const Co
   const int levels = vol.levels();
   // Window sums of products (<= n^2 * 255^2) are exact in float below 2^24.
   const bool exact_float = static_cast<double>(in.n) * in.n * 255.0 * 255.0 < 16777216.0;
-  const double stripes = params.threads > 0 ? std::min(params.threads, levels) : -1.0;
+  const double stripes = threads > 0 ? std::min(threads, levels) : -1.0;
   cv::parallel_for_(
       cv::Range(0, levels),
       [&](const cv::Range& r) {

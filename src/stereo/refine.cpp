@@ -548,7 +548,7 @@ class WeightedVote {
 }  // namespace
 
 cv::Mat recoverDisparity(const cv::Mat& left, const cv::Mat& disparity, const cv::Mat& fattening_mask,
-                         const RefineParams& params) {
+                         const RefineParams& params, int threads) {
   checkImage("recoverDisparity", left, disparity);
   if (!fattening_mask.empty()) {
     if (fattening_mask.type() != CV_8UC1) fail("recoverDisparity", "fattening mask must be CV_8UC1");
@@ -584,11 +584,12 @@ cv::Mat recoverDisparity(const cv::Mat& left, const cv::Mat& disparity, const cv
           }
         }
       },
-      stripes(params.threads, disparity.rows));
+      stripes(threads, disparity.rows));
   return result;
 }
 
-cv::Mat refineDisparity(const cv::Mat& left, const cv::Mat& disparity, const RefineParams& params, cv::Mat* fattening) {
+cv::Mat refineDisparity(const cv::Mat& left, const cv::Mat& disparity, const RefineParams& params, cv::Mat* fattening,
+                        int threads) {
   cv::Mat mask;
   if (params.detect_fattening)
     mask = detectFattening(left, disparity, params);
@@ -596,7 +597,7 @@ cv::Mat refineDisparity(const cv::Mat& left, const cv::Mat& disparity, const Ref
     checkImage("refineDisparity", left, disparity);
     validate(params);
   }
-  cv::Mat out = recoverDisparity(left, disparity, mask, params);
+  cv::Mat out = recoverDisparity(left, disparity, mask, params, threads);
   if (fattening) *fattening = mask;
   return out;
 }

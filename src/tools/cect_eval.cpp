@@ -35,7 +35,7 @@
 #include "massage_cell/sim/renderer.h"
 #include "massage_cell/sim/scene_builder.h"
 #include "massage_cell/sim/stereo_frame.h"
-#include "massage_cell/stereo/pipeline.h"
+#include "massage_cell/stereo/memory.h"
 #include "package_paths.h"
 
 namespace {

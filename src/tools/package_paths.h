@@ -37,4 +37,19 @@ inline std::string sharedDataDir() {
   return packageDir() + "/../shared/data";
 }
 
+/// One data set's folder: $`variable` if set, else `shared_data`/`folder`.
+inline std::string dataFolder(const char* variable, const std::string& shared_data, const char* folder) {
+  if (const char* env = std::getenv(variable)) return env;
+  return shared_data + "/" + folder;
+}
+
+/// The Middlebury scenes (stereo/middlebury.h): $MASSAGE_CELL_MIDDLEBURY (2003) / $MASSAGE_CELL_MIDDLEBURY2005 if
+/// set, else `shared_data`/middlebury2003 / middlebury2005.
+inline std::string middleburyDir(const std::string& shared_data) {
+  return dataFolder("MASSAGE_CELL_MIDDLEBURY", shared_data, "middlebury2003");
+}
+inline std::string middlebury2005Dir(const std::string& shared_data) {
+  return dataFolder("MASSAGE_CELL_MIDDLEBURY2005", shared_data, "middlebury2005");
+}
+
 }  // namespace massage_cell::tools

@@ -16,6 +16,8 @@
 #include "massage_cell/sim/renderer.h"
 #include "massage_cell/sim/scene_builder.h"
 #include "massage_cell/sim/stereo_frame.h"
+#include "massage_cell/stereo/memory.h"
+#include "massage_cell/stereo/middlebury.h"
 #include "package_paths.h"
 #include "stereo_params.h"
 
@@ -30,20 +32,24 @@ const char* const kUsageHead = R"(Usage: stereo_bench [--scenes teddy,cones] [--
                     [--plot FILE.png] [--frame] [--frame-size 640x480] [--frame-levels 64]
                     [--frame-methods hbds,sgbm] [--repeat 3] [--data DIR] [--csv] [options]
 
-Part 1: per Middlebury scene and method: time (cost volume + optimisation) and
-the energy of Eq. 2.2 of the result; then per scene the HBDS / alpha-expansion
-speed ratio and energy ratio, measured in this run (after one untimed
-warm-up run per scene).
-Part 2 (--sweep): the efficiency sets rendered by the simulator (fronto-parallel
-layers and a slanted plane; one left view, right views spanning 8..64 levels):
-time per method per level count and time(64) / time(8).
-Part 3 (--frame): the cell's own scenes rendered by the simulator at
+Part 1: per Middlebury scene and method, the optimisers alone (no refinement,
+no left-right check, no sub-pixel step, whatever the options say): time (cost
+volume + optimisation) and the energy of Eq. 2.2 of the result; then per scene
+the HBDS / alpha-expansion speed ratio and energy ratio, measured in this run
+(after one untimed warm-up run per scene).
+Part 2 (--sweep, the optimisers alone as in Part 1): the efficiency sets
+rendered by the simulator (fronto-parallel layers and a slanted plane; one
+left view, right views spanning 8..64 levels): time per method per level
+count and time(64) / time(8).
+Part 3 (--frame): the whole pipeline with the options (StereoSGBM as it
+comes: the reference) on the cell's own scenes rendered by the simulator at
 --frame-size (the mean subject's back on the massage table, and stacked
 boxes; camera 0.95 m above the table, baseline 10 cm, fx = 500 px at 640
 wide), searched over --frame-levels disparities centred on the scene's
-range: time per method (the 640x480 x 64-level speed target), the bad
-pixels > 1 and > 0.5 px and the median |error| (px) against the exact
-ground truth (pixels seen by both cameras);
+range: every stage's time and the total (the 640x480 x 64-level speed
+target: each method's total as a multiple of StereoSGBM's), the bad pixels
+> 1 and > 0.5 px and the median |error| (px) against the exact ground truth
+(pixels seen by both cameras);
 times are the median of --repeat runs (default 3: a stream's steady state,
 not the first run's page faults).
   --plot FILE.png    draw time vs levels of the sweep
@@ -189,14 +195,24 @@ double medianAbsError(const cv::Mat& disparity, const cv::Mat& truth, const cv::
   return errors[errors.size() / 2];
 }
 
+/// The optimisers compared (Parts 1 and 2), not the pipeline (Part 3): no refinement, no left-right check, no
+/// sub-pixel step.
+stereo::StereoParams optimiserOnly(stereo::StereoParams params) {
+  params.refine = stereo::Refinement::kNone;
+  params.lr_check = false;
+  params.subpixel = false;
+  return params;
+}
+
 /// Part 3: the cell's own scenes at the given frame size.
 void runFrames(const Options& o) {
   char title[160];
   std::snprintf(title, sizeof title, "Cell scenes (simulator) at %dx%d, %d levels: time, energy and bad pixels > 1 px",
                 o.frame_width, o.frame_height, o.frame_levels);
   if (!o.csv) {
-    std::printf("\n%s\n%-22s %-10s %6s %10s %10s %10s %14s %7s %9s %9s %10s\n", title, "scene", "method", "levels",
-                "cost ms", "optim ms", "total ms", "energy", "cuts", "bad>1px", "bad>.5px", "med|err|");
+    std::printf("\n%s\n%-22s %-10s %6s %9s %9s %9s %9s %9s %9s %14s %7s %9s %9s %10s\n", title, "scene", "method",
+                "levels", "cost ms", "optim ms", "refine", "subpixel", "lr check", "total ms", "energy", "cuts",
+                "bad>1px", "bad>.5px", "med|err|");
   }
   sim::RigParameters rig;
   rig.width = o.frame_width;
@@ -217,11 +233,14 @@ void runFrames(const Options& o) {
     stereo::StereoParams params = o.params;
     params.cost.dmin = std::max(0, centre - o.frame_levels / 2);
     params.cost.dmax = params.cost.dmin + o.frame_levels - 1;
+    std::map<std::string, double> total_ms;
     for (const auto& method : o.frame_methods) {
+      // StereoSGBM is the reference as it comes (3-way, no refinement, no check); the others run the options.
+      const stereo::StereoParams used = method == "sgbm" ? optimiserOnly(params) : params;
       // Median run by total time (same output every run: the methods are deterministic).
       std::vector<stereo::MatchResult> runs;
       for (int k = 0; k < o.repeat; ++k)
-        runs.push_back(stereo::match(frame.left.image, frame.right.image, stereo::parseMethod(method), params));
+        runs.push_back(stereo::match(frame.left.image, frame.right.image, stereo::parseMethod(method), used));
       std::sort(runs.begin(), runs.end(), [](const auto& a, const auto& b) { return a.total_ms() < b.total_ms(); });
       const stereo::MatchResult& r = runs[runs.size() / 2];
       const double bad = stereo::badPixelPercent(r.disparity, frame.left_disparity, frame.left_visible, 1.0);
@@ -232,23 +251,30 @@ void runFrames(const Options& o) {
       if (o.csv) {
         printRow(o, row, &r);
       } else {
-        std::printf("%-22s %-10s %6d %10.1f %10.1f %10.1f %14.2f %7d %8.2f%% %8.2f%% %10.3f\n", row.scene.c_str(),
-                    method.c_str(), row.levels, r.cost_ms, r.optimize_ms, r.total_ms(), r.energy.total(), r.cuts, bad,
-                    bad_half, median);
+        std::printf("%-22s %-10s %6d %9.1f %9.1f %9.1f %9.1f %9.1f %9.1f %14.2f %7d %8.2f%% %8.2f%% %10.3f\n",
+                    row.scene.c_str(), method.c_str(), row.levels, r.cost_ms, r.optimize_ms, r.refine_ms, r.subpixel_ms,
+                    r.lr_ms, r.total_ms(), r.energy.total(), r.cuts, bad, bad_half, median);
         std::fflush(stdout);
+      }
+      total_ms[method] = r.total_ms();
+    }
+    if (!o.csv && total_ms.count("sgbm") && total_ms["sgbm"] > 0.0) {
+      for (const auto& [method, ms] : total_ms) {
+        if (method != "sgbm")
+          std::printf("%-22s %s: %.1fx StereoSGBM's time\n", "", method.c_str(), ms / total_ms["sgbm"]);
       }
     }
   }
 }
 
 void run(Options o) {
-  if (!o.scenes.empty() && o.data.empty()) o.data = stereo::middleburyRoot(sharedDataDir());
+  if (!o.scenes.empty() && o.data.empty()) o.data = middleburyDir(sharedDataDir());
   if (o.csv) std::printf("scene,method,levels,time_ms,energy\n");
   // Part 1: Middlebury.
   if (!o.scenes.empty()) header(o, "Middlebury scenes: time and energy (Eq. 2.2) per method");
   for (const auto& name : o.scenes) {
     const stereo::MiddleburyScene scene = stereo::loadMiddleburyScene(o.data, name);
-    stereo::StereoParams params = o.params;
+    stereo::StereoParams params = optimiserOnly(o.params);
     params.cost.dmin = 0;
     params.cost.dmax = scene.dmax;
     std::map<std::string, stereo::MatchResult> results;
@@ -288,7 +314,7 @@ void run(Options o) {
     for (std::size_t k = 0; k < set.rights.size(); ++k) {
       render.noise_seed = static_cast<std::uint32_t>(k + 1);
       const cv::Mat right = renderer.render(set.rights[k], light, render).image;
-      stereo::StereoParams params = o.params;
+      stereo::StereoParams params = optimiserOnly(o.params);
       params.cost.dmin = static_cast<int>(std::floor(fx * set.baselines[k] / set.z_far));
       params.cost.dmax = static_cast<int>(std::ceil(fx * set.baselines[k] / set.z_near));  // spans levels[k] + 1 labels
       if (!warm) {

@@ -7,7 +7,10 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "massage_cell/stereo/colourise.h"
 #include "massage_cell/stereo/consistency.h"
+#include "massage_cell/stereo/memory.h"
+#include "massage_cell/stereo/middlebury.h"
 #include "package_paths.h"
 #include "stereo_params.h"
 
@@ -17,7 +20,7 @@ namespace stereo = massage_cell::stereo;
 using namespace massage_cell::tools;
 
 const char* const kUsageHead =
-    R"(Usage: stereo_eval [--scenes tsukuba,venus,teddy,cones,art,dolls] [--methods hbds,expansion,swap,wta,sgbm]
+    R"(Usage: stereo_eval [--scenes tsukuba,venus,teddy,cones,art,dolls] [--methods hbds,sgbm]
                    [--data DIR] [--data2005 DIR] [--refiners R1,R2,...] [--csv] [--pictures DIR] [options]
 
 Runs each method on each Middlebury scene (official range 0..dmax per scene;
@@ -27,7 +30,12 @@ The 2005 scenes ship no masks: all = known GT, nonocc = known GT whose match
 lies inside the right image (x >= d_gt), disc = nonocc within 4 px of a GT
 jump > 2 px. Data: --data / --data2005, else $MASSAGE_CELL_MIDDLEBURY /
 $MASSAGE_CELL_MIDDLEBURY2005, else ../shared/data/middlebury2003 / middlebury2005
-beside the package.
+beside the package. Every method runs with the options below (the project's
+defaults unless given); with sgbm in --methods the reference row sgbm+fill is
+plain StereoSGBM 3-way (no refinement, no left-right check) with its invalid
+pixels filled from the background side, and the last table gives every row's
+`all` bad > 1 px and time as multiples of it. Methods: hbds, expansion, swap,
+wta, sgbm.
   --refiners LIST    run each method once per refinement in LIST (instead of --refine), e.g.
                      none,2dbf,ffd-2dbf,3dbf,ffd-3dbf,wmf,ffd-wmf,mdc,ffd-mdc for the thesis's Table 2.5
   --csv              print CSV: scene,method,mask,threshold,bad_percent,time_ms
@@ -45,7 +53,7 @@ std::vector<std::string> allScenes() {
 
 struct Options {
   std::vector<std::string> scenes = allScenes();
-  std::vector<std::string> methods{"hbds", "expansion", "swap", "wta", "sgbm"};
+  std::vector<std::string> methods{"hbds", "sgbm"};
   std::string data, data2005;
   std::vector<stereo::Refinement> refiners;
   bool csv = false;
@@ -146,7 +154,7 @@ void print(const Options& o, const Row& r) {
       }
     }
   } else {
-    std::printf("%-8s %-13s | %6.2f %6.2f %6.2f | %6.2f %6.2f %6.2f | %6.2f %6.2f %6.2f | %9.1f\n", r.scene.c_str(),
+    std::printf("%-8s %-17s | %6.2f %6.2f %6.2f | %6.2f %6.2f %6.2f | %6.2f %6.2f %6.2f | %9.1f\n", r.scene.c_str(),
                 r.label.c_str(), r.bad[0][0], r.bad[0][1], r.bad[0][2], r.bad[1][0], r.bad[1][1], r.bad[1][2],
                 r.bad[2][0], r.bad[2][1], r.bad[2][2], r.ms);
   }
@@ -160,11 +168,11 @@ void printTable(const std::vector<Row>& rows, const std::vector<std::string>& sc
   for (const Row& r : rows) {
     if (std::find(labels.begin(), labels.end(), r.label) == labels.end()) labels.push_back(r.label);
   }
-  std::printf("\nbad > 1 px (%%): nonocc / all / disc\n%-16s", "method");
+  std::printf("\nbad > 1 px (%%): nonocc / all / disc\n%-18s", "method");
   for (const auto& scene : scenes) std::printf(" | %-20s", scene.c_str());
   std::printf("\n");
   for (const auto& label : labels) {
-    std::printf("%-16s", label.c_str());
+    std::printf("%-18s", label.c_str());
     for (const auto& scene : scenes) {
       const auto it =
           std::find_if(rows.begin(), rows.end(), [&](const Row& r) { return r.scene == scene && r.label == label; });
@@ -186,22 +194,32 @@ void printRatios(const std::vector<Row>& rows) {
   for (const Row& ref : rows) {
     if (ref.label != "sgbm+fill") continue;
     for (const Row& r : rows) {
-      if (r.scene != ref.scene || r.label == "sgbm+fill" || r.label == "sgbm") continue;
-      std::printf("%-8s %-13s  %5.2f x bad   %7.1f x time\n", r.scene.c_str(), r.label.c_str(),
+      if (r.scene != ref.scene || r.label == "sgbm+fill") continue;
+      std::printf("%-8s %-17s  %5.2f x bad   %7.1f x time\n", r.scene.c_str(), r.label.c_str(),
                   ref.bad[1][1] > 0 ? r.bad[1][1] / ref.bad[1][1] : 0.0, ref.ms > 0 ? r.ms / ref.ms : 0.0);
     }
   }
 }
 
+/// The reference: plain StereoSGBM 3-way (whatever the options' refinement and left-right check), its invalid
+/// pixels filled from the background side along their row.
+Row sgbmReference(const stereo::MiddleburyScene& scene, stereo::StereoParams params) {
+  params.refine = stereo::Refinement::kNone;
+  params.lr_check = false;
+  const stereo::MatchResult r = stereo::match(scene.left, scene.right, stereo::Method::kSgbm, params);
+  const cv::Mat filled = stereo::fillFromBackground(r.disparity, r.disparity == r.disparity);
+  return evaluate(scene, "sgbm+fill", filled, r.total_ms());
+}
+
 void run(Options o) {
-  if (o.data.empty()) o.data = stereo::middleburyRoot(sharedDataDir());
-  if (o.data2005.empty()) o.data2005 = stereo::middlebury2005Root(sharedDataDir());
+  if (o.data.empty()) o.data = middleburyDir(sharedDataDir());
+  if (o.data2005.empty()) o.data2005 = middlebury2005Dir(sharedDataDir());
   if (!o.pictures.empty()) std::filesystem::create_directories(o.pictures);
   if (o.csv) {
     std::printf("scene,method,mask,threshold,bad_percent,time_ms\n");
   } else {
     std::printf("Middlebury bad pixels (%%), data %s, %s\n", o.data.c_str(), o.data2005.c_str());
-    std::printf("%-8s %-13s | %-20s | %-20s | %-20s | %9s\n", "scene", "method", "nonocc >0.5 >1 >2", "all >0.5 >1 >2",
+    std::printf("%-8s %-17s | %-20s | %-20s | %-20s | %9s\n", "scene", "method", "nonocc >0.5 >1 >2", "all >0.5 >1 >2",
                 "disc >0.5 >1 >2", "time ms");
   }
   std::vector<Row> rows;
@@ -216,15 +234,15 @@ void run(Options o) {
         params.refine = refiner;
         const stereo::MatchResult r = stereo::match(scene.left, scene.right, stereo::parseMethod(method), params);
         const std::string label =
-            params.refine == stereo::Refinement::kNone ? method : method + "+" + stereo::toString(params.refine);
+            method + (params.refine == stereo::Refinement::kNone ? "" : "+" + stereo::toString(params.refine)) +
+            (params.lr_check ? "+lr" : "");
         if (!o.pictures.empty()) writePicture(o, scene, label, r);
         rows.push_back(evaluate(scene, label, r.disparity, r.total_ms()));
         print(o, rows.back());
-        if (method == "sgbm" && !params.lr_check && params.refine == stereo::Refinement::kNone) {
-          const cv::Mat filled = stereo::fillFromBackground(r.disparity, r.disparity == r.disparity);
-          rows.push_back(evaluate(scene, "sgbm+fill", filled, r.total_ms()));
-          print(o, rows.back());
-        }
+      }
+      if (method == "sgbm") {
+        rows.push_back(sgbmReference(scene, params));
+        print(o, rows.back());
       }
     }
   }

@@ -6,6 +6,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "massage_cell/stereo/colourise.h"
+#include "massage_cell/stereo/memory.h"
 #include "stereo_params.h"
 
 namespace {

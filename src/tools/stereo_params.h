@@ -12,46 +12,63 @@
 
 namespace massage_cell::tools {
 
-inline const char* stereoParamsHelp() {
-  return R"(  --cost C           data term: thesis (Eq. 2.6-2.8, default), census (Hamming distance of
-                     9x7 census strings) or ad-census (census + colour difference, Mei et al.)
-  --census-lambda L  ad-census: census distance (bits) where its term reaches 1 - 1/e (default 30)
-  --ad-lambda L      ad-census: colour difference (grey levels) likewise (default 10)
-  --eta E            colour-cost truncation, grey levels (default 20)
-  --ncc-window N     NCC window side, odd (default 5)
-  --gradient-saturation G  Sobel magnitude where the texture weight reaches 1 (default 20; 0: divide by the maximum)
-  --tau T            intensity difference where the smoothness weight reaches u_min (default 30)
-  --u-min U          smoothness weight across edges (default 0.01)
-  --u-max U          smoothness weight in uniform regions (default 0.08)
-  --truncation T     truncate |dp - dq| at T in the energy (default 0: none)
+/// The options' help, their defaults printed from stereo::StereoParams (the one place they are defined).
+inline std::string stereoParamsHelp() {
+  const stereo::StereoParams d;
+  const auto on = [](bool b) { return b ? "on" : "off"; };
+  std::string h;
+  h += format(R"(  --cost C           data term: thesis (Eq. 2.6-2.8), census (Hamming distance of 9x7 census
+                     strings) or ad-census (census + colour difference, Mei et al.) (default %s)
+  --census-lambda L  ad-census: census distance (bits) where its term reaches 1 - 1/e (default %g)
+  --ad-lambda L      ad-census: colour difference (grey levels) likewise (default %g)
+  --eta E            colour-cost truncation, grey levels (default %g)
+  --ncc-window N     NCC window side, odd (default %d)
+  --gradient-saturation G  Sobel magnitude where the texture weight reaches 1 (default %g; 0: divide by the maximum)
+)",
+              stereo::toString(d.cost.data_term).c_str(), d.cost.census_lambda, d.cost.ad_lambda, d.cost.eta,
+              d.cost.ncc_window, d.cost.gradient_saturation);
+  h += format(R"(  --tau T            intensity difference where the smoothness weight reaches u_min (default %g)
+  --u-min U          smoothness weight across edges (default %g)
+  --u-max U          smoothness weight in uniform regions (default %g)
+  --truncation T     truncate |dp - dq| at T in the energy (default %g; 0: none)
   --overlap M        hbds: each child's disparity set reaches M levels across the break
-                     point (0: the thesis's disjoint split; default 0)
+                     point (0: the thesis's disjoint split; default %d)
   --coarse C         hbds: cut large layers coarse to fine, first on C x C pixel blocks, then
-                     at full resolution near the blocks' boundary (1: off, default; 2 or 4)
+                     at full resolution near the blocks' boundary (1: off; 2 or 4; default %d)
   --polish W         hbds: then local alpha-expansion moves over labels within W levels
-                     of alpha, lowering the Eq. 2.2 energy (default 0: pure HBDS)
-  --polish-cycles N  cycles of that polish (default 1)
-  --refine R         after the method: none (default), mdc (Gu's disparity calibration,
-                     thesis Eq. 2.11-2.13 without FFD), ffd-mdc (the thesis's refinement:
-                     fattening foreground detection, then MDC), or a conventional refiner
-                     (thesis Table 2.5): 2dbf (joint bilateral on the disparity), 3dbf
-                     (bilateral on a cost volume of the map), wmf (weighted median), each
-                     also as ffd-2dbf / ffd-3dbf / ffd-wmf (fattening pixels no support)
-  --filter-radius R  2dbf / 3dbf / wmf window radius (default 7)
-  --filter-sigma-colour S  their colour sigma, grey levels (default 12)
-  --filter-sigma-space S   2dbf / 3dbf spatial sigma, pixels (default 7)
-  --filter-truncation T    3dbf cost truncation, levels (default 2)
-  --refine-window N  MDC support window side, odd (default 21)
-  --subpixel F       last, for every method but sgbm: each disparity moved to the minimum of the
-                     cost curve through d - 1, d, d + 1: parabola, equiangular or none (default)
-  --subpixel-window N  side of the window the cost is summed over for it, odd (default 5)
+                     of alpha, lowering the Eq. 2.2 energy (0: pure HBDS; default %d)
+  --polish-cycles N  cycles of that polish (default %d)
+)",
+              d.smooth.tau, d.smooth.u_min, d.smooth.u_max, d.smooth.truncation, d.hbds_overlap, d.hbds_coarse,
+              d.polish_window, d.polish_cycles);
+  h += format(R"(  --refine R         after the method: none, mdc (Gu's disparity calibration, thesis
+                     Eq. 2.11-2.13 without FFD), ffd-mdc (the thesis's refinement: fattening
+                     foreground detection, then MDC), or a conventional refiner (thesis
+                     Table 2.5): 2dbf (joint bilateral on the disparity), 3dbf (bilateral on
+                     a cost volume of the map), wmf (weighted median), each also as
+                     ffd-2dbf / ffd-3dbf / ffd-wmf (fattening pixels no support) (default %s)
+  --filter-radius R  2dbf / 3dbf / wmf window radius (default %d)
+  --filter-sigma-colour S  their colour sigma, grey levels (default %g)
+  --filter-sigma-space S   2dbf / 3dbf spatial sigma, pixels (default %g)
+  --filter-truncation T    3dbf cost truncation, levels (default %g)
+  --refine-window N  MDC support window side, odd (default %d)
+)",
+              stereo::toString(d.refine).c_str(), d.filter_params.radius, d.filter_params.sigma_colour,
+              d.filter_params.sigma_space, d.filter_params.truncation, d.refine_params.window);
+  h += format(R"(  --subpixel F       last, for every method but sgbm: each disparity moved to the minimum of the
+                     cost curve through d - 1, d, d + 1: parabola, equiangular or none (default %s)
+  --subpixel-window N  side of the window the cost is summed over for it, odd (default %d)
   --lr-check         also match the right view (mirrored pair, same method: twice the time);
                      left pixels it does not confirm (occluded, border band, mismatched) are
-                     filled from the background side along their row
-  --lr-tolerance T   largest left-right disagreement confirmed, pixels (default 1)
-  --max-cycles N     expansion / swap cycles at most (default 20)
-  --threads N        worker threads, 0 = all cores (default 0)
-)";
+                     filled from the background side along their row (default %s)
+  --no-lr-check      the left view only
+  --lr-tolerance T   largest left-right disagreement confirmed, pixels (default %g)
+  --max-cycles N     expansion / swap cycles at most (default %d)
+  --threads N        worker threads, 0 = all cores (default %d)
+)",
+              d.subpixel ? stereo::toString(d.subpixel_params.fit).c_str() : "none", d.subpixel_params.window,
+              on(d.lr_check), d.lr_tolerance, d.max_cycles, d.threads);
+  return h;
 }
 
 inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
@@ -105,6 +122,7 @@ inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
   };
   table.values["--subpixel-window"] = integer(p.subpixel_params.window);
   table.flags["--lr-check"] = [&p] { p.lr_check = true; };
+  table.flags["--no-lr-check"] = [&p] { p.lr_check = false; };
   table.values["--lr-tolerance"] = number(p.lr_tolerance);
   table.values["--threads"] = integer(p.threads);
 }

@@ -67,7 +67,6 @@ stereo::StereoParams validParams(fuzz::FuzzInput& in, cv::Size size) {
   p.cost.eta = static_cast<float>(in.real(1, 100));
   p.cost.ncc_window = odd(in, std::min({size.width, size.height, 7}));
   p.cost.gradient_saturation = static_cast<float>(in.real(0, 50));
-  p.cost.threads = static_cast<int>(in.range(0, 2));
   p.smooth.tau = static_cast<float>(in.real(1, 60));
   p.smooth.u_min = static_cast<float>(in.real(0, 0.05));
   p.smooth.u_max = p.smooth.u_min + static_cast<float>(in.real(0, 0.15));
@@ -97,7 +96,6 @@ stereo::StereoParams validParams(fuzz::FuzzInput& in, cv::Size size) {
   r.window = odd(in, 9);
   r.gamma_c = static_cast<float>(in.real(1, 20));
   r.gamma_g = static_cast<float>(in.real(1, 20));
-  r.threads = static_cast<int>(in.range(0, 2));
   p.threads = static_cast<int>(in.range(0, 2));
   p.subpixel = in.flag();
   p.subpixel_params.fit = in.flag() ? stereo::SubpixelFit::kParabola : stereo::SubpixelFit::kEquiangular;

@@ -114,6 +114,8 @@ TEST(LrCheckInMatch, OcclusionAndBorderBandGetTheBackground) {
   p.cost.dmin = 0;
   p.cost.dmax = 8;
   p.threads = 1;
+  p.refine = ms::Refinement::kNone;  // the check alone, on winner-takes-all's integer layers
+  p.lr_check = false;
   const ms::MatchResult plain = ms::match(left, right, ms::Method::kWta, p);
   p.lr_check = true;
   p.lr_tolerance = 0.5f;  // integer layers: the same label (1 lets a label one off pass at the occlusion's rims)

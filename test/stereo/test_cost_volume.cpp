@@ -290,10 +290,8 @@ TEST(CostVolume, ThreadCountDoesNotChangeTheResult) {
   const cv::Mat L = randomImage(64, 48, CV_8UC3, 10), R = randomImage(64, 48, CV_8UC3, 11);
   ms::CostParams p = params(0, 20, 20.0f, 5);
   const ms::CostVolume a = ms::computeCostVolume(L, R, p);
-  p.threads = 1;
-  const ms::CostVolume b = ms::computeCostVolume(L, R, p);
-  p.threads = 3;
-  const ms::CostVolume c = ms::computeCostVolume(L, R, p);
+  const ms::CostVolume b = ms::computeCostVolume(L, R, p, 1);
+  const ms::CostVolume c = ms::computeCostVolume(L, R, p, 3);
   for (int d = 0; d <= 20; ++d)
     for (int y = 0; y < 48; ++y)
       for (int x = 0; x < 64; ++x) {

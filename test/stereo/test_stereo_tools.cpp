@@ -11,7 +11,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "../../src/tools/package_paths.h"
 #include "../ros/test_util.h"
+#include "massage_cell/stereo/middlebury.h"
 #include "massage_cell/stereo/pipeline.h"
 
 namespace {
@@ -148,11 +150,11 @@ TEST(StereoBench, CellFramesPrintTimesAndAccuracy) {
 }
 
 TEST(StereoEval, CsvOnMiddlebury) {
-  const std::string root = massage_cell::stereo::middleburyRoot(sharedData());
+  const std::string root = massage_cell::tools::middleburyDir(sharedData());
   if (!fs::exists(fs::path(root) / "tsukuba" / "left.png")) {
     GTEST_SKIP() << "Middlebury data not found at " << root << " (set MASSAGE_CELL_MIDDLEBURY)";
   }
-  const auto r = runCommand(kEval + " --scenes tsukuba --methods wta --csv", 120);
+  const auto r = runCommand(kEval + " --scenes tsukuba --methods wta --refine none --no-lr-check --csv", 120);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::istringstream lines(r.output);
   std::string line;
@@ -167,7 +169,7 @@ TEST(StereoEval, CsvOnMiddlebury) {
 
 TEST(StereoEval, Middlebury2005ScenesAndTheSgbmReference) {
   namespace stereo = massage_cell::stereo;
-  const std::string root = stereo::middlebury2005Root(sharedData());
+  const std::string root = massage_cell::tools::middlebury2005Dir(sharedData());
   if (!fs::exists(fs::path(root) / "dolls" / "left.png")) {
     GTEST_SKIP() << "Middlebury 2005 data not found at " << root << " (set MASSAGE_CELL_MIDDLEBURY2005)";
   }
@@ -198,20 +200,22 @@ TEST(StereoEval, Middlebury2005ScenesAndTheSgbmReference) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("dolls    sgbm+fill"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("relative to sgbm+fill"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("dolls    wta "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("dolls    wta+ffd-mdc+lr "), std::string::npos) << r.output;  // the defaults
   expectFailure(kEval + " --scenes lighthouse --methods wta", 1, "unknown Middlebury scene 'lighthouse'");
 }
 
 TEST(StereoEval, PicturesOnMiddlebury) {
-  const std::string root = massage_cell::stereo::middleburyRoot(sharedData());
+  const std::string root = massage_cell::tools::middleburyDir(sharedData());
   if (!fs::exists(fs::path(root) / "tsukuba" / "left.png")) {
     GTEST_SKIP() << "Middlebury data not found at " << root << " (set MASSAGE_CELL_MIDDLEBURY)";
   }
   TempDir dir;
   const std::string pics = (dir.path() / "pics").string();
-  const auto plain = runCommand(kEval + " --scenes tsukuba --methods wta --pictures " + pics, 120);
+  const auto plain =
+      runCommand(kEval + " --scenes tsukuba --methods wta --refine none --no-lr-check --pictures " + pics, 120);
   ASSERT_EQ(plain.exit_code, 0) << plain.output;
-  const auto refined = runCommand(kEval + " --scenes tsukuba --methods wta --refine ffd-mdc --pictures " + pics, 120);
+  const auto refined =
+      runCommand(kEval + " --scenes tsukuba --methods wta --refine ffd-mdc --no-lr-check --pictures " + pics, 120);
   ASSERT_EQ(refined.exit_code, 0) << refined.output;
   EXPECT_NE(refined.output.find("wta+ffd-mdc"), std::string::npos) << refined.output;
   const cv::Mat a = cv::imread(pics + "/tsukuba_wta.png"), b = cv::imread(pics + "/tsukuba_wta+ffd-mdc.png");
@@ -228,9 +232,10 @@ TEST(StereoEval, PicturesOnMiddlebury) {
   expectFailure(kEval + " --refiners none,magic", 2, "unknown refinement 'magic'");
   expectFailure(kEval + " --refiners wmf --filter-radius 0", 2, "radius must be in 1..64");
   // --refiners: one row per refinement in the thesis's table layout.
-  const auto table = runCommand(kEval + " --scenes tsukuba --methods wta --refiners none,wmf,ffd-2dbf", 120);
+  const auto table =
+      runCommand(kEval + " --scenes tsukuba --methods wta --refiners none,wmf,ffd-2dbf --no-lr-check", 120);
   ASSERT_EQ(table.exit_code, 0) << table.output;
-  for (const char* row : {"\nwta              |", "\nwta+wmf          |", "\nwta+ffd-2dbf     |"}) {
+  for (const char* row : {"\nwta                |", "\nwta+wmf            |", "\nwta+ffd-2dbf       |"}) {
     EXPECT_NE(table.output.find(row), std::string::npos) << row << " in\n" << table.output;
   }
 }

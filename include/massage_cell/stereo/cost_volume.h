@@ -40,7 +40,6 @@ struct CostParams {
   int census_height = 7;
   float census_lambda = 30.0f;  ///< ad-census: the census distance (bits) where its term reaches 1 - 1/e
   float ad_lambda = 10.0f;      ///< ad-census: the mean channel difference (grey levels) likewise
-  int threads = 0;              ///< worker threads, 0 = all cores
 };
 
 /// S(x, y, d) in [0, 1] for d in [dmin, dmax], stored disparity-major: the
@@ -107,7 +106,8 @@ class CostVolume {
 /// instead. Inputs: CV_8UC3 (BGR) or CV_8UC1, same size. Throws
 /// std::invalid_argument naming the problem (empty, sizes or types differ,
 /// unsupported type, dmax < dmin, range wider than the image, bad window).
-CostVolume computeCostVolume(const cv::Mat& left, const cv::Mat& right, const CostParams& params);
+/// `threads`: worker threads over the disparities, 0 = all cores (the result does not depend on it).
+CostVolume computeCostVolume(const cv::Mat& left, const cv::Mat& right, const CostParams& params, int threads = 0);
 
 /// The checks computeCostVolume makes before it starts (the images, the
 /// range, the thesis term's window and eta); throws std::invalid_argument
@@ -119,7 +119,8 @@ void validateCostInputs(const cv::Mat& left, const cv::Mat& right, const CostPar
 /// rho(c, l) = 1 - exp(-c / l)); in [0, 1], 1 where x - d is outside the
 /// right image. Called by computeCostVolume; throws as it does, and for a
 /// census window that is even, under 3 or over 64 bits, or lambdas <= 0.
-CostVolume computeCensusCostVolume(const cv::Mat& left, const cv::Mat& right, const CostParams& params);
+CostVolume computeCensusCostVolume(const cv::Mat& left, const cv::Mat& right, const CostParams& params,
+                                   int threads = 0);
 
 /// The texture weight w of Eq. 2.6: Sobel gradient magnitude of the left
 /// image (grey), divided by its maximum (gradient_saturation 0) or by

@@ -109,7 +109,6 @@ struct RefineParams {
   float gamma_g = 10.5f;  ///< γg (pixels) > 0
   // --- refineDisparity
   bool detect_fattening = true;  ///< false: plain calibration (Gu) without FFD
-  int threads = 0;  ///< MDC worker stripes over rows, 0 = OpenCV's default (all cores); FFD is single-threaded
 };
 
 /// Throws std::invalid_argument naming the first bad parameter.
@@ -128,13 +127,13 @@ cv::Mat detectFattening(const cv::Mat& left, const cv::Mat& disparity, const Ref
 /// not in `fattening_mask`, CV_8U non-zero = excluded; empty = no exclusion,
 /// i.e. Gu's original calibration). Returns CV_32F. Throws
 /// std::invalid_argument as detectFattening (plus a mask of the wrong size /
-/// type).
+/// type). `threads`: worker stripes over rows, 0 = all cores (the result does not depend on it).
 cv::Mat recoverDisparity(const cv::Mat& left, const cv::Mat& disparity, const cv::Mat& fattening_mask,
-                         const RefineParams& params);
+                         const RefineParams& params, int threads = 0);
 
 /// FFD (if params.detect_fattening) then MDC. `fattening` (optional) receives
-/// the mask used (empty without FFD).
+/// the mask used (empty without FFD). FFD is single-threaded, MDC uses `threads` (as recoverDisparity).
 cv::Mat refineDisparity(const cv::Mat& left, const cv::Mat& disparity, const RefineParams& params,
-                        cv::Mat* fattening = nullptr);
+                        cv::Mat* fattening = nullptr, int threads = 0);
 
 }  // namespace massage_cell::stereo
