@@ -327,9 +327,11 @@ ArmConfig armConfig(const std::string& yaml_text, const std::string& source, con
     pc.contact_area = r.number(p["contact_area"], "press.contact_area", pc.contact_area);
   }
   if (const YAML::Node b = root["body"]) {
-    r.checkKeys(b, "body", {"safe_height", "radius"});
+    r.checkKeys(b, "body", {"safe_height", "radius", "surface_cell", "surface_tolerance"});
     c.body.safe_height = r.number(b["safe_height"], "body.safe_height", c.body.safe_height);
     c.body.radius = r.number(b["radius"], "body.radius", c.body.radius);
+    c.body.surface_cell = r.number(b["surface_cell"], "body.surface_cell", c.body.surface_cell);
+    c.body.surface_tolerance = r.number(b["surface_tolerance"], "body.surface_tolerance", c.body.surface_tolerance);
   }
   if (const YAML::Node f = root["force"]) readForce(r, f, &c.force);
   if (const YAML::Node f = root["force_control"]) readForceControl(r, f, &c.force_control);
@@ -487,6 +489,8 @@ void validate(const ArmConfig& c) {
     fail("body.safe_height", num(c.body.safe_height) + " m is outside the workspace's z range");
   }
   if (!(c.body.radius > 0.0)) fail("body.radius", "must be > 0");
+  if (!(c.body.surface_cell > 0.0)) fail("body.surface_cell", "must be > 0");
+  if (!(c.body.surface_tolerance >= 0.0)) fail("body.surface_tolerance", "must be >= 0");
   if (!(p.max_normal_tilt >= 0.0) || p.max_normal_tilt > M_PI / 2)
     fail("press.max_normal_tilt_deg", "must be in [0, 90]");
   if (!(p.knead_radius >= 0.0) || !(p.knead_period > 0.0) || p.knead_segments < 3) {

@@ -38,6 +38,7 @@ void validate(const NodeOptions& o) {
   require(o.max_target_age > 0.0, "max_target_age", "> 0", o.max_target_age);
   require(o.tf_timeout >= 0.0, "tf_timeout", ">= 0", o.tf_timeout);
   require(o.command_timeout > 0.0, "command_timeout", "> 0", o.command_timeout);
+  require(o.surface_max_age > 0.0, "surface_max_age", "> 0", o.surface_max_age);
   if (o.can_interface.empty()) throw ArmConfigError("can_interface must be 'sim' or an interface name (can0)");
   require(o.realtime.priority >= 0 && o.realtime.priority <= 99, "realtime_priority", "0 (normal scheduling) .. 99",
           o.realtime.priority);

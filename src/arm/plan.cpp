@@ -44,6 +44,42 @@ const char* toString(Technique t) {
   return "?";
 }
 
+HeightGrid::HeightGrid(const std::vector<Eigen::Vector3d>& points, double cell) : cell_(cell) {
+  double x1 = -INFINITY, y1 = -INFINITY;
+  x0_ = INFINITY;
+  y0_ = INFINITY;
+  for (const Eigen::Vector3d& p : points) {
+    if (!p.allFinite()) continue;
+    x0_ = std::min(x0_, p.x());
+    y0_ = std::min(y0_, p.y());
+    x1 = std::max(x1, p.x());
+    y1 = std::max(y1, p.y());
+  }
+  if (!(cell > 0.0) || !std::isfinite(x0_)) return;
+  nx_ = static_cast<int>((x1 - x0_) / cell) + 1;
+  ny_ = static_cast<int>((y1 - y0_) / cell) + 1;
+  z_.assign(static_cast<std::size_t>(nx_) * ny_, NAN);
+  for (const Eigen::Vector3d& p : points) {
+    if (!p.allFinite()) continue;
+    float& z = z_[static_cast<std::size_t>(static_cast<int>((p.y() - y0_) / cell)) * nx_ +
+                  static_cast<int>((p.x() - x0_) / cell)];
+    if (!(z >= p.z())) z = static_cast<float>(p.z());  // NaN or lower: the higher point
+  }
+}
+
+std::optional<double> HeightGrid::heightAt(double x, double y) const {
+  if (z_.empty()) return std::nullopt;
+  const int cx = static_cast<int>(std::floor((x - x0_) / cell_)), cy = static_cast<int>(std::floor((y - y0_) / cell_));
+  std::optional<double> best;
+  for (int j = std::max(0, cy - 1); j <= std::min(ny_ - 1, cy + 1); ++j) {
+    for (int i = std::max(0, cx - 1); i <= std::min(nx_ - 1, cx + 1); ++i) {
+      const float z = z_[static_cast<std::size_t>(j) * nx_ + i];
+      if (std::isfinite(z) && (!best || z > *best)) best = z;
+    }
+  }
+  return best;
+}
+
 std::optional<double> BodySurface::heightAt(double x, double y, double radius) const {
   std::optional<double> z;
   double best = radius * radius;
@@ -66,14 +102,22 @@ std::string checkBodyClearance(const ArmConfig& c, const BodySurface& body, cons
     const int i = k == 0 ? n : k;  // the target first: its depth is what a refusal should name
     const Eigen::Vector3d p = from + (to - from) * (static_cast<double>(i) / n);
     const std::string what = i == n ? "the target " + formatPoint(p) : "the path at " + formatPoint(p);
-    if (const auto skin = body.heightAt(p.x(), p.y(), c.body.radius)) {
-      if (p.z() < *skin - max_depth - 1e-9) {
-        char buf[96];
-        std::snprintf(buf, sizeof buf, " is %.1f mm below the body's surface (limit %.1f mm)", 1e3 * (*skin - p.z()),
-                      1e3 * max_depth);
-        return what + buf;
-      }
-    } else if (p.z() < floor_unknown - 1e-9) {
+    const auto skin = body.heightAt(p.x(), p.y(), c.body.radius);
+    const auto seen = body.dense.heightAt(p.x(), p.y());
+    if (skin && p.z() < *skin - max_depth - 1e-9) {
+      char buf[96];
+      std::snprintf(buf, sizeof buf, " is %.1f mm below the body's surface (limit %.1f mm)", 1e3 * (*skin - p.z()),
+                    1e3 * max_depth);
+      return what + buf;
+    }
+    if (seen && p.z() < *seen - max_depth - c.body.surface_tolerance - 1e-9) {
+      char buf[128];
+      std::snprintf(buf, sizeof buf, " is %.1f mm below the surface stereo sees (limit %.1f mm: %.1f + its error %.1f)",
+                    1e3 * (*seen - p.z()), 1e3 * (max_depth + c.body.surface_tolerance), 1e3 * max_depth,
+                    1e3 * c.body.surface_tolerance);
+      return what + buf;
+    }
+    if (!skin && !seen && p.z() < floor_unknown - 1e-9) {
       char buf[128];
       std::snprintf(buf, sizeof buf, " is below the safe height %.3f m, and no body surface is known there",
                     c.body.safe_height);

@@ -1,5 +1,9 @@
 #include "arm_interface.h"
 
+#include <algorithm>
+#include <cmath>
+
+#include <sensor_msgs/point_cloud2_iterator.h>
 #include <tf2_geometry_msgs/tf2_geometry_msgs.h>
 
 #include "tf_lookup.h"
@@ -95,7 +99,42 @@ bool ArmTargets::lookup(const std::string& frame, const ros::Time& stamp, geomet
 arm::BodySurface ArmTargets::body() const {
   arm::BodySurface body;
   body.points = framePositions(tf_, options_.base_frame, options_.acupoint_prefix, options_.max_target_age);
+  std::lock_guard<std::mutex> lock(surface_mutex_);
+  if (!surface_stamp_.isZero() && (ros::Time::now() - surface_stamp_).toSec() <= options_.surface_max_age)
+    body.dense = surface_;
   return body;
+}
+
+std::string ArmTargets::setSurface(const sensor_msgs::PointCloud2& cloud) {
+  if (cloud.header.frame_id.empty()) return "the cloud has no frame_id";
+  const auto has_float = [&](const char* name) {
+    return std::any_of(cloud.fields.begin(), cloud.fields.end(), [&](const sensor_msgs::PointField& f) {
+      return f.name == name && f.datatype == sensor_msgs::PointField::FLOAT32;
+    });
+  };
+  if (!has_float("x") || !has_float("y") || !has_float("z")) return "the cloud has no float32 x, y and z fields";
+  geometry_msgs::TransformStamped t;
+  try {
+    t = tf_.lookupTransform(options_.base_frame, cloud.header.frame_id, ros::Time(0));
+  } catch (const tf2::TransformException& e) {
+    return "the frame '" + cloud.header.frame_id + "' is not connected to " + options_.base_frame + ": " + e.what();
+  }
+  std::vector<Eigen::Vector3d> points;
+  points.reserve(static_cast<std::size_t>(cloud.width) * cloud.height);
+  for (sensor_msgs::PointCloud2ConstIterator<float> it(cloud, "x"); it != it.end(); ++it) {
+    geometry_msgs::Point p, q;
+    p.x = it[0];
+    p.y = it[1];
+    p.z = it[2];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+    tf2::doTransform(p, q, t);
+    points.push_back(toEigen(q));
+  }
+  arm::HeightGrid grid(points, config_.body.surface_cell);
+  std::lock_guard<std::mutex> lock(surface_mutex_);
+  surface_ = std::move(grid);
+  surface_stamp_ = cloud.header.stamp.isZero() ? ros::Time::now() : cloud.header.stamp;
+  return "";
 }
 
 std::string ArmTargets::moveGoal(const geometry_msgs::PointStamped& target, const Eigen::Vector3d& tool,

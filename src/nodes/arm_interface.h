@@ -2,6 +2,7 @@
 // through tf into the arm base frame and checked against the body the arm knows (the acupoints' tf frames).
 #pragma once
 
+#include <mutex>
 #include <string>
 #include <utility>
 #include <vector>
@@ -11,6 +12,7 @@
 #include <geometry_msgs/TransformStamped.h>
 #include <geometry_msgs/WrenchStamped.h>
 #include <sensor_msgs/JointState.h>
+#include <sensor_msgs/PointCloud2.h>
 #include <tf2_ros/buffer.h>
 
 #include "massage_cell/AcupointArray.h"
@@ -51,8 +53,12 @@ class ArmTargets {
   bool lookup(const std::string& frame, const ros::Time& stamp, geometry_msgs::TransformStamped* out,
               std::string* error) const;
 
-  /// The skin as the arm knows it: every current acupoint frame, in base_frame.
+  /// The skin as the arm knows it, in base_frame: every current acupoint frame, and stereo's surface (~surface) if
+  /// it is no older than surface_max_age.
   arm::BodySurface body() const;
+  /// ~surface: stereo's confident surface (x y z in any frame tf connects to base_frame; the latest transform: the
+  /// camera is fixed) binned into the body's height grid: empty, or why it cannot be used.
+  std::string setSurface(const sensor_msgs::PointCloud2& cloud);
 
   /// ~move_to's goal in base_frame for a tool now at `tool`: "" or the refusal (unknown or stale frame, a path into
   /// the body).
@@ -82,6 +88,9 @@ class ArmTargets {
   const tf2_ros::Buffer& tf_;
   const arm::NodeOptions& options_;
   const arm::ArmConfig& config_;
+  mutable std::mutex surface_mutex_;  ///< guards the two below (~surface's callback, the services' threads)
+  arm::HeightGrid surface_;
+  ros::Time surface_stamp_;
 };
 
 }  // namespace massage_cell::nodes

@@ -60,6 +60,7 @@ void ArmNodelet::onInit() {
   wrench_pub_ = pnh.advertise<geometry_msgs::WrenchStamped>("wrench", 10);
   estop_sub_ = pnh.subscribe("estop", 10, &ArmNodelet::estopCb, this);
   sensor_sub_ = pnh.subscribe("ft_sensor", 10, &ArmNodelet::sensorCb, this);
+  surface_sub_ = pnh.subscribe("surface", 1, &ArmNodelet::surfaceCb, this);
   if (sim_) fault_sub_ = pnh.subscribe("sim/inject_fault", 10, &ArmNodelet::injectFaultCb, this);
   if (sim_) {  // the simulated drives press a back whose skin is the session's true acupoints
     sim_skin_ = sim_->setSkin(config_.body.radius);
@@ -219,6 +220,11 @@ void ArmNodelet::sensorCb(const geometry_msgs::WrenchStampedConstPtr& msg) {
     return;
   }
   if (arm::Controller* c = controller()) c->setSensorForce(force);
+}
+
+void ArmNodelet::surfaceCb(const sensor_msgs::PointCloud2ConstPtr& msg) {
+  if (const std::string why = targets_->setSurface(*msg); !why.empty())
+    NODELET_WARN_STREAM_THROTTLE(5.0, "arm: ~surface not used: " << why);
 }
 
 void ArmNodelet::skinCb(const massage_cell::AcupointArrayConstPtr& msg) {

@@ -89,6 +89,7 @@ class ArmNodelet : public nodelet::Nodelet {
   void publishState();
   void estopCb(const std_msgs::BoolConstPtr& msg);
   void sensorCb(const geometry_msgs::WrenchStampedConstPtr& msg);
+  void surfaceCb(const sensor_msgs::PointCloud2ConstPtr& msg);
   void skinCb(const massage_cell::AcupointArrayConstPtr& msg);
   void injectFaultCb(const std_msgs::StringConstPtr& msg);
   bool home(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
@@ -119,7 +120,7 @@ class ArmNodelet : public nodelet::Nodelet {
   ros::CallbackQueue queue_;
   std::unique_ptr<ros::AsyncSpinner> spinner_;
   ros::Publisher joint_pub_, state_pub_, wrench_pub_;
-  ros::Subscriber estop_sub_, fault_sub_, sensor_sub_, skin_sub_;
+  ros::Subscriber estop_sub_, fault_sub_, sensor_sub_, skin_sub_, surface_sub_;
   std::shared_ptr<arm::SkinPoints> sim_skin_;  ///< sim: the back the simulated drives press (~sim/skin)
   ros::ServiceServer home_srv_, stop_srv_, reset_srv_, move_srv_;
   ros::WallTimer timer_;

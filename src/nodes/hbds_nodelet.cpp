@@ -70,6 +70,7 @@ void HbdsNodelet::init() {
     depth_pub_ = it.advertise("depth", 1, it_connect, it_connect);
     depth_info_pub_ = nh.advertise<sensor_msgs::CameraInfo>("depth/camera_info", 1, connect, connect);
     points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points2", 1, connect, connect);
+    surface_pub_ = nh.advertise<sensor_msgs::PointCloud2>("surface", 1, connect, connect);
     confidence_pub_ = it.advertise("confidence", 1, it_connect, it_connect);
   }
   NODELET_INFO_STREAM("dense stereo on " << nh.resolveName("left/image_raw") << " + "
@@ -100,6 +101,7 @@ HbdsNodelet::Outputs HbdsNodelet::wantedOutputs() {
   o.depth = depth_pub_.getNumSubscribers() > 0 || depth_info_pub_.getNumSubscribers() > 0;
   o.points = points_pub_.getNumSubscribers() > 0;
   o.confidence = confidence_pub_.getNumSubscribers() > 0;
+  o.surface = surface_pub_.getNumSubscribers() > 0;
   return o;
 }
 
@@ -247,14 +249,29 @@ void HbdsNodelet::publish(const std_msgs::Header& header, const Config& config, 
     const cv::Mat confidence = params.lr_check ? result.consistent.clone() : valid.mask;
     confidence_pub_.publish(cv_bridge::CvImage(header, sensor_msgs::image_encodings::MONO8, confidence).toImageMsg());
   }
-  if (!wanted.depth && !wanted.points) return;
+  if (!wanted.depth && !wanted.points && !wanted.surface) return;
   // Depth (REP 118: metres along the rectified optical axis, NaN where unknown or at / beyond infinity).
   const cv::Mat depth = v.model.depth(valid.disparity);
   if (wanted.depth) {
     depth_pub_.publish(cv_bridge::CvImage(header, sensor_msgs::image_encodings::TYPE_32FC1, depth).toImageMsg());
     depth_info_pub_.publish(depthInfo(header, v.model));
   }
-  if (wanted.points) points_pub_.publish(pointCloud(header, v.model.points(depth), v.images[0]));
+  if (!wanted.points && !wanted.surface) return;
+  const cv::Mat points = v.model.points(depth);
+  if (wanted.points) points_pub_.publish(pointCloud(header, points, v.images[0]));
+  if (wanted.surface) publishSurface(header, params, result, valid, points);
+}
+
+void HbdsNodelet::publishSurface(const std_msgs::Header& header, const stereo::StereoParams& params,
+                                 const stereo::MatchResult& result, const ValidDisparity& valid,
+                                 const cv::Mat& points) {
+  if (!params.lr_check) {  // nothing confirms a disparity: no confident surface
+    NODELET_WARN_ONCE("hbds: 'surface' needs lr_check (the confirmed pixels): nothing is published on it");
+    return;
+  }
+  // ~80 points across whatever the resolution: 1-2 cm apart on the back at the cell's distance, the arm's cells.
+  const int step = std::max(1, points.cols / kSurfaceColumns);
+  surface_pub_.publish(surfaceCloud(header, points, result.consistent, valid.disparity, params.cost.dmin, step));
 }
 
 // -------------------------------------------------------- diagnostics --

@@ -30,6 +30,7 @@
 #include "massage_cell/HBDSConfig.h"
 #include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/stereo/pipeline.h"
+#include "stereo_messages.h"
 #include "stereo_pair_input.h"
 #include "wall_diagnostics.h"
 
@@ -46,8 +47,8 @@ class HbdsNodelet : public nodelet::Nodelet {
 
   /// Which outputs have subscribers (decided per pair).
   struct Outputs {
-    bool disparity = false, depth = false, points = false, confidence = false;
-    bool any() const { return disparity || depth || points || confidence; }
+    bool disparity = false, depth = false, points = false, confidence = false, surface = false;
+    bool any() const { return disparity || depth || points || confidence || surface; }
   };
 
   /// A pair rectified and downsampled, with the model of the processed images.
@@ -69,6 +70,10 @@ class HbdsNodelet : public nodelet::Nodelet {
   stereo::StereoParams matchParams(const Config& config, const Views& views);
   void publish(const std_msgs::Header& header, const Config& config, const Views& views,
                const stereo::StereoParams& params, const stereo::MatchResult& result, const Outputs& wanted);
+  /// `surface`: the confirmed points (needs lr_check), ~kSurfaceColumns across.
+  void publishSurface(const std_msgs::Header& header, const stereo::StereoParams& params,
+                      const stereo::MatchResult& result, const ValidDisparity& valid, const cv::Mat& points);
+  static constexpr int kSurfaceColumns = 80;
   void badPair(const std::string& problem);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
 
@@ -80,7 +85,7 @@ class HbdsNodelet : public nodelet::Nodelet {
 
   // Outputs.
   std::mutex connect_mutex_;  // guards (un)subscribing the inputs
-  ros::Publisher disparity_pub_, depth_info_pub_, points_pub_;
+  ros::Publisher disparity_pub_, depth_info_pub_, points_pub_, surface_pub_;
   image_transport::Publisher depth_pub_, confidence_pub_;
 
   // Parameters (dynamic_reconfigure; the server locks config_mutex_ around configCb).

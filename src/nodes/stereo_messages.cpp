@@ -101,4 +101,34 @@ sensor_msgs::PointCloud2Ptr pointCloud(const std_msgs::Header& header, const cv:
   return cloud;
 }
 
+sensor_msgs::PointCloud2Ptr surfaceCloud(const std_msgs::Header& header, const cv::Mat& points,
+                                         const cv::Mat& consistent, const cv::Mat& disparity, int dmin, int step) {
+  std::vector<cv::Vec3f> kept;
+  for (int y = step / 2; y < points.rows; y += step) {
+    for (int x = step / 2; x < points.cols; x += step) {
+      const cv::Vec3f& p = points.at<cv::Vec3f>(y, x);
+      if (consistent.at<unsigned char>(y, x) == 0 || !(disparity.at<float>(y, x) > dmin + 0.5f)) continue;
+      if (std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2])) kept.push_back(p);
+    }
+  }
+  auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
+  cloud->header = header;
+  sensor_msgs::PointCloud2Modifier modifier(*cloud);
+  modifier.setPointCloud2Fields(3, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
+                                "z", 1, sensor_msgs::PointField::FLOAT32);
+  modifier.resize(kept.size());
+  cloud->height = 1;
+  cloud->width = static_cast<std::uint32_t>(kept.size());
+  cloud->is_dense = true;
+  cloud->is_bigendian = false;
+  sensor_msgs::PointCloud2Iterator<float> it(*cloud, "x");
+  for (const cv::Vec3f& p : kept) {
+    it[0] = p[0];
+    it[1] = p[1];
+    it[2] = p[2];
+    ++it;
+  }
+  return cloud;
+}
+
 }  // namespace massage_cell::nodes

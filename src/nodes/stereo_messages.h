@@ -38,4 +38,11 @@ sensor_msgs::CameraInfo depthInfo(const std_msgs::Header& header, const camera::
 /// the same size): REP 103, the left optical frame.
 sensor_msgs::PointCloud2Ptr pointCloud(const std_msgs::Header& header, const cv::Mat& points, const cv::Mat& colours);
 
+/// The confident surface for a robot (the arm's body model): an unorganised cloud `x y z` of `points` (CV_32FC3,
+/// the left optical frame) where the left-right check confirmed the disparity (`consistent` non-zero) and it is not at
+/// the search range's far end (`disparity` > `dmin` + 0.5: the background beyond the range piles up there), one pixel
+/// in `step` across and down.
+sensor_msgs::PointCloud2Ptr surfaceCloud(const std_msgs::Header& header, const cv::Mat& points,
+                                         const cv::Mat& consistent, const cv::Mat& disparity, int dmin, int step);
+
 }  // namespace massage_cell::nodes

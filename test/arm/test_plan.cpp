@@ -195,6 +195,46 @@ TEST(Plan, BodySurfaceIsTheNearestPointWithinTheRadius) {
   EXPECT_FALSE(BodySurface{}.heightAt(0.5, 0.2, 0.05));
 }
 
+TEST(Plan, HeightGridHoldsTheHighestPointOfEachCellAndItsNeighbours) {
+  const HeightGrid grid({{0.500, 0.200, 0.15}, {0.503, 0.202, 0.17}, {0.530, 0.200, 0.10}, {NAN, 0.2, 0.3}}, 0.01);
+  EXPECT_DOUBLE_EQ(*grid.heightAt(0.501, 0.201), 0.17f);  // the higher of the cell's two
+  EXPECT_DOUBLE_EQ(*grid.heightAt(0.512, 0.201), 0.17f);  // the neighbouring cell's too
+  EXPECT_DOUBLE_EQ(*grid.heightAt(0.531, 0.201), 0.10f);
+  EXPECT_FALSE(grid.heightAt(0.60, 0.20)) << "no point within a cell";
+  EXPECT_FALSE(HeightGrid().heightAt(0.5, 0.2));
+  EXPECT_TRUE(HeightGrid({{NAN, 0.0, 0.0}}, 0.01).empty());
+}
+
+TEST(Plan, StereosSurfaceGuardsBetweenTheAcupoints) {
+  const ArmConfig c = config();
+  BodySurface body;
+  // Two acupoints 10 cm apart at the skin's 0.15 m; between them the back rises 4 cm (the spine, a shoulder blade).
+  body.points = {{0.40, 0.20, 0.15}, {0.50, 0.20, 0.15}};
+  const Eigen::Vector3d above(0.45, 0.20, 0.28), target(0.45, 0.20, 0.16);
+  EXPECT_EQ(checkBodyClearance(c, body, above, target, 0.002), "") << "the acupoints alone: 1 cm above the skin";
+  std::vector<Eigen::Vector3d> seen;
+  for (double x = 0.35; x <= 0.551; x += 0.005) {
+    for (double y = 0.15; y <= 0.251; y += 0.005)
+      seen.emplace_back(x, y, 0.15 + 0.04 * std::exp(-std::pow((x - 0.45) / 0.02, 2)));
+  }
+  body.dense = HeightGrid(seen, c.body.surface_cell);
+  // 3 cm into the ridge stereo sees: refused, naming the surface and the limit.
+  const std::string why = checkBodyClearance(c, body, above, target, 0.002);
+  EXPECT_NE(why.find("the target (0.450, 0.200, 0.160) m is 30.0 mm below the surface stereo sees (limit 12.0 mm"),
+            std::string::npos)
+      << why;
+  // Within stereo's depth error of it: allowed (a press point CECT put 5 mm under stereo's skin is not refused).
+  EXPECT_EQ(checkBodyClearance(c, body, above, {0.45, 0.20, 0.185}, 0.002), "");
+  // A path across the ridge at the acupoints' height: refused on its way.
+  EXPECT_NE(checkBodyClearance(c, body, {0.40, 0.20, 0.16}, {0.50, 0.20, 0.16}, 0.002).find("the path at"),
+            std::string::npos);
+  // Where only stereo sees the body (no acupoint within the radius), it is known: below the safe height is allowed
+  // above it, and refused into it.
+  const Eigen::Vector3d over_edge(0.36, 0.24, 0.20);
+  EXPECT_EQ(checkBodyClearance(c, body, {0.36, 0.24, 0.28}, over_edge, 0.002), "");
+  EXPECT_NE(checkBodyClearance(c, body, {0.36, 0.24, 0.28}, {0.36, 0.24, 0.12}, 0.002), "");
+}
+
 TEST(Plan, BodyClearance) {
   const ArmConfig c = config();
   BodySurface body;

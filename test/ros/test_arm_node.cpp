@@ -30,6 +30,8 @@
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/JointState.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
 #include <std_msgs/Bool.h>
 #include <std_msgs/String.h>
 #include <std_srvs/Trigger.h>
@@ -509,6 +511,64 @@ TEST(ArmNode, RefusalsNameTheProblem) {
   // Nothing moved.
   EXPECT_LT((F->jointPositions() - before).norm(), 1e-6);
   EXPECT_EQ(F->latest().mode, "idle");
+}
+
+TEST(ArmNode, StereosSurfaceKeepsMovesOutOfTheBackBetweenAcupointsAndTheShoulder) {
+  // Two acupoints 10 cm apart at the skin's 0.15 m, the back rising 4 cm between them (the spine); a shoulder 5 cm
+  // above them where no acupoint is. Stereo's surface (the hbds node's `surface`) in the camera's optical frame.
+  F->addFrame("acupoint/SURFACE_A", {0.40, 0.35, 0.15});
+  F->addFrame("acupoint/SURFACE_B", {0.50, 0.35, 0.15});
+  ASSERT_TRUE(F->buffer.canTransform(kBase, "acupoint/SURFACE_B", ros::Time(0), ros::Duration(5.0)));
+  const auto skin = [](double x, double y) {
+    return 0.15 + 0.04 * std::exp(-std::pow((x - 0.45) / 0.02, 2)) +
+           0.05 * std::exp(-(std::pow((x - 0.25) / 0.03, 2) + std::pow((y - 0.42) / 0.03, 2)));
+  };
+  sensor_msgs::PointCloud2 cloud;
+  cloud.header.frame_id = kOptical;
+  cloud.header.stamp = ros::Time::now();
+  sensor_msgs::PointCloud2Modifier modifier(cloud);
+  modifier.setPointCloud2FieldsByString(1, "xyz");
+  std::vector<Eigen::Vector3d> points;
+  for (double x = 0.18; x <= 0.56; x += 0.008) {
+    for (double y = 0.28; y <= 0.46; y += 0.008) points.push_back(F->inOptical({x, y, skin(x, y)}));
+  }
+  modifier.resize(points.size());
+  sensor_msgs::PointCloud2Iterator<float> it(cloud, "x");
+  for (const Eigen::Vector3d& p : points) {
+    it[0] = static_cast<float>(p.x());
+    it[1] = static_cast<float>(p.y());
+    it[2] = static_cast<float>(p.z());
+    ++it;
+  }
+  // arm.launch's default topic for ~surface (the hbds node's in the stereo namespace).
+  ros::Publisher pub = F->nh.advertise<sensor_msgs::PointCloud2>("/stereo/surface", 1, true);
+  pub.publish(cloud);
+  // 3 cm into the back halfway between the acupoints (1 cm above their height: the acupoints alone let it pass); the
+  // surface's highest point within a cell (its samples 8 mm apart) is 29.6 mm above the target.
+  massage_cell::MoveTo::Response m;
+  ASSERT_TRUE(F->waitFor(
+      [&] {
+        m = F->moveTo(kBase, {0.45, 0.35, 0.16});
+        return contains(m.message, "below the surface stereo sees");
+      },
+      5.0))
+      << m.message;
+  EXPECT_FALSE(m.success);
+  EXPECT_TRUE(
+      contains(m.message, "the target (0.450, 0.350, 0.160) m is 29.6 mm below the surface stereo sees (limit 12.0 mm"))
+      << m.message;
+  // 3 cm into the shoulder, where no acupoint is.
+  m = F->moveTo(kBase, {0.25, 0.42, 0.17});
+  EXPECT_FALSE(m.success);
+  EXPECT_TRUE(
+      contains(m.message, "the target (0.250, 0.420, 0.170) m is 28.9 mm below the surface stereo sees (limit 12.0 mm"))
+      << m.message;
+  F->removeFrame("acupoint/SURFACE_A");
+  F->removeFrame("acupoint/SURFACE_B");
+  modifier.resize(0);  // stereo sees nothing: the next tests' moves are not held to this back
+  cloud.header.stamp = ros::Time::now();
+  pub.publish(cloud);
+  ros::WallDuration(0.3).sleep();
 }
 
 TEST(ArmNode, EstopMidMoveAndReset) {

@@ -432,10 +432,13 @@ TEST_F(HbdsNode, LeftRightCheck) {
   PairPublisher input(ns, 2);
   stereo_msgs::DisparityImageConstPtr disparity;
   sensor_msgs::ImageConstPtr confidence;
-  ros::Subscriber subs[2] = {
+  sensor_msgs::PointCloud2ConstPtr surface;
+  ros::Subscriber subs[3] = {
       ns.subscribe<stereo_msgs::DisparityImage>("disparity", 2,
                                                 [&](const stereo_msgs::DisparityImageConstPtr& m) { disparity = m; }),
-      ns.subscribe<sensor_msgs::Image>("confidence", 2, [&](const sensor_msgs::ImageConstPtr& m) { confidence = m; })};
+      ns.subscribe<sensor_msgs::Image>("confidence", 2, [&](const sensor_msgs::ImageConstPtr& m) { confidence = m; }),
+      ns.subscribe<sensor_msgs::PointCloud2>("surface", 2,
+                                             [&](const sensor_msgs::PointCloud2ConstPtr& m) { surface = m; })};
   ASSERT_TRUE(spinUntil([&] { return input.subscribed(); }, 15.0)) << "the node in /lr_input did not subscribe";
   // One pair and both outputs of its stamp (a few tries: the first may race the subscriptions).
   auto processed = [&](int first_second) {
@@ -475,6 +478,20 @@ TEST_F(HbdsNode, LeftRightCheck) {
       << "the back is not confirmed by the right view";
   EXPECT_GT(count(0, 8, [&](long i) { return d[i] >= disparity->min_disparity; }), band * 9 / 10)
       << "lr_fill: the band should be filled";
+  // `surface`, the arm's: the confirmed pixels only (not the filled band), one in `step` across and down.
+  ASSERT_TRUE(spinUntil([&] { return surface && surface->header.stamp == disparity->header.stamp; }, 10.0))
+      << "no surface of the pair's stamp";
+  EXPECT_EQ(surface->header.frame_id, disparity->header.frame_id);
+  const int step = std::max(1, w / 80);
+  long grid_confirmed = 0;
+  for (int y = step / 2; y < h; y += step)
+    for (int x = step / 2; x < w; x += step) grid_confirmed += c[y * w + x] == 255 ? 1 : 0;
+  const long points = static_cast<long>(surface->width) * surface->height;
+  EXPECT_LE(points, grid_confirmed) << "surface points where the right view confirms nothing";
+  EXPECT_GT(points, grid_confirmed * 8 / 10) << "the confirmed back and table missing from the surface";
+  for (sensor_msgs::PointCloud2ConstIterator<float> p(*surface, "z"); p != p.end(); ++p) {
+    ASSERT_TRUE(*p > 0.4f && *p < 1.5f) << "a surface point at depth " << *p << " m";
+  }
 
   dynamic_reconfigure::ReconfigureRequest request;
   dynamic_reconfigure::ReconfigureResponse response;

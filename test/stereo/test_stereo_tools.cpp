@@ -64,6 +64,18 @@ TEST(StereoMatch, WritesPfmAndPngWithTheRightDisparity) {
   }
 }
 
+TEST(StereoMatch, HelpPrintsEveryOptionWithTheLibrarysDefault) {
+  const auto r = runCommand(kMatch + " --help", 30);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  // The help is long: every block printed whole, to the last option (a fixed-size format buffer cut it off).
+  for (const char* line :
+       {"--cost C", "(default thesis)", "--overlap M", "default 1)", "(default ffd-mdc)", "--subpixel F",
+        "--no-lr-check", "--lr-tolerance T", "--threads N        worker threads, 0 = all cores (default 0)"}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << " missing in:\n" << r.output;
+  }
+  EXPECT_NE(r.output.find("(default on)"), std::string::npos) << "the left-right check's default";
+}
+
 TEST(StereoMatch, BadInputFailsWithAMessage) {
   TempDir dir;
   writePair(dir, 4);

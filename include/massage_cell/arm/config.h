@@ -83,8 +83,12 @@ struct PressConfig {
 
 /// Keeping out of the body (see checkBodyClearance in plan.h).
 struct BodyConfig {
-  double safe_height = 0.25;  ///< m, tool z: where no body surface is known, motion stays above this
-  double radius = 0.05;       ///< m: a surface point speaks for the skin this far around it (in x, y)
+  double safe_height = 0.25;   ///< m, tool z: where no body surface is known, motion stays above this
+  double radius = 0.05;        ///< m: a surface point speaks for the skin this far around it (in x, y)
+  double surface_cell = 0.01;  ///< m: stereo's dense surface binned into cells this wide (HeightGrid)
+  /// m: how far a target may lie below stereo's dense surface beyond the region's depth limit: the surface's depth
+  /// error on skin (the bundled recording's acupoint depth: median 9 mm, docs/stereo.md)
+  double surface_tolerance = 0.01;
 };
 
 /// Force from the Z drive's torque (force_estimate.h, tool_force.h): the nominal drive train, a prior of what the

@@ -17,6 +17,7 @@ struct NodeOptions {
   double tf_timeout = 0.2;                    ///< s a target lookup waits for its transform
   std::string acupoint_prefix = "acupoint/";  ///< tf frames of the body's acupoints
   double command_timeout = 300.0;             ///< s a service call waits for its command's result
+  double surface_max_age = 5.0;               ///< s: ~surface (stereo's dense surface) older than this is not used
   can::RealtimeOptions realtime;              ///< realtime_priority, lock_memory
 };
 
@@ -31,6 +32,7 @@ void visitOptions(NodeOptions& o, Visit&& visit) {
   visit("tf_timeout", o.tf_timeout);
   visit("acupoint_prefix", o.acupoint_prefix);
   visit("command_timeout", o.command_timeout);
+  visit("surface_max_age", o.surface_max_age);
   visit("realtime_priority", o.realtime.priority);
   visit("lock_memory", o.realtime.lock_memory);
 }

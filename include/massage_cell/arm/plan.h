@@ -102,18 +102,38 @@ std::string planMassage(const ArmConfig& config, const Eigen::Vector3d& from, co
 /// its retreat point, then up to the travel height.
 std::vector<Step> retractSteps(const ArmConfig& config, const Step& from_step);
 
-/// What the arm knows of the body's surface: points of the skin in the arm
-/// base frame (the arm node: the acupoints' tf frames). The surface at (x, y)
-/// is the z of the nearest point within BodyConfig::radius; elsewhere unknown.
+/// A dense surface seen by stereo (the hbds node's `surface`: left-right-confirmed points of the body and the table),
+/// binned into square cells of the arm base frame's (x, y); each cell holds its highest point.
+class HeightGrid {
+ public:
+  HeightGrid() = default;
+  /// `points` in the base frame (non-finite ones skipped), cells of `cell` m (> 0).
+  HeightGrid(const std::vector<Eigen::Vector3d>& points, double cell);
+  bool empty() const { return z_.empty(); }
+  /// The highest point in the cell of (x, y) and its eight neighbours (what lies within a cell of it, whichever side
+  /// of a cell boundary), or nullopt when none holds one.
+  std::optional<double> heightAt(double x, double y) const;
+
+ private:
+  double cell_ = 0.01, x0_ = 0.0, y0_ = 0.0;
+  int nx_ = 0, ny_ = 0;
+  std::vector<float> z_;  ///< ny_ x nx_, NaN: no point
+};
+
+/// What the arm knows of the body's surface in the arm base frame: the acupoints' points (the arm node: their tf
+/// frames), the skin at (x, y) being the z of the nearest one within BodyConfig::radius; and, where stereo sees it,
+/// the dense surface.
 struct BodySurface {
   std::vector<Eigen::Vector3d> points;
-  /// The skin's z under (x, y), or nullopt when no point lies within `radius`.
+  HeightGrid dense;
+  /// The skin's z under (x, y) from the acupoints, or nullopt when no point lies within `radius`.
   std::optional<double> heightAt(double x, double y, double radius) const;
 };
 
 /// Empty when the straight line from `from` to `to` keeps out of the body:
-/// wherever the surface is known the tool stays at most `max_depth` below it;
-/// where it is not, no lower than BodyConfig::safe_height (or than `from`, when
+/// wherever an acupoint knows the surface the tool stays at most `max_depth` below it, wherever stereo's dense
+/// surface does at most `max_depth` + BodyConfig::surface_tolerance (its depth error on skin); where neither
+/// does, no lower than BodyConfig::safe_height (or than `from`, when
 /// the tool is already lower: it may move at its height or up). Otherwise why
 /// not ("the target (0.563, 0.211, 0.118) m is 49.0 mm below the body's surface
 /// (limit 2.0 mm)").
