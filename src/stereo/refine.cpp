@@ -1,17 +1,7 @@
 // Disparity refinement with fattening foreground region detection (thesis
-// §2.3): FFD and MDC. The choices the thesis leaves open are listed in
+// §2.3): FFD, and refineDisparity (FFD then MDC, mdc.cpp). The choices the thesis leaves open are listed in
 // include/massage_cell/stereo/refine.h; implementation notes here.
 //
-// * MDC inner loop: for each window row, a vectorised pass (OpenCV universal
-//   intrinsics) turns the Lab distances into indices of the exp(-Δc/γc) table;
-//   a scalar pass adds table value x spatial weight to the histogram entry of
-//   each voter's level. Levels touched for the current pixel are tracked with a
-//   stamp array, so the argmax runs over the voted levels only and the cost
-//   does not depend on the disparity range.
-// * Measured (Release, 2 cores, HBDS maps of Middlebury 2003, min of 3 runs):
-//   MDC window 21: 77-120 ms (Teddy 108-115, Cones 116-120); window 25:
-//   107-185 ms; window 35: 205-320 ms. FFD: 45-125 ms (SLIC, single-
-//   threaded, dominates; the timings varied with the machine's load).
 // * Middlebury bad > 1 px (nonocc / all / disc, mean of the four scenes),
 //   defaults: HBDS 5.09 / 10.79 / 19.68; Gu (MDC without FFD) 3.96 / 8.81 /
 //   13.18; FFD + MDC 4.02 / 8.75 / 13.49. FFD helps Tsukuba slightly and
@@ -21,6 +11,8 @@
 //   are good voters lost.
 #include "massage_cell/stereo/refine.h"
 
+#include "refine_common.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -28,80 +20,13 @@
 #include <string>
 #include <vector>
 
-#include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/ximgproc/seeds.hpp>
 #include <opencv2/ximgproc/slic.hpp>
 
 namespace massage_cell::stereo {
-namespace {
 
-[[noreturn]] void fail(const char* where, const std::string& what) {
-  throw std::invalid_argument(std::string(where) + ": " + what);
-}
-
-void checkImage(const char* where, const cv::Mat& left, const cv::Mat& disparity) {
-  if (left.empty()) fail(where, "empty image");
-  if (disparity.empty()) fail(where, "empty disparity map");
-  if (left.type() != CV_8UC1 && left.type() != CV_8UC3) fail(where, "unsupported image type (need CV_8UC1 or CV_8UC3)");
-  if (disparity.type() != CV_32FC1) fail(where, "disparity map must be CV_32FC1");
-  if (left.size() != disparity.size()) fail(where, "image and disparity map sizes differ");
-  for (int y = 0; y < disparity.rows; ++y) {
-    const float* d = disparity.ptr<float>(y);
-    for (int x = 0; x < disparity.cols; ++x)
-      if (std::isinf(d[x])) fail(where, "infinite disparity at (" + std::to_string(x) + ", " + std::to_string(y) + ")");
-  }
-}
-
-/// Integer level of every finite disparity; `lo`, `hi`: their range (lo > hi: none).
-cv::Mat roundedLevels(const cv::Mat& disparity, int& lo, int& hi) {
-  cv::Mat levels(disparity.size(), CV_32S);
-  lo = std::numeric_limits<int>::max();
-  hi = std::numeric_limits<int>::min();
-  for (int y = 0; y < disparity.rows; ++y) {
-    const float* d = disparity.ptr<float>(y);
-    int* l = levels.ptr<int>(y);
-    for (int x = 0; x < disparity.cols; ++x) {
-      if (std::isnan(d[x])) {
-        l[x] = std::numeric_limits<int>::min();
-        continue;
-      }
-      const double r = std::round(static_cast<double>(d[x]));
-      if (r < -1e8 || r > 1e8) fail("refine", "disparity magnitude too large");
-      l[x] = static_cast<int>(r);
-      lo = std::min(lo, l[x]);
-      hi = std::max(hi, l[x]);
-    }
-  }
-  return levels;
-}
-
-/// CIELab (L 0..100) as three planar CV_32F images.
-void labPlanes(const cv::Mat& left, cv::Mat planes[3]) {
-  if (left.channels() == 1) {
-    left.convertTo(planes[0], CV_32F, 100.0 / 255.0);
-    planes[1] = cv::Mat::zeros(left.size(), CV_32F);
-    planes[2] = cv::Mat::zeros(left.size(), CV_32F);
-    return;
-  }
-  cv::Mat f, lab;
-  left.convertTo(f, CV_32F, 1.0 / 255.0);
-  cv::cvtColor(f, lab, cv::COLOR_BGR2Lab);
-  cv::split(lab, planes);
-}
-
-/// CIELab (L 0..100) of pixel i of an 8-bit Lab (3 channels) or grey image.
-cv::Vec3d pixelLab(const cv::Mat& image, int i) {
-  if (image.channels() == 3) {
-    const cv::Vec3b c = image.ptr<cv::Vec3b>(0)[i];
-    return cv::Vec3d(c[0] * 100.0 / 255.0, c[1] - 128.0, c[2] - 128.0);
-  }
-  return cv::Vec3d(image.ptr<uchar>(0)[i] * 100.0 / 255.0, 0.0, 0.0);
-}
-
-double stripes(int threads, int rows) { return threads > 0 ? std::min(threads, rows) : -1.0; }
-
-}  // namespace
+using namespace refine_detail;
 
 void validate(const RefineParams& p) {
   const char* w = "RefineParams";
@@ -125,8 +50,6 @@ void validate(const RefineParams& p) {
 // ---------------------------------------------------------------------- FFD --
 
 namespace {
-
-constexpr int kInvalidLevel = std::numeric_limits<int>::min();
 
 /// Disparity edges: Canny on the integer map (NaN: the smaller nearest valid level on the row).
 cv::Mat disparityEdges(const cv::Mat& levels, int lo, const RefineParams& params) {
@@ -411,181 +334,6 @@ cv::Mat detectFattening(const cv::Mat& left, const cv::Mat& disparity, const Ref
   FatteningTest test(levels, sp, pixels, params);
   for (int sgm = 0; sgm < sp.segments; ++sgm) test.mark(sgm, mask.ptr<uchar>(0));
   return mask;
-}
-
-// ---------------------------------------------------------------------- MDC --
-
-namespace {
-
-/// MDC's voters: each pixel's level (index from lo; -1: not a voter - invalid or in the fattening mask) and the
-/// smallest / largest voter level within the window around every pixel (FLT_MAX / -FLT_MAX: none).
-struct Voters {
-  cv::Mat level, window_min, window_max;
-};
-
-Voters voters(const cv::Mat& levels, int lo, const cv::Mat& fattening_mask, int window) {
-  Voters v;
-  v.level.create(levels.size(), CV_32S);
-  v.window_min.create(levels.size(), CV_32F);
-  v.window_max.create(levels.size(), CV_32F);
-  for (int y = 0; y < levels.rows; ++y) {
-    const int* l = levels.ptr<int>(y);
-    const uchar* m = fattening_mask.empty() ? nullptr : fattening_mask.ptr<uchar>(y);
-    int* own = v.level.ptr<int>(y);
-    float* a = v.window_min.ptr<float>(y);
-    float* b = v.window_max.ptr<float>(y);
-    for (int x = 0; x < levels.cols; ++x) {
-      const bool ok = l[x] != kInvalidLevel && !(m && m[x]);
-      own[x] = ok ? l[x] - lo : -1;
-      a[x] = ok ? static_cast<float>(own[x]) : std::numeric_limits<float>::max();
-      b[x] = ok ? static_cast<float>(own[x]) : -std::numeric_limits<float>::max();
-    }
-  }
-  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(window, window));
-  cv::erode(v.window_min, v.window_min, kernel, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT,
-            cv::Scalar(std::numeric_limits<float>::max()));
-  cv::dilate(v.window_max, v.window_max, kernel, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT,
-             cv::Scalar(-std::numeric_limits<float>::max()));
-  return v;
-}
-
-/// MDC's colour-weighted vote over the window (thesis Sec. 2.3): each voter q adds exp(-Δc(p,q)/γc) exp(-Δg/γg) to
-/// its level; the level with the most weight wins (ties: the pixel's own level, else the smallest). One per thread.
-class WeightedVote {
- public:
-  WeightedVote(const cv::Mat (&lab)[3], const Voters& voters, int nlevels, const RefineParams& params)
-      : lab_(lab),
-        voters_(voters),
-        r_(params.window / 2),
-        side_(params.window),
-        score_(nlevels, 0.0f),
-        stamp_(nlevels, -1),
-        index_(params.window + 8) {
-    // exp(-Δc/γc) in steps of γc/64 up to float underflow; exp(-Δg/γg) per offset.
-    const int table_size = static_cast<int>(88.0f * kSteps) + 1;
-    colour_weight_.resize(table_size);
-    for (int i = 0; i < table_size; ++i)
-      colour_weight_[i] = static_cast<float>(std::exp(-i / static_cast<double>(kSteps)));
-    colour_weight_.back() = 0.0f;
-    to_index_ = kSteps / params.gamma_c;
-    spatial_.resize(static_cast<std::size_t>(side_) * side_);
-    for (int j = -r_; j <= r_; ++j)
-      for (int i = -r_; i <= r_; ++i)
-        spatial_[(j + r_) * side_ + (i + r_)] =
-            static_cast<float>(std::exp(-std::sqrt(double(i * i + j * j)) / params.gamma_g));
-    touched_.reserve(std::min(nlevels, side_ * side_));
-  }
-
-  /// The winning level (index from lo) at pixel (x, y) whose own level is `own` (-1: none).
-  int winner(int x, int y, int own) {
-    const int W = voters_.level.cols, H = voters_.level.rows;
-    const int pixel_id = y * W + x;
-    touched_.clear();
-    const float Lp = lab_[0].ptr<float>(y)[x], ap = lab_[1].ptr<float>(y)[x], bp = lab_[2].ptr<float>(y)[x];
-    const int x0 = std::max(0, x - r_), x1 = std::min(W - 1, x + r_), n = x1 - x0 + 1;
-    const int y0 = std::max(0, y - r_), y1 = std::min(H - 1, y + r_);
-    for (int yy = y0; yy <= y1; ++yy) {
-      colourIndices(yy, x0, n, Lp, ap, bp);
-      const int* vq = voters_.level.ptr<int>(yy) + x0;
-      const float* sw = spatial_.data() + (yy - y + r_) * side_ + (x0 - x + r_);
-      for (int i = 0; i < n; ++i) {
-        const int v = vq[i];
-        if (v < 0) continue;
-        if (stamp_[v] != pixel_id) {
-          stamp_[v] = pixel_id;
-          score_[v] = 0.0f;
-          touched_.push_back(v);
-        }
-        score_[v] += colour_weight_[index_[i]] * sw[i];
-      }
-    }
-    int winner = -1;
-    float best = -1.0f;
-    for (const int v : touched_) {
-      const float s = score_[v];
-      if (s > best || (s == best && v != winner && (winner != own && (v == own || v < winner)))) {
-        best = s;
-        winner = v;
-      }
-    }
-    return winner;
-  }
-
- private:
-  static constexpr float kSteps = 64.0f;
-
-  /// index_[i]: the colour-weight table's entry for the window row yy's pixel x0 + i against (Lp, ap, bp).
-  void colourIndices(int yy, int x0, int n, float Lp, float ap, float bp) {
-    const float* Lq = lab_[0].ptr<float>(yy) + x0;
-    const float* aq = lab_[1].ptr<float>(yy) + x0;
-    const float* bq = lab_[2].ptr<float>(yy) + x0;
-    const int last = static_cast<int>(colour_weight_.size()) - 1;
-    int i = 0;
-#if CV_SIMD128
-    const cv::v_float32x4 vL = cv::v_setall_f32(Lp), va = cv::v_setall_f32(ap), vb = cv::v_setall_f32(bp);
-    const cv::v_float32x4 vscale = cv::v_setall_f32(to_index_);
-    const cv::v_int32x4 vlast = cv::v_setall_s32(last);
-    for (; i + 4 <= n; i += 4) {
-      const cv::v_float32x4 dL = cv::v_load(Lq + i) - vL, da = cv::v_load(aq + i) - va, db = cv::v_load(bq + i) - vb;
-      const cv::v_float32x4 dc = cv::v_sqrt(dL * dL + da * da + db * db) * vscale;
-      cv::v_store(index_.data() + i, cv::v_min(cv::v_round(dc), vlast));
-    }
-#endif
-    for (; i < n; ++i) {
-      const float dL = Lq[i] - Lp, da = aq[i] - ap, db = bq[i] - bp;
-      index_[i] = std::min(static_cast<int>(std::lround(std::sqrt(dL * dL + da * da + db * db) * to_index_)), last);
-    }
-  }
-
-  const cv::Mat (&lab_)[3];
-  const Voters& voters_;
-  const int r_, side_;
-  float to_index_ = 0.0f;
-  std::vector<float> colour_weight_, spatial_, score_;
-  std::vector<int> stamp_, touched_, index_;
-};
-
-}  // namespace
-
-cv::Mat recoverDisparity(const cv::Mat& left, const cv::Mat& disparity, const cv::Mat& fattening_mask,
-                         const RefineParams& params, int threads) {
-  checkImage("recoverDisparity", left, disparity);
-  if (!fattening_mask.empty()) {
-    if (fattening_mask.type() != CV_8UC1) fail("recoverDisparity", "fattening mask must be CV_8UC1");
-    if (fattening_mask.size() != disparity.size())
-      fail("recoverDisparity", "fattening mask and disparity map sizes differ");
-  }
-  validate(params);
-  int lo, hi;
-  const cv::Mat levels = roundedLevels(disparity, lo, hi);
-  cv::Mat result = disparity.clone();
-  if (lo > hi) return result;  // no voter anywhere
-  if (static_cast<long long>(hi) - lo > 1 << 24) fail("recoverDisparity", "disparity range too wide");
-  const int nlevels = hi - lo + 1;
-  const Voters v = voters(levels, lo, fattening_mask, params.window);
-  cv::Mat lab[3];
-  labPlanes(left, lab);
-  cv::parallel_for_(
-      cv::Range(0, disparity.rows),
-      [&](const cv::Range& rows) {
-        WeightedVote vote(lab, v, nlevels, params);
-        for (int y = rows.start; y < rows.end; ++y) {
-          const float* window_min = v.window_min.ptr<float>(y);
-          const float* window_max = v.window_max.ptr<float>(y);
-          const int* own_row = levels.ptr<int>(y);
-          float* out = result.ptr<float>(y);
-          for (int x = 0; x < disparity.cols; ++x) {
-            if (window_min[x] == std::numeric_limits<float>::max()) continue;  // no voter: keep d(p)
-            const int own = own_row[x] == kInvalidLevel ? -1 : own_row[x] - lo;
-            // One level among the voters wins outright; else the vote.
-            const int winner =
-                window_min[x] == window_max[x] ? static_cast<int>(window_min[x]) : vote.winner(x, y, own);
-            if (winner != own) out[x] = static_cast<float>(winner + lo);
-          }
-        }
-      },
-      stripes(threads, disparity.rows));
-  return result;
 }
 
 cv::Mat refineDisparity(const cv::Mat& left, const cv::Mat& disparity, const RefineParams& params, cv::Mat* fattening,

@@ -49,7 +49,8 @@ wide), searched over --frame-levels disparities centred on the scene's
 range: every stage's time and the total (the 640x480 x 64-level speed
 target: each method's total as a multiple of StereoSGBM's), the bad pixels
 > 1 and > 0.5 px and the median |error| (px) against the exact ground truth
-(pixels seen by both cameras);
+(pixels seen by both cameras), and on the back the skin's bias: the median of
+d - d_true (px) over its skin (what the acupoints' depth inherits);
 times are the median of --repeat runs (default 3: a stream's steady state,
 not the first run's page faults).
   --plot FILE.png    draw time vs levels of the sweep
@@ -182,13 +183,17 @@ void drawPlot(const std::string& path, const std::vector<Row>& rows, const std::
 
 /// Median |disparity - truth| over the mask's pixels with a finite truth (NaN
 /// disparities count as infinitely wrong).
-double medianAbsError(const cv::Mat& disparity, const cv::Mat& truth, const cv::Mat& mask) {
+/// The median of |d - truth| (or of d - truth: `absolute` false; NaN disparities then left out) over `mask`.
+double medianError(const cv::Mat& disparity, const cv::Mat& truth, const cv::Mat& mask, bool absolute = true) {
   std::vector<float> errors;
   for (int y = 0; y < truth.rows; ++y)
     for (int x = 0; x < truth.cols; ++x) {
       const float t = truth.at<float>(y, x), d = disparity.at<float>(y, x);
       if (mask.at<uchar>(y, x) == 0 || !std::isfinite(t)) continue;
-      errors.push_back(std::isfinite(d) ? std::abs(d - t) : std::numeric_limits<float>::infinity());
+      if (absolute)
+        errors.push_back(std::isfinite(d) ? std::abs(d - t) : std::numeric_limits<float>::infinity());
+      else if (std::isfinite(d))
+        errors.push_back(d - t);
     }
   if (errors.empty()) return std::numeric_limits<double>::quiet_NaN();
   std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
@@ -210,9 +215,9 @@ void runFrames(const Options& o) {
   std::snprintf(title, sizeof title, "Cell scenes (simulator) at %dx%d, %d levels: time, energy and bad pixels > 1 px",
                 o.frame_width, o.frame_height, o.frame_levels);
   if (!o.csv) {
-    std::printf("\n%s\n%-22s %-10s %6s %9s %9s %9s %9s %9s %9s %14s %7s %9s %9s %10s\n", title, "scene", "method",
+    std::printf("\n%s\n%-22s %-10s %6s %9s %9s %9s %9s %9s %9s %14s %7s %9s %9s %10s %10s\n", title, "scene", "method",
                 "levels", "cost ms", "optim ms", "refine", "subpixel", "lr check", "total ms", "energy", "cuts",
-                "bad>1px", "bad>.5px", "med|err|");
+                "bad>1px", "bad>.5px", "med|err|", "skin err");
   }
   sim::RigParameters rig;
   rig.width = o.frame_width;
@@ -245,15 +250,19 @@ void runFrames(const Options& o) {
       const stereo::MatchResult& r = runs[runs.size() / 2];
       const double bad = stereo::badPixelPercent(r.disparity, frame.left_disparity, frame.left_visible, 1.0);
       const double bad_half = stereo::badPixelPercent(r.disparity, frame.left_disparity, frame.left_visible, 0.5);
-      const double median = medianAbsError(r.disparity, frame.left_disparity, frame.left_visible);
+      const double median = medianError(r.disparity, frame.left_disparity, frame.left_visible);
+      // The skin's bias (the acupoints' depth): the signed median over the back's visible skin.
+      const cv::Mat skin = frame.left_visible & (frame.left.labels == sim::kLabelBack);
+      const double skin_bias = medianError(r.disparity, frame.left_disparity, skin, false);
       const Row row{std::string(name) + "/" + std::to_string(o.frame_width) + "x" + std::to_string(o.frame_height),
                     method, o.frame_levels, r.total_ms(), r.energy.total()};
       if (o.csv) {
         printRow(o, row, &r);
       } else {
-        std::printf("%-22s %-10s %6d %9.1f %9.1f %9.1f %9.1f %9.1f %9.1f %14.2f %7d %8.2f%% %8.2f%% %10.3f\n",
+        std::printf("%-22s %-10s %6d %9.1f %9.1f %9.1f %9.1f %9.1f %9.1f %14.2f %7d %8.2f%% %8.2f%% %10.3f %10s\n",
                     row.scene.c_str(), method.c_str(), row.levels, r.cost_ms, r.optimize_ms, r.refine_ms, r.subpixel_ms,
-                    r.lr_ms, r.total_ms(), r.energy.total(), r.cuts, bad, bad_half, median);
+                    r.lr_ms, r.total_ms(), r.energy.total(), r.cuts, bad, bad_half, median,
+                    std::isfinite(skin_bias) ? format("%+.3f", skin_bias).c_str() : "-");
         std::fflush(stdout);
       }
       total_ms[method] = r.total_ms();

@@ -5,9 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <limits>
+#include <map>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -243,6 +246,141 @@ TEST(RecoverDisparity, TiesKeepTheOwnLevelElseTheSmaller) {
   d.at<float>(0, 1) = std::numeric_limits<float>::quiet_NaN();
   out = ms::recoverDisparity(img, d, cv::Mat(), p);
   EXPECT_FLOAT_EQ(out.at<float>(0, 1), 2.0f);
+}
+
+// The straightforward MDC the fast one (four pixels per SIMD step, shared tables, min/max shortcut) must match bit
+// for bit: per pixel, every voter of the clipped window adds table(Δc) x exp(-Δg/γg) to its level in raster order,
+// the maximum wins (ties: own level, else the smallest). The colour index Δc x 64 / γc, clamped to the table, rounds
+// half to even.
+cv::Mat referenceMdc(const cv::Mat& left, const cv::Mat& disparity, const cv::Mat& mask, const ms::RefineParams& p) {
+  cv::Mat lab[3];
+  if (left.channels() == 1) {
+    left.convertTo(lab[0], CV_32F, 100.0 / 255.0);
+    lab[1] = cv::Mat::zeros(left.size(), CV_32F);
+    lab[2] = cv::Mat::zeros(left.size(), CV_32F);
+  } else {
+    cv::Mat f, l;
+    left.convertTo(f, CV_32F, 1.0 / 255.0);
+    cv::cvtColor(f, l, cv::COLOR_BGR2Lab);
+    cv::split(l, lab);
+  }
+  const int table_size = static_cast<int>(88.0f * 64.0f) + 1, last = table_size - 1;
+  std::vector<float> table(table_size);
+  for (int i = 0; i < table_size; ++i) table[i] = static_cast<float>(std::exp(-i / 64.0));
+  table.back() = 0.0f;
+  const float to_index = 64.0f / p.gamma_c;
+  const int r = p.window / 2, W = disparity.cols, H = disparity.rows;
+  auto level = [&](int x, int y, bool voter) {  // INT_MIN: none
+    const float d = disparity.at<float>(y, x);
+    if (std::isnan(d) || (voter && !mask.empty() && mask.at<uchar>(y, x))) return std::numeric_limits<int>::min();
+    return static_cast<int>(std::round(static_cast<double>(d)));
+  };
+  cv::Mat out = disparity.clone();
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      std::map<int, float> score;
+      const int x0 = std::max(0, x - r), x1 = std::min(W - 1, x + r), n = x1 - x0 + 1;
+      for (int yy = std::max(0, y - r); yy <= std::min(H - 1, y + r); ++yy)
+        for (int i = 0; i < n; ++i) {
+          const int xx = x0 + i, l = level(xx, yy, true);
+          if (l == std::numeric_limits<int>::min()) continue;
+          const float dL = lab[0].at<float>(yy, xx) - lab[0].at<float>(y, x);
+          const float da = lab[1].at<float>(yy, xx) - lab[1].at<float>(y, x);
+          const float db = lab[2].at<float>(yy, xx) - lab[2].at<float>(y, x);
+          const float dc = std::min(std::sqrt(dL * dL + da * da + db * db) * to_index, static_cast<float>(last));
+          const int index = static_cast<int>(std::nearbyint(dc));  // default rounding mode: half to even
+          const int gx = xx - x, gy = yy - y;
+          const float spatial = static_cast<float>(std::exp(-std::sqrt(double(gx * gx + gy * gy)) / p.gamma_g));
+          score[l] += table[index] * spatial;  // std::map starts at +0.0f
+        }
+      if (score.empty()) continue;
+      const int own = level(x, y, false);
+      int winner = 0;
+      float best = -1.0f;
+      for (const auto& [l, s] : score)  // ascending: the first maximum is the smallest
+        if (s > best) {
+          best = s;
+          winner = l;
+        }
+      if (score.count(own) && score[own] == best) winner = own;
+      if (winner != own) out.at<float>(y, x) = static_cast<float>(winner);
+    }
+  return out;
+}
+
+/// Bitwise equality (NaN payloads included).
+int countBitwiseDifferent(const cv::Mat& a, const cv::Mat& b) {
+  int n = 0;
+  for (int y = 0; y < a.rows; ++y)
+    for (int x = 0; x < a.cols; ++x) n += std::memcmp(&a.at<float>(y, x), &b.at<float>(y, x), sizeof(float)) != 0;
+  return n;
+}
+
+TEST(RecoverDisparity, FastVoteEqualsTheStraightforwardOneBitForBit) {
+  cv::RNG rng(12345);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  int cases = 0, changed = 0;
+  for (const cv::Size size : {cv::Size(90, 70), cv::Size(37, 29), cv::Size(24, 40), cv::Size(6, 5), cv::Size(1, 9)})
+    for (const int window : {1, 3, 5, 11, 21, 35})
+      for (int variant = 0; variant < 7; ++variant) {
+        // Images: random colour, random grey, smooth colour with a few flat (tie-prone) blocks; variant 6: grey
+        // levels 0, 51, .. 255 (L = 0, 20, .. 100 exactly) with γc = 512: colour indices k + 0.5 exactly, where the
+        // rounding rule (half to even) decides.
+        cv::Mat img(size, variant % 3 == 1 || variant == 6 ? CV_8UC1 : CV_8UC3);
+        if (variant == 6) {
+          rng.fill(img, cv::RNG::UNIFORM, 0, 6);
+          img *= 51;
+        } else if (variant % 3 == 2) {
+          img.setTo(cv::Scalar(90, 120, 60));
+          cv::rectangle(img, cv::Rect(size.width / 3, 0, size.width / 3 + 1, size.height), cv::Scalar(30, 40, 200),
+                        cv::FILLED);
+        } else {
+          rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+          if (variant >= 3) cv::GaussianBlur(img, img, cv::Size(7, 7), 2.0);
+        }
+        // Disparities: a few levels in blocks plus noise and outliers, sub-pixel values, NaN holes; variant 4 and
+        // 5: many distinct levels (beyond the SIMD path's level limits, and beyond 64 levels).
+        cv::Mat d(size, CV_32F);
+        const int spread = variant == 4 ? 40 : variant == 5 ? 120 : 3;
+        for (int y = 0; y < size.height; ++y)
+          for (int x = 0; x < size.width; ++x) {
+            float v = 10.0f + static_cast<float>((x / 7 + y / 9) % 3) * 2.0f;
+            if (rng.uniform(0.0, 1.0) < 0.15) v = 10.0f + static_cast<float>(rng.uniform(0, spread));
+            if (rng.uniform(0.0, 1.0) < 0.3) v += rng.uniform(-0.4f, 0.4f);
+            if (rng.uniform(0.0, 1.0) < 0.08) v = nan;
+            d.at<float>(y, x) = v;
+          }
+        if (variant == 2) d(cv::Rect(0, 0, std::max(1, size.width / 4), size.height)).setTo(nan);  // a wide hole
+        for (int m = 0; m < 2; ++m) {
+          cv::Mat mask;
+          if (m == 1) {
+            mask.create(size, CV_8U);
+            rng.fill(mask, cv::RNG::UNIFORM, 0, 2);
+            mask *= 255;
+            mask(cv::Rect(0, 0, size.width, std::max(1, size.height / 3))).setTo(0);
+          }
+          ms::RefineParams p;
+          p.window = window;
+          if (variant == 3) p.gamma_c = 0.05f;  // weights underflow to 0: all-zero scores
+          if (variant == 5) p.gamma_g = 0.02f;
+          if (variant == 6) p.gamma_c = 512.0f;
+          const cv::Mat expected = referenceMdc(img, d, mask, p);
+          for (const int threads : {1, 0}) {
+            const cv::Mat got = ms::recoverDisparity(img, d, mask, p, threads);
+            ASSERT_EQ(countBitwiseDifferent(got, expected), 0)
+                << size << " window " << window << " variant " << variant << " mask " << m << " threads " << threads;
+          }
+          ++cases;
+          changed += countBitwiseDifferent(expected, d) > 0;
+        }
+      }
+  EXPECT_GT(changed, cases / 2);  // the comparisons are not all trivial
+  // The structured scene, with FFD's mask and without, and Gu's calibration at the default window.
+  const cv::Mat img = sceneImage(), d = fattenedDisparity();
+  ms::RefineParams p;
+  const cv::Mat mask = ms::detectFattening(img, d, p);
+  EXPECT_EQ(countBitwiseDifferent(ms::recoverDisparity(img, d, mask, p), referenceMdc(img, d, mask, p)), 0);
+  EXPECT_EQ(countBitwiseDifferent(ms::recoverDisparity(img, d, cv::Mat(), p), referenceMdc(img, d, cv::Mat(), p)), 0);
 }
 
 // ------------------------------------------------------------- validation --
