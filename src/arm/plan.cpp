@@ -44,12 +44,17 @@ const char* toString(Technique t) {
   return "?";
 }
 
-HeightGrid::HeightGrid(const std::vector<Eigen::Vector3d>& points, double cell) : cell_(cell) {
+HeightGrid::HeightGrid(const std::vector<Eigen::Vector3d>& points, double cell, const Eigen::Vector2d& lo,
+                       const Eigen::Vector2d& hi)
+    : cell_(cell) {
+  const auto inside = [&](const Eigen::Vector3d& p) {
+    return p.allFinite() && p.x() >= lo.x() && p.x() <= hi.x() && p.y() >= lo.y() && p.y() <= hi.y();
+  };
   double x1 = -INFINITY, y1 = -INFINITY;
   x0_ = INFINITY;
   y0_ = INFINITY;
   for (const Eigen::Vector3d& p : points) {
-    if (!p.allFinite()) continue;
+    if (!inside(p)) continue;
     x0_ = std::min(x0_, p.x());
     y0_ = std::min(y0_, p.y());
     x1 = std::max(x1, p.x());
@@ -60,7 +65,7 @@ HeightGrid::HeightGrid(const std::vector<Eigen::Vector3d>& points, double cell) 
   ny_ = static_cast<int>((y1 - y0_) / cell) + 1;
   z_.assign(static_cast<std::size_t>(nx_) * ny_, NAN);
   for (const Eigen::Vector3d& p : points) {
-    if (!p.allFinite()) continue;
+    if (!inside(p)) continue;
     float& z = z_[static_cast<std::size_t>(static_cast<int>((p.y() - y0_) / cell)) * nx_ +
                   static_cast<int>((p.x() - x0_) / cell)];
     if (!(z >= p.z())) z = static_cast<float>(p.z());  // NaN or lower: the higher point

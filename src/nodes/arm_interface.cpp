@@ -130,7 +130,10 @@ std::string ArmTargets::setSurface(const sensor_msgs::PointCloud2& cloud) {
     tf2::doTransform(p, q, t);
     points.push_back(toEigen(q));
   }
-  arm::HeightGrid grid(points, config_.body.surface_cell);
+  // Where the tool can go, and a radius around it (a point farther out never bounds a motion).
+  const Eigen::Vector2d margin = Eigen::Vector2d::Constant(config_.body.radius);
+  arm::HeightGrid grid(points, config_.body.surface_cell, config_.workspace_min.head<2>() - margin,
+                       config_.workspace_max.head<2>() + margin);
   std::lock_guard<std::mutex> lock(surface_mutex_);
   surface_ = std::move(grid);
   surface_stamp_ = cloud.header.stamp.isZero() ? ros::Time::now() : cloud.header.stamp;

@@ -196,13 +196,17 @@ TEST(Plan, BodySurfaceIsTheNearestPointWithinTheRadius) {
 }
 
 TEST(Plan, HeightGridHoldsTheHighestPointOfEachCellAndItsNeighbours) {
-  const HeightGrid grid({{0.500, 0.200, 0.15}, {0.503, 0.202, 0.17}, {0.530, 0.200, 0.10}, {NAN, 0.2, 0.3}}, 0.01);
+  const Eigen::Vector2d lo(0.0, 0.0), hi(1.0, 1.0);
+  const HeightGrid grid(
+      {{0.500, 0.200, 0.15}, {0.503, 0.202, 0.17}, {0.530, 0.200, 0.10}, {NAN, 0.2, 0.3}, {1000.0, -500.0, 0.2}}, 0.01,
+      lo, hi);
   EXPECT_DOUBLE_EQ(*grid.heightAt(0.501, 0.201), 0.17f);  // the higher of the cell's two
   EXPECT_DOUBLE_EQ(*grid.heightAt(0.512, 0.201), 0.17f);  // the neighbouring cell's too
   EXPECT_DOUBLE_EQ(*grid.heightAt(0.531, 0.201), 0.10f);
   EXPECT_FALSE(grid.heightAt(0.60, 0.20)) << "no point within a cell";
+  EXPECT_FALSE(grid.heightAt(1000.0, -500.0)) << "a point outside the bounds is skipped (not a 100000^2-cell grid)";
   EXPECT_FALSE(HeightGrid().heightAt(0.5, 0.2));
-  EXPECT_TRUE(HeightGrid({{NAN, 0.0, 0.0}}, 0.01).empty());
+  EXPECT_TRUE(HeightGrid({{NAN, 0.0, 0.0}}, 0.01, lo, hi).empty());
 }
 
 TEST(Plan, StereosSurfaceGuardsBetweenTheAcupoints) {
@@ -217,7 +221,7 @@ TEST(Plan, StereosSurfaceGuardsBetweenTheAcupoints) {
     for (double y = 0.15; y <= 0.251; y += 0.005)
       seen.emplace_back(x, y, 0.15 + 0.04 * std::exp(-std::pow((x - 0.45) / 0.02, 2)));
   }
-  body.dense = HeightGrid(seen, c.body.surface_cell);
+  body.dense = HeightGrid(seen, c.body.surface_cell, Eigen::Vector2d(0.0, 0.0), Eigen::Vector2d(1.0, 1.0));
   // 3 cm into the ridge stereo sees: refused, naming the surface and the limit.
   const std::string why = checkBodyClearance(c, body, above, target, 0.002);
   EXPECT_NE(why.find("the target (0.450, 0.200, 0.160) m is 30.0 mm below the surface stereo sees (limit 12.0 mm"),

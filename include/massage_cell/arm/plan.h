@@ -107,8 +107,10 @@ std::vector<Step> retractSteps(const ArmConfig& config, const Step& from_step);
 class HeightGrid {
  public:
   HeightGrid() = default;
-  /// `points` in the base frame (non-finite ones skipped), cells of `cell` m (> 0).
-  HeightGrid(const std::vector<Eigen::Vector3d>& points, double cell);
+  /// `points` in the base frame, cells of `cell` m (> 0). Points not finite or whose (x, y) lie outside `lo`..`hi`
+  /// (where the tool can go: a far point would make the grid as large as the distance) are skipped.
+  HeightGrid(const std::vector<Eigen::Vector3d>& points, double cell, const Eigen::Vector2d& lo,
+             const Eigen::Vector2d& hi);
   bool empty() const { return z_.empty(); }
   /// The highest point in the cell of (x, y) and its eight neighbours (what lies within a cell of it, whichever side
   /// of a cell boundary), or nullopt when none holds one.
