@@ -71,7 +71,7 @@ TEST(ArmConfig, ShippedFileLoads) {
 
 TEST(ArmConfig, MistakesAreNamed) {
   EXPECT_NE(
-      errorOf(edited("watchdog_timeout: 0.5", "watchdog_timeout: 0.5\nwatchdog: 1")).find("watchdog: unknown field"),
+      errorOf(edited("watchdog_timeout: 1.0", "watchdog_timeout: 1.0\nwatchdog: 1")).find("watchdog: unknown field"),
       std::string::npos);
   EXPECT_NE(errorOf(edited("X: \\{min: 0.0, max: 0.78", "X: {min: 0.0, max: 0.85"))
                 .find("joints.X.max: 0.85 m is beyond the drive's software limit 0.8 m"),

@@ -657,10 +657,12 @@ TEST(Controller, WatchdogRetractsAPressAndStopsAMove) {
   const can::TimePoint t0 = r.clock.now();
   ASSERT_TRUE(r.runUntil([&] { return contains(r.controller->status().activity, "retract"); }, 2s));
   const double reacted = std::chrono::duration<double>(r.clock.now() - t0).count();
-  EXPECT_GT(reacted, 0.5);
-  EXPECT_LT(reacted, 0.53);
+  const double limit = r.config.watchdog_timeout;
+  ASSERT_GT(limit, 0.0);
+  EXPECT_GT(reacted, limit);
+  EXPECT_LT(reacted, limit + 0.03);  // within three 10 ms cycles
   ASSERT_TRUE(r.runUntil([&] { return r.controller->result(m.id).done; }, 20s));
-  EXPECT_TRUE(contains(r.controller->result(m.id).message, "command watchdog: no keep-alive for 0.5"))
+  EXPECT_TRUE(contains(r.controller->result(m.id).message, "command watchdog: no keep-alive for "))
       << r.controller->result(m.id).message;
   EXPECT_NEAR(r.tool().z(), 0.28, 1e-6);  // retracted without keep-alives
   // A move without keep-alives stops (quick stop, re-enabled), short of its goal.

@@ -117,7 +117,7 @@ struct ArmConfig {
   Eigen::Vector3d tool_offset = Eigen::Vector3d::Zero();    ///< m, tool tip - joint position (arm base frame)
   Eigen::Vector3d workspace_min = Eigen::Vector3d::Zero();  ///< m, envelope of the tool tip (arm base frame)
   Eigen::Vector3d workspace_max = Eigen::Vector3d::Zero();
-  double watchdog_timeout = 0.5;     ///< s without keepAlive() that ends a move or massage (0: off)
+  double watchdog_timeout = 1.0;     ///< s without keepAlive() that ends a move or massage (0: off)
   double bringup_timeout = 5.0;      ///< s for every node to become operational
   double position_tolerance = 1e-4;  ///< m: a move that ends farther from its goal is a fault
   PressConfig press;
