@@ -2,6 +2,7 @@
 // the HBDS / alpha-expansion speed ratio measured in the same run, and the
 // level sweep on the simulator's efficiency sets (thesis Fig. 2.9 / 2.10).
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -11,6 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "massage_cell/camera/calibration.h"
 #include "massage_cell/sim/body_model.h"
 #include "massage_cell/sim/camera_model.h"
 #include "massage_cell/sim/renderer.h"
@@ -25,12 +27,14 @@ namespace {
 
 namespace stereo = massage_cell::stereo;
 namespace sim = massage_cell::sim;
+namespace camera = massage_cell::camera;
 using namespace massage_cell::tools;
 
 const char* const kUsageHead = R"(Usage: stereo_bench [--scenes teddy,cones] [--methods hbds,expansion,wta,sgbm]
                     [--sweep] [--sweep-methods hbds,expansion,wta] [--sweep-size 320x240]
                     [--plot FILE.png] [--frame] [--frame-size 640x480] [--frame-levels 64]
-                    [--frame-methods hbds,sgbm] [--repeat 3] [--data DIR] [--csv] [options]
+                    [--frame-methods hbds,sgbm] [--frame-downsample 1,4] [--repeat 3]
+                    [--data DIR] [--csv] [options]
 
 Part 1: per Middlebury scene and method, the optimisers alone (no refinement,
 no left-right check, no sub-pixel step, whatever the options say): time (cost
@@ -52,7 +56,11 @@ target: each method's total as a multiple of StereoSGBM's), the bad pixels
 (pixels seen by both cameras), and on the back the skin's bias: the median of
 d - d_true (px) over its skin (what the acupoints' depth inherits);
 times are the median of --repeat runs (default 3: a stream's steady state,
-not the first run's page faults).
+not the first run's page faults). --frame-downsample F1,F2: each method also
+at 1/F resolution as the hbds node's `downsample` runs it (both views shrunk
+by INTER_AREA, the disparity range scaled), its disparity brought back to
+full resolution (nearest, times F) and judged in full-resolution pixels; the
+shrinking counts in its cost time (method label hbds/4).
   --plot FILE.png    draw time vs levels of the sweep
   --csv              print CSV: scene,method,levels,time_ms,energy
 )";
@@ -66,6 +74,7 @@ struct Options {
   bool frame = false;
   int frame_width = 640, frame_height = 480, frame_levels = 64, repeat = 3;
   std::vector<std::string> frame_methods{"hbds", "sgbm"};
+  std::vector<int> frame_downsample{1};
   std::string plot;
   std::string data;
   bool csv = false;
@@ -89,6 +98,10 @@ bool parse(int argc, char** argv, Options& o) {
   t.values["--frame-size"] = size(o.frame_width, o.frame_height);
   t.values["--frame-levels"] = [&](const std::string& opt, const std::string& v) { o.frame_levels = parseInt(opt, v); };
   t.values["--frame-methods"] = [&](const std::string&, const std::string& v) { o.frame_methods = splitList(v); };
+  t.values["--frame-downsample"] = [&](const std::string& opt, const std::string& v) {
+    o.frame_downsample.clear();
+    for (const auto& f : splitList(v)) o.frame_downsample.push_back(parseInt(opt, f));
+  };
   t.values["--repeat"] = [&](const std::string& opt, const std::string& v) { o.repeat = parseInt(opt, v); };
   t.flags["--frame"] = [&] { o.frame = true; };
   t.values["--plot"] = [&](const std::string&, const std::string& v) { o.plot = v; };
@@ -114,6 +127,9 @@ bool parse(int argc, char** argv, Options& o) {
   require(o.frame_levels >= 2 && o.frame_levels < o.frame_width / 2,
           "--frame-levels must be >= 2 and below half the width");
   require(o.plot.empty() || o.sweep, "--plot needs --sweep");
+  require(!o.frame_downsample.empty(), "--frame-downsample needs at least one factor");
+  for (int f : o.frame_downsample)
+    require(f == 1 || f == 2 || f == 4, "--frame-downsample factors must be 1, 2 or 4 (the hbds node's downsample)");
   checkStereoParams(o.params);
   return true;
 }
@@ -209,6 +225,57 @@ stereo::StereoParams optimiserOnly(stereo::StereoParams params) {
   return params;
 }
 
+/// One method on one rendered pair at 1/downsample resolution, as the hbds node's `downsample` runs it (both views
+/// shrunk by camera::Decimation, the disparity range scaled outward), the median run of `repeat` by total time (the
+/// methods are deterministic). The disparity is brought back to full resolution (nearest, in full-resolution
+/// pixels); the shrinking counts in cost_ms.
+stereo::MatchResult matchFrame(const sim::StereoFrame& frame, const std::string& method, stereo::StereoParams params,
+                               int downsample, int repeat) {
+  const camera::Decimation decimation(frame.left.image.size(), downsample);
+  const double scale = static_cast<double>(decimation.size().width) / frame.left.image.cols;
+  params.cost.dmin = static_cast<int>(std::floor(params.cost.dmin * scale));
+  params.cost.dmax = static_cast<int>(std::ceil(params.cost.dmax * scale));
+  std::vector<stereo::MatchResult> runs;
+  for (int k = 0; k < repeat; ++k) {
+    const auto start = std::chrono::steady_clock::now();
+    const cv::Mat left = decimation.apply(frame.left.image), right = decimation.apply(frame.right.image);
+    const double shrink_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    runs.push_back(stereo::match(left, right, stereo::parseMethod(method), params));
+    runs.back().cost_ms += shrink_ms;
+  }
+  std::sort(runs.begin(), runs.end(), [](const auto& a, const auto& b) { return a.total_ms() < b.total_ms(); });
+  stereo::MatchResult r = runs[runs.size() / 2];
+  if (!decimation.identity()) {
+    cv::Mat full;
+    cv::resize(r.disparity, full, frame.left.image.size(), 0, 0, cv::INTER_NEAREST);
+    r.disparity = full / scale;
+  }
+  return r;
+}
+
+/// Prints one row of Part 3: the stages' times, the energy and the errors against the frame's exact truth.
+void printFrameRow(const Options& o, const std::string& scene, const std::string& method, int downsample,
+                   const sim::StereoFrame& frame, const stereo::MatchResult& r) {
+  const double bad = stereo::badPixelPercent(r.disparity, frame.left_disparity, frame.left_visible, 1.0);
+  const double bad_half = stereo::badPixelPercent(r.disparity, frame.left_disparity, frame.left_visible, 0.5);
+  const double median = medianError(r.disparity, frame.left_disparity, frame.left_visible);
+  // The skin's bias (the acupoints' depth): the signed median over the back's visible skin.
+  const cv::Mat skin = frame.left_visible & (frame.left.labels == sim::kLabelBack);
+  const double skin_bias = medianError(r.disparity, frame.left_disparity, skin, false);
+  const std::string label = downsample == 1 ? method : method + "/" + std::to_string(downsample);
+  const Row row{scene, label, o.frame_levels, r.total_ms(), r.energy.total()};
+  if (o.csv) {
+    printRow(o, row, &r);
+    return;
+  }
+  std::printf("%-22s %-10s %6d %9.1f %9.1f %9.1f %9.1f %9.1f %9.1f %14.2f %7d %8.2f%% %8.2f%% %10.3f %10s\n",
+              row.scene.c_str(), label.c_str(), row.levels, r.cost_ms, r.optimize_ms, r.refine_ms, r.subpixel_ms,
+              r.lr_ms, r.total_ms(), r.energy.total(), r.cuts, bad, bad_half, median,
+              std::isfinite(skin_bias) ? format("%+.3f", skin_bias).c_str() : "-");
+  std::fflush(stdout);
+}
+
 /// Part 3: the cell's own scenes at the given frame size.
 void runFrames(const Options& o) {
   char title[160];
@@ -238,39 +305,23 @@ void runFrames(const Options& o) {
     stereo::StereoParams params = o.params;
     params.cost.dmin = std::max(0, centre - o.frame_levels / 2);
     params.cost.dmax = params.cost.dmin + o.frame_levels - 1;
+    const std::string scene =
+        std::string(name) + "/" + std::to_string(o.frame_width) + "x" + std::to_string(o.frame_height);
     std::map<std::string, double> total_ms;
     for (const auto& method : o.frame_methods) {
-      // StereoSGBM is the reference as it comes (3-way, no refinement, no check); the others run the options.
-      const stereo::StereoParams used = method == "sgbm" ? optimiserOnly(params) : params;
-      // Median run by total time (same output every run: the methods are deterministic).
-      std::vector<stereo::MatchResult> runs;
-      for (int k = 0; k < o.repeat; ++k)
-        runs.push_back(stereo::match(frame.left.image, frame.right.image, stereo::parseMethod(method), used));
-      std::sort(runs.begin(), runs.end(), [](const auto& a, const auto& b) { return a.total_ms() < b.total_ms(); });
-      const stereo::MatchResult& r = runs[runs.size() / 2];
-      const double bad = stereo::badPixelPercent(r.disparity, frame.left_disparity, frame.left_visible, 1.0);
-      const double bad_half = stereo::badPixelPercent(r.disparity, frame.left_disparity, frame.left_visible, 0.5);
-      const double median = medianError(r.disparity, frame.left_disparity, frame.left_visible);
-      // The skin's bias (the acupoints' depth): the signed median over the back's visible skin.
-      const cv::Mat skin = frame.left_visible & (frame.left.labels == sim::kLabelBack);
-      const double skin_bias = medianError(r.disparity, frame.left_disparity, skin, false);
-      const Row row{std::string(name) + "/" + std::to_string(o.frame_width) + "x" + std::to_string(o.frame_height),
-                    method, o.frame_levels, r.total_ms(), r.energy.total()};
-      if (o.csv) {
-        printRow(o, row, &r);
-      } else {
-        std::printf("%-22s %-10s %6d %9.1f %9.1f %9.1f %9.1f %9.1f %9.1f %14.2f %7d %8.2f%% %8.2f%% %10.3f %10s\n",
-                    row.scene.c_str(), method.c_str(), row.levels, r.cost_ms, r.optimize_ms, r.refine_ms, r.subpixel_ms,
-                    r.lr_ms, r.total_ms(), r.energy.total(), r.cuts, bad, bad_half, median,
-                    std::isfinite(skin_bias) ? format("%+.3f", skin_bias).c_str() : "-");
-        std::fflush(stdout);
+      for (int downsample : o.frame_downsample) {
+        // StereoSGBM is the reference as it comes (3-way, no refinement, no check); the others run the options.
+        const stereo::StereoParams used = method == "sgbm" ? optimiserOnly(params) : params;
+        const stereo::MatchResult r = matchFrame(frame, method, used, downsample, o.repeat);
+        printFrameRow(o, scene, method, downsample, frame, r);
+        total_ms[downsample == 1 ? method : method + "/" + std::to_string(downsample)] = r.total_ms();
       }
-      total_ms[method] = r.total_ms();
     }
     if (!o.csv && total_ms.count("sgbm") && total_ms["sgbm"] > 0.0) {
       for (const auto& [method, ms] : total_ms) {
         if (method != "sgbm")
-          std::printf("%-22s %s: %.1fx StereoSGBM's time\n", "", method.c_str(), ms / total_ms["sgbm"]);
+          std::printf("%-22s %s: %.1fx StereoSGBM's time (%.1f Hz)\n", "", method.c_str(), ms / total_ms["sgbm"],
+                      1000.0 / ms);
       }
     }
   }

@@ -155,6 +155,22 @@ TEST(StereoBench, CellFramesPrintTimesAndAccuracy) {
     EXPECT_LT(hbds, 20.0) << scene;
     EXPECT_LT(hbds, 0.5 * wta) << scene;
   }
+  // At half resolution (the node's downsample 2) the disparity is judged in full-resolution pixels: brought back to
+  // the full size and doubled, it stays close to the truth (halved, nearly every pixel would be bad by > 1 px).
+  const auto half = runCommand(kBench +
+                                   " --scenes '' --frame --frame-size 320x240 --frame-levels 32 --repeat 1"
+                                   " --frame-methods hbds --frame-downsample 2 --refine none --no-lr-check",
+                               180);
+  ASSERT_EQ(half.exit_code, 0) << half.output;
+  for (const char* scene : {"back/320x240          ", "boxes/320x240         "}) {
+    const auto at = half.output.find(std::string(scene) + " hbds/2");
+    ASSERT_NE(at, std::string::npos) << half.output;
+    const std::string line = half.output.substr(at, half.output.find('\n', at) - at);
+    const auto pct = line.find('%');
+    ASSERT_NE(pct, std::string::npos) << line;
+    EXPECT_LT(std::stod(line.substr(line.rfind(' ', pct) + 1)), 50.0) << line;
+  }
+  expectFailure(kBench + " --frame --frame-downsample 3", 2, "--frame-downsample factors must be 1, 2 or 4");
   expectFailure(kBench + " --frame --frame-levels 1", 2, "--frame-levels must be >= 2");
   expectFailure(kBench + " --frame --frame-size 20x10", 2, "--frame-size must be between");
   expectFailure(kBench + " --frame --repeat 0", 2, "--repeat must be in 1..100");
