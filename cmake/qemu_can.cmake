@@ -107,17 +107,25 @@ set_tests_properties(qemu_can_system PROPERTIES
 # with two, TCG's cross-vCPU wake-ups put the 10 ms cycle's jitter p99 at
 # 2.9-3.5 ms (1.0-3.0 ms with one) and once skewed the homing's force calibration
 # enough for a false contact in the seek (1 run of 4).
+# The guest's clock counts its instructions (--icount shift=3,sleep=off: 8 ns
+# each, a 125 MIPS CPU; idle time skipped): on the host's clock a host loaded by
+# other tests starved the emulated CPU into 60-126 ms gaps in the 10 ms cycle
+# (out of the controller's spec: false contacts in the air, an invalid estimate
+# after homing). With icount the cycle holds its period whatever the host does
+# (jitter p99 0.17-0.19 ms, max 0.4-0.7 ms, also beside 3 CPU hogs); a loaded host
+# only stretches the wall time (31-41 s alone, 60-128 s beside 3 hogs + a test):
+# hence the longer timeouts.
 add_test(NAME qemu_can_force
   COMMAND ${PROJECT_SOURCE_DIR}/scripts/qemu_can/run.sh
-          --prepare --cache ${QEMU_CAN_CACHE} --timeout 150 --smp 1
+          --prepare --cache ${QEMU_CAN_CACHE} --timeout 240 --smp 1 --icount shift=3,sleep=off
           --file ${PROJECT_SOURCE_DIR}/config/arm.yaml
           --file ${PROJECT_SOURCE_DIR}/config/can_axes.yaml
           --file ${PROJECT_SOURCE_DIR}/config/acupoints.yaml
           --expect "^CAN_KERNEL_FORCE OK"
           -- $<TARGET_FILE:can_sim_drive_static> --interface vcan0 --config /data/can_axes.yaml --body 0.15 --status-s 1
-          ::: $<TARGET_FILE:can_kernel_force> /data/arm.yaml --interface vcan0 --skin-z 0.15)
+          ::: $<TARGET_FILE:can_kernel_force> /data/arm.yaml --interface vcan0 --skin-z 0.15 --max-late-cycles 0)
 set_tests_properties(qemu_can_force PROPERTIES
-  TIMEOUT 170
+  TIMEOUT 260
   PROCESSORS 2
   LABELS "qemu;can;arm"
   PASS_REGULAR_EXPRESSION "\\[qemu_can/run\\] PASS: guest exit code 0"

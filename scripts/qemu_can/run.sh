@@ -26,6 +26,13 @@
 #   --wait-all         wait for every program to end (default: see below)
 #   --keep DIR         keep the initramfs and the console log in DIR
 #   --smp N, --mem MB  guest CPUs (default 2) and memory (default 512)
+#   --icount SPEC      qemu's -icount SPEC (default: none, the guest's clock is
+#                      the host's). `shift=N,sleep=off` makes the guest's clock
+#                      count its own instructions (2^N ns each) and jump over
+#                      idle time, so the guest's timing no longer depends on how
+#                      busy the host is (a loaded host only makes the run longer
+#                      in wall time). Only with --smp 1 (more vCPUs would run
+#                      round-robin on one host thread)
 #
 # Programs are separated by a `:::` word. PROG containing a `/` is a host file:
 # it is copied into the guest's /bin (a dynamically linked one brings the shared
@@ -61,7 +68,7 @@ die() { echo "qemu_can/run.sh: ERROR: $*" >&2; exit 125; }
 say() { echo "[qemu_can/run] $*"; }
 usage() { sed -n '2,/^set -uo/p' "$0" | sed '$d; s/^# \{0,1\}//'; }
 
-cache="" timeout=100 stagger=0.3 wait_all=0 keep="" smp=2 mem=512 vcans="vcan0" prepare=0
+cache="" timeout=100 stagger=0.3 wait_all=0 keep="" smp=2 mem=512 vcans="vcan0" prepare=0 icount=""
 files=() envs=() expects=()
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -77,6 +84,7 @@ while [ $# -gt 0 ]; do
     --keep) keep=${2:-}; shift 2 || die "--keep needs a value" ;;
     --smp) smp=${2:-}; shift 2 || die "--smp needs a value" ;;
     --mem) mem=${2:-}; shift 2 || die "--mem needs a value" ;;
+    --icount) icount=${2:-}; shift 2 || die "--icount needs a value" ;;
     -h|--help) usage; exit 0 ;;
     --) shift; break ;;
     *) die "unknown option '$1' (options come before --; see --help)" ;;
@@ -85,6 +93,10 @@ done
 [ -n "$cache" ] || die "--cache DIR is required (see --help)"
 [ $# -gt 0 ] || die "no program given after -- (see --help)"
 [[ "$timeout" =~ ^[0-9]+$ ]] && [ "$timeout" -ge 10 ] || die "--timeout must be an integer >= 10"
+if [ -n "$icount" ]; then
+  [[ "$icount" =~ ^[a-z0-9=,]+$ ]] || die "--icount '$icount': expected qemu -icount suboptions such as shift=0,sleep=off"
+  [ "$smp" = 1 ] || die "--icount needs --smp 1"
+fi
 guest_timeout=$(( timeout - 15 )); [ "$guest_timeout" -ge 10 ] || guest_timeout=10
 
 # --- host requirements ---------------------------------------------------------
@@ -266,9 +278,11 @@ initrd="$work/initramfs.cpio.gz"
 
 # --- boot --------------------------------------------------------------------------
 log="$work/console.log"
-say "booting $(cut -d' ' -f1 "$kdir/kernel.version") under qemu (TCG, ${smp} CPUs, ${mem} MB), timeout ${timeout} s, initramfs $(( $(stat -c %s "$initrd") / 1024 )) KiB"
+say "booting $(cut -d' ' -f1 "$kdir/kernel.version") under qemu (TCG, ${smp} CPUs, ${mem} MB${icount:+, icount $icount}), timeout ${timeout} s, initramfs $(( $(stat -c %s "$initrd") / 1024 )) KiB"
+icount_args=()
+[ -z "$icount" ] || icount_args=(-icount "$icount")
 start=$(date +%s.%N)
-timeout -k 5 "$timeout" qemu-system-x86_64 -accel tcg -m "$mem" -smp "$smp" -nographic -no-reboot \
+timeout -k 5 "$timeout" qemu-system-x86_64 -accel tcg "${icount_args[@]}" -m "$mem" -smp "$smp" -nographic -no-reboot \
   -kernel "$kdir/vmlinuz" -initrd "$initrd" -append "console=ttyS0 panic=-1 quiet" -nic none \
   < /dev/null 2>&1 | sed -u -e 's/\r//g' -e 's/\x1b\[[0-9;?]*[A-Za-z]//g' -e 's/\x1b[c]//g' | tee "$log"
 rc=${PIPESTATUS[0]}
