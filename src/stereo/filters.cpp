@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -119,6 +120,24 @@ cv::Mat bilateral3d(const cv::Mat& left, const cv::Mat& disparity, const cv::Mat
   return out;
 }
 
+/// OpenCV's weighted median filter (ximgproc 4.6) run safely and reproducibly: it keeps its colour histogram and its
+/// necklace-table cursors in static variables, so two at once (match()'s concurrent views, or two calls) corrupt each
+/// other's tables and read out of bounds: the calls take turns. With a colour guide it clusters the colours by k-means
+/// from the calling thread's cv::theRNG(): each call starts from a new generator's state (and leaves the caller's as it
+/// was), so the result depends neither on the thread nor on earlier calls.
+void ximgprocWeightedMedian(const cv::Mat& guide, const cv::Mat& values, cv::Mat& out, const FilterParams& p,
+                            const cv::Mat& mask8) {
+  static std::mutex one_at_a_time;
+  const std::lock_guard<std::mutex> lock(one_at_a_time);
+  struct RestoreOnExit {
+    cv::RNG& rng;
+    const cv::RNG callers;
+    ~RestoreOnExit() { rng = callers; }
+  } restore{cv::theRNG(), cv::theRNG()};
+  restore.rng = cv::RNG();
+  cv::ximgproc::weightedMedianFilter(guide, values, out, p.radius, p.sigma_colour, cv::ximgproc::WMF_EXP, mask8);
+}
+
 cv::Mat weightedMedian(const cv::Mat& left, const cv::Mat& disparity, const cv::Mat& exclude, const FilterParams& p) {
   cv::Mat values;
   const cv::Mat mask = supportMask(disparity, exclude, values);
@@ -130,7 +149,7 @@ cv::Mat weightedMedian(const cv::Mat& left, const cv::Mat& disparity, const cv::
   double lowest = 0.0, highest = 0.0;
   cv::minMaxLoc(values, &lowest, &highest, nullptr, nullptr, mask8);
   values.setTo(lowest, mask8 == 0);
-  cv::ximgproc::weightedMedianFilter(left, values, out, p.radius, p.sigma_colour, cv::ximgproc::WMF_EXP, mask8);
+  ximgprocWeightedMedian(left, values, out, p, mask8);
   // A pixel whose window holds no support keeps its value (the filter leaves such pixels undefined).
   cv::Mat support;
   cv::boxFilter(mask, support, CV_32F, cv::Size(2 * p.radius + 1, 2 * p.radius + 1), cv::Point(-1, -1), false,

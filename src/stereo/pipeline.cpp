@@ -1,10 +1,12 @@
 #include "massage_cell/stereo/pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <functional>
+#include <future>
 #include <limits>
 #include <map>
 #include <stdexcept>
@@ -249,18 +251,36 @@ MatchResult matchLeftView(const cv::Mat& left, const cv::Mat& right, Method meth
   return result;
 }
 
+/// The worker threads `threads` of StereoParams stands for (0: every core).
+int resolveThreads(int threads) { return threads > 0 ? threads : std::max(1, cv::getNumberOfCPUs()); }
+
+/// The right view's disparity map: the same method on the mirrored pair (rightViewDisparity()).
+cv::Mat matchRightView(const cv::Mat& left, const cv::Mat& right, Method method, const StereoParams& params) {
+  return rightViewDisparity(
+      left, right, [&](const cv::Mat& a, const cv::Mat& b) { return matchLeftView(a, b, method, params).disparity; });
+}
+
 }  // namespace
 
 MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, const StereoParams& params) {
   if (params.lr_check && !(params.lr_tolerance >= 0.0f && std::isfinite(params.lr_tolerance))) {
     throw std::invalid_argument("lr_tolerance must be finite and >= 0, got " + std::to_string(params.lr_tolerance));
   }
-  MatchResult result = matchLeftView(left, right, method, params);
-  if (!params.lr_check) return result;
-  const auto start = Clock::now();
-  const cv::Mat right_disparity = rightViewDisparity(
-      left, right, [&](const cv::Mat& a, const cv::Mat& b) { return matchLeftView(a, b, method, params).disparity; });
-  result.consistent = leftRightCheck(result.disparity, right_disparity, params.lr_tolerance);
+  if (!params.lr_check) return matchLeftView(left, right, method, params);
+
+  // The views are independent. With two threads or more the right one runs on a thread of its own while this thread
+  // matches the left one, the threads shared between them (no view's result depends on its thread count); with one,
+  // it runs after the left one, on get(). An exception of the left view leaves once the right view has finished
+  // (the future's destructor waits for it), one of the right view's from get().
+  const int threads = resolveThreads(params.threads);
+  StereoParams left_params = params, right_params = params;
+  right_params.threads = std::max(1, threads / 2);
+  left_params.threads = std::max(1, threads - threads / 2);
+  std::future<cv::Mat> right_view = std::async(threads >= 2 ? std::launch::async : std::launch::deferred,
+                                               [&] { return matchRightView(left, right, method, right_params); });
+  MatchResult result = matchLeftView(left, right, method, left_params);
+  const auto start = Clock::now();  // lr_ms: the wall time the check adds to the left view's
+  result.consistent = leftRightCheck(result.disparity, right_view.get(), params.lr_tolerance);
   result.disparity = fillFromBackground(result.disparity, result.consistent);
   result.lr_ms = msSince(start);
   return result;

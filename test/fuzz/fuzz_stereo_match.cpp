@@ -43,7 +43,8 @@ cv::Mat image(fuzz::FuzzInput& in, cv::Size size, int type) {
   if (fill % 4 == 0) {
     m.setTo(cv::Scalar::all(in.byte()));  // texture-less
   } else {
-    for (auto it = m.begin<std::uint8_t>(); it != m.end<std::uint8_t>(); ++it) *it = in.byte();
+    CV_Assert(m.isContinuous());
+    for (std::size_t i = 0; i < m.total() * m.elemSize(); ++i) m.data[i] = in.byte();  // every channel
   }
   return m;
 }

@@ -1,13 +1,21 @@
 // Left-right consistency and occlusion filling (consistency.h) and the
 // pipeline's lr_check: occluded pixels and the border band found and filled
-// from the background, visible ones kept, bad input named.
+// from the background, visible ones kept, bad input named; the two views
+// matched concurrently give the sequential result, and an exception of either
+// view leaves match().
 #include "massage_cell/stereo/consistency.h"
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <new>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -56,6 +64,59 @@ void texturePair(cv::Mat& left, cv::Mat& right) {
       right.at<cv::Vec3b>(y, x) = fore_r ? foreground.at<cv::Vec3b>(y, x) : background.at<cv::Vec3b>(y, x);
     }
 }
+
+/// Whether two maps are the same bit for bit (NaN included).
+bool sameBits(const cv::Mat& a, const cv::Mat& b) {
+  if (a.size() != b.size() || a.type() != b.type()) return false;
+  for (int y = 0; y < a.rows; ++y)
+    if (std::memcmp(a.ptr(y), b.ptr(y), a.cols * a.elemSize()) != 0) return false;
+  return true;
+}
+
+/// match() with lr_check spelled out as its documented steps, one after the other on this thread.
+ms::MatchResult sequentialLrCheck(const cv::Mat& left, const cv::Mat& right, ms::Method method, ms::StereoParams p) {
+  p.lr_check = false;
+  ms::MatchResult result = ms::match(left, right, method, p);
+  const cv::Mat right_disparity = ms::rightViewDisparity(
+      left, right, [&](const cv::Mat& a, const cv::Mat& b) { return ms::match(a, b, method, p).disparity; });
+  result.consistent = ms::leftRightCheck(result.disparity, right_disparity, p.lr_tolerance);
+  result.disparity = ms::fillFromBackground(result.disparity, result.consistent);
+  return result;
+}
+
+/// While alive, the default cv::Mat allocator: it throws InjectedFailure for every matrix allocated on the
+/// threads chosen (this thread, or every other one), and counts the other threads' allocations.
+struct InjectedFailure : std::bad_alloc {};
+class FailingAllocator : public cv::MatAllocator {
+ public:
+  enum class Fail { kOnThisThread, kOnOtherThreads };
+  explicit FailingAllocator(Fail fail) : fail_(fail), previous_(cv::Mat::getDefaultAllocator()) {
+    cv::Mat::setDefaultAllocator(this);
+  }
+  ~FailingAllocator() override { cv::Mat::setDefaultAllocator(previous_); }
+  FailingAllocator(const FailingAllocator&) = delete;
+  FailingAllocator& operator=(const FailingAllocator&) = delete;
+
+  cv::UMatData* allocate(int dims, const int* sizes, int type, void* data, size_t* step, cv::AccessFlag flags,
+                         cv::UMatUsageFlags usage) const override {
+    const bool here = std::this_thread::get_id() == owner_;
+    if (!here) ++other_threads_;
+    if (here == (fail_ == Fail::kOnThisThread)) throw InjectedFailure();
+    return std_->allocate(dims, sizes, type, data, step, flags, usage);  // std_ frees it (UMatData::currAllocator)
+  }
+  bool allocate(cv::UMatData* data, cv::AccessFlag flags, cv::UMatUsageFlags usage) const override {
+    return std_->allocate(data, flags, usage);
+  }
+  void deallocate(cv::UMatData* data) const override { std_->deallocate(data); }
+  int otherThreadsAllocations() const { return other_threads_; }
+
+ private:
+  Fail fail_;
+  cv::MatAllocator* previous_;
+  cv::MatAllocator* std_ = cv::Mat::getStdAllocator();
+  std::thread::id owner_ = std::this_thread::get_id();
+  mutable std::atomic<int> other_threads_{0};
+};
 
 }  // namespace
 
@@ -143,6 +204,83 @@ TEST(LrCheckInMatch, OcclusionAndBorderBandGetTheBackground) {
   EXPECT_GE(visible_kept, visible * 9 / 10);
   EXPECT_LT(wrong_checked, wrong_plain / 2 + 1) << wrong_plain;
   EXPECT_GT(wrong_plain, occluded / 3);  // WTA alone gets the occluded pixels wrong
+}
+
+// With two or more threads the views run concurrently, each with part of the threads: every method and
+// refinement (the weighted median's OpenCV filter keeps static state) must still give the sequential result.
+TEST(LrCheckInMatch, ConcurrentViewsGiveTheSequentialResult) {
+  cv::Mat left, right;
+  texturePair(left, right);
+  cv::Mat left_grey, right_grey;
+  cv::extractChannel(left, left_grey, 1);
+  cv::extractChannel(right, right_grey, 1);
+  struct Case {
+    ms::Method method;
+    ms::Refinement refine;
+    bool subpixel;
+  };
+  const std::vector<Case> cases{
+      {ms::Method::kHbds, ms::Refinement::kFfdMdc, false}, {ms::Method::kHbds, ms::Refinement::kFfdWmf, true},
+      {ms::Method::kHbds, ms::Refinement::kWmf, false},    {ms::Method::kExpansion, ms::Refinement::kFfdBf3d, false},
+      {ms::Method::kWta, ms::Refinement::kNone, true},     {ms::Method::kSgbm, ms::Refinement::kBf2d, false}};
+  for (const bool grey : {false, true}) {
+    const cv::Mat& l = grey ? left_grey : left;
+    const cv::Mat& r = grey ? right_grey : right;
+    for (const Case& c : cases) {
+      for (const int threads : {2, 3, 0}) {
+        ms::StereoParams p;
+        p.cost.dmax = 8;
+        p.refine = c.refine;
+        p.subpixel = c.subpixel;
+        p.threads = threads;
+        const ms::MatchResult expected = sequentialLrCheck(l, r, c.method, p);
+        for (int repeat = 0; repeat < 5; ++repeat) {
+          SCOPED_TRACE(std::string(grey ? "grey" : "colour") + " " + ms::toString(c.method) + " " +
+                       ms::toString(c.refine) + " threads " + std::to_string(threads) + " run " +
+                       std::to_string(repeat));
+          const ms::MatchResult got = ms::match(l, r, c.method, p);
+          EXPECT_TRUE(sameBits(got.disparity, expected.disparity));
+          EXPECT_TRUE(sameBits(got.consistent, expected.consistent));
+          EXPECT_TRUE(sameBits(got.fattening, expected.fattening));
+          EXPECT_EQ(got.energy.data, expected.energy.data);
+          EXPECT_EQ(got.energy.smooth, expected.energy.smooth);
+          EXPECT_EQ(got.cuts, expected.cuts);
+          EXPECT_GT(got.lr_ms, 0.0);
+        }
+      }
+    }
+  }
+}
+
+// The right view runs on a thread of its own (threads >= 2): its exception reaches the caller.
+TEST(LrCheckInMatch, AnExceptionOfTheRightViewPropagates) {
+  cv::Mat left, right;
+  texturePair(left, right);
+  ms::StereoParams p;
+  p.cost.dmax = 8;
+  p.threads = 2;
+  {
+    const FailingAllocator fail(FailingAllocator::Fail::kOnOtherThreads);
+    EXPECT_THROW(ms::match(left, right, ms::Method::kHbds, p), InjectedFailure);
+    EXPECT_GT(fail.otherThreadsAllocations(), 0);  // the right view did run elsewhere
+  }
+  EXPECT_EQ(ms::match(left, right, ms::Method::kHbds, p).disparity.size(), left.size());  // and match() still works
+}
+
+// An exception of the left view (this thread) leaves match() only once the right view has finished: nothing of
+// the call runs on after it.
+TEST(LrCheckInMatch, AnExceptionOfTheLeftViewWaitsForTheRightView) {
+  cv::Mat left, right;
+  texturePair(left, right);
+  ms::StereoParams p;
+  p.cost.dmax = 8;
+  p.threads = 2;
+  const FailingAllocator fail(FailingAllocator::Fail::kOnThisThread);
+  EXPECT_THROW(ms::match(left, right, ms::Method::kHbds, p), InjectedFailure);
+  const int after_return = fail.otherThreadsAllocations();
+  EXPECT_GT(after_return, 0);  // the right view ran...
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_EQ(fail.otherThreadsAllocations(), after_return);  // ...and had finished
 }
 
 TEST(LeftRightCheck, BadInputIsNamed) {

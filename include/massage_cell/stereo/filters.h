@@ -34,7 +34,9 @@ void validate(const FilterParams& params);
 /// `filter` applied to `disparity` (CV_32F, NaN = invalid) guided by `left`
 /// (CV_8UC1 / CV_8UC3, same size); `exclude` (CV_8U, non-zero = not a
 /// support, e.g. FFD's mask) may be empty. CV_32F of the same size. Throws
-/// std::invalid_argument naming the problem.
+/// std::invalid_argument naming the problem. Safe to call from several threads
+/// (the weighted median's OpenCV filter, which keeps static state, runs one call
+/// at a time), and the result depends on the arguments alone.
 cv::Mat filterDisparity(const cv::Mat& left, const cv::Mat& disparity, DisparityFilter filter, const cv::Mat& exclude,
                         const FilterParams& params);
 

@@ -58,12 +58,15 @@ struct StereoParams {
   SubpixelParams subpixel_params;
   /// Left-right check (consistency.h; our addition beside the thesis): the
   /// right view's map by the same method on the mirrored pair (twice the
-  /// time); left pixels it does not confirm within `lr_tolerance` — occluded,
-  /// in the border band, mismatched — are marked in MatchResult::consistent
-  /// and filled from the background side along their row.
+  /// work; with two threads or more the views run concurrently, see
+  /// `threads`); left pixels it does not confirm within `lr_tolerance` —
+  /// occluded, in the border band, mismatched — are marked in
+  /// MatchResult::consistent and filled from the background side along their row.
   bool lr_check = true;
   float lr_tolerance = 1.0f;
-  int threads = 0;  ///< 0 = all cores
+  /// Worker threads, 0 = all cores. With lr_check and two or more, the two views run at once and share them (the
+  /// right view gets half, rounded down). The result does not depend on it.
+  int threads = 0;
 };
 
 /// A value of StereoParams that match() refuses.
@@ -81,7 +84,10 @@ struct MatchResult {
   double optimize_ms = 0.0;  ///< the method itself
   double refine_ms = 0.0;    ///< the refinement (0 without)
   double subpixel_ms = 0.0;  ///< the sub-pixel step (0 without)
-  double lr_ms = 0.0;        ///< with lr_check: the right view's matching, the check and the filling
+  /// With lr_check: the wall time it adds after the left view — the rest of the right view's matching (all of it
+  /// with one thread), the check and the filling. The stages above are the left view's (with two threads or more,
+  /// timed while the right view runs beside it), so total_ms() is the call's wall time.
+  double lr_ms = 0.0;
   double total_ms() const { return cost_ms + optimize_ms + refine_ms + subpixel_ms + lr_ms; }
   /// With lr_check: CV_8U, 255 where the right view confirms the disparity,
   /// 0 where it was filled from the background; else empty.
@@ -92,7 +98,10 @@ struct MatchResult {
 };
 
 /// Runs `method` on a rectified pair (CV_8UC1 / CV_8UC3, same size). Throws
-/// std::invalid_argument for bad input (see computeCostVolume).
+/// std::invalid_argument for bad input (see computeCostVolume); an exception of
+/// either view leaves only once both have stopped. The result depends on the
+/// pair and the parameters alone: not on `threads`, the calling thread or
+/// earlier calls (see filterDisparity() for the weighted median's).
 MatchResult match(const cv::Mat& left, const cv::Mat& right, Method method, const StereoParams& params);
 
 }  // namespace massage_cell::stereo
