@@ -7,7 +7,6 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/image_encodings.h>
 #include <stereo_msgs/DisparityImage.h>
-#include <opencv2/imgproc.hpp>
 #include <pluginlib/class_list_macros.hpp>
 
 #include "hbds_config.h"
@@ -145,8 +144,7 @@ const camera::StereoModel& HbdsNodelet::updateModel(const CameraInfo& left, cons
   model_ = model_cache_.get(
       left, right, rectify_ ? 1.0 : 0.0,
       [this](const camera::CameraCalibration& l, const camera::CameraCalibration& r) {
-        return rectify_ ? camera::StereoModel(l, r)
-                        : camera::StereoModel(camera::declareRectified(l), camera::declareRectified(r));
+        return hbdsModel(l, r, rectify_);
       },
       &rebuilt);
   if (rebuilt) {
@@ -158,51 +156,15 @@ const camera::StereoModel& HbdsNodelet::updateModel(const CameraInfo& left, cons
 }
 
 HbdsNodelet::Views HbdsNodelet::prepareViews(const StereoPair& pair, int downsample) {
-  const CameraInfo& li = *pair.left_info;
-  const CameraInfo& ri = *pair.right_info;
-  checkImageSize(li, *pair.left_image, "left");
-  checkImageSize(ri, *pair.right_image, "right");
-  const camera::StereoModel& full = updateModel(li, ri);
-  const long processed_pixels = static_cast<long>(li.width / downsample) * static_cast<long>(li.height / downsample);
-  if (max_pixels_ > 0 && processed_pixels > max_pixels_) {  // before minutes of work and gigabytes of cost volume
-    throw BadInput("images of " + sizeText(li.width, li.height) + " at downsample " + std::to_string(downsample) +
-                   " are " + std::to_string(processed_pixels) + " pixels, above ~max_pixels " +
-                   std::to_string(max_pixels_) + ": raise downsample or max_pixels");
-  }
-  if (static_cast<int>(li.width) / downsample < 8 || static_cast<int>(li.height) / downsample < 8) {
-    throw BadInput("images of " + sizeText(li.width, li.height) + " are too small for downsample " +
-                   std::to_string(downsample));
-  }
-  Views v;
-  v.images[0] = matchableImage(pair.left_image, "left");
-  v.images[1] = matchableImage(pair.right_image, "right");
-  if (v.images[0].channels() != v.images[1].channels()) {  // mixed mono / colour: match in grey
-    for (auto& image : v.images) {
-      if (image.channels() == 3) cv::cvtColor(image, image, cv::COLOR_BGR2GRAY);
-    }
-  }
-  full.rectify(v.images[0], v.images[1], &v.images[0], &v.images[1]);
-  v.model = downsample > 1 ? full.downsampled(downsample) : full;
-  const camera::Decimation decimation(full.size(), downsample);
-  for (auto& image : v.images) image = decimation.apply(image);
-  v.scale = static_cast<double>(v.model.size().width) / full.size().width;
-  return v;
+  return prepareHbdsViews(pair, downsample, max_pixels_,
+                          [this](const CameraInfo& left, const CameraInfo& right) -> const camera::StereoModel& {
+                            return updateModel(left, right);
+                          });
 }
 
 stereo::StereoParams HbdsNodelet::matchParams(const Config& config, const Views& v) {
-  // The range is set in full-resolution pixels; at 1/s resolution the searched range is the smallest one covering it.
-  const int full_dmax = config.min_disparity + config.disparity_range - 1;
   stereo::StereoParams params = stereoParams(config);
-  params.cost.dmin = static_cast<int>(std::floor(config.min_disparity * v.scale));
-  params.cost.dmax = static_cast<int>(std::ceil(full_dmax * v.scale));
-  if (params.cost.dmax >= v.model.size().width) {
-    throw BadInput("disparity range " + std::to_string(config.min_disparity) + ".." + std::to_string(full_dmax) +
-                   (config.downsample > 1
-                        ? " (" + std::to_string(params.cost.dmin) + ".." + std::to_string(params.cost.dmax) +
-                              " at downsample " + std::to_string(config.downsample) + ")"
-                        : std::string()) +
-                   " is wider than the image (width " + std::to_string(v.model.size().width) + ")");
-  }
+  setHbdsRange(&params, config.min_disparity, config.disparity_range, config.downsample, v);
   return params;
 }
 

@@ -27,6 +27,7 @@
 #include <boost/thread/recursive_mutex.hpp>
 #include <opencv2/core.hpp>
 
+#include "hbds_views.h"
 #include "massage_cell/HBDSConfig.h"
 #include "massage_cell/camera/stereo_model.h"
 #include "massage_cell/stereo/pipeline.h"
@@ -51,12 +52,8 @@ class HbdsNodelet : public nodelet::Nodelet {
     bool any() const { return disparity || depth || points || confidence || surface; }
   };
 
-  /// A pair rectified and downsampled, with the model of the processed images.
-  struct Views {
-    cv::Mat images[2];
-    camera::StereoModel model;  ///< of the processed (rectified, downsampled) images
-    double scale = 1.0;         ///< processed / full-resolution width
-  };
+  /// A pair rectified and downsampled, with the model of the processed images (hbds_views.h).
+  using Views = HbdsViews;
 
   void onInit() override;  ///< init(); a parameter of the wrong type: FATAL, the node exits 1
   void init();
