@@ -64,6 +64,19 @@
 #include "massage_cell/stereo/optimizers.h"
 
 namespace massage_cell::stereo {
+// PROBE-BEGIN (temporary instrumentation)
+struct HbdsProbeCut {
+  int depth, lo, hi, psi, b_hi, f_lo, n;
+  const int* pixels;
+  const float *min_b, *min_f;
+  const double *cost_b, *cost_f;
+  const std::uint8_t* side;
+  const int *arg, *arg_b, *arg_f;
+  const double* hist;
+};
+void (*g_hbds_probe)(const HbdsProbeCut&) = nullptr;
+thread_local int g_hbds_depth = 0;
+// PROBE-END
 namespace {
 
 struct Node {
@@ -498,6 +511,10 @@ void processNode(Context& ctx, const Node& node, int helpers, Scratch& s, NodeOu
     for (int i = 0; i < n; ++i) s.graph_id[i] = i;
   }
   if (free_count > 0) cutPixels(ctx, node, half, free_count, s);
+  if (g_hbds_probe)  // PROBE
+    g_hbds_probe({g_hbds_depth, lo, hi, psi, b_hi, f_lo, n, node.pixels.data(), s.min_b.data(), s.min_f.data(),
+                  s.cost_b.data(), s.cost_f.data(), s.side.data(), s.arg.data(), s.arg_b.data(), s.arg_f.data(),
+                  s.hist.data()});  // PROBE
   splitNode(ctx, node, b_hi, f_lo, s, out);
 }
 
@@ -539,6 +556,7 @@ void cutHierarchy(Context& ctx, int threads, OptimizerResult& result) {
     const Node& node = task.node;
     for (std::size_t i = 0; i < node.pixels.size(); ++i) ctx.index[node.pixels[i]] = static_cast<int>(i);
     NodeOutput out;
+    g_hbds_depth = task.depth;  // PROBE
     processNode(ctx, node, helpers, scratch[worker], out);
     for (Node& child : out.children) {
       if (child.lo == child.hi) {

@@ -347,6 +347,83 @@ struct Row {
 
 std::string stampText(const ros::Time& t) { return format("%u.%09u", t.sec, t.nsec); }
 
+/// The hbds node's depth of one pair: its views, its range, the match and REP 118 depth (processed images' model).
+struct PairDepth {
+  cv::Mat depth;
+  nodes::HbdsViews views;
+};
+
+PairDepth matchPair(const Options& o, const NodeSettings& settings, const nodes::StereoPair& pair,
+                    const nodes::FullModel& model_of) {
+  PairDepth out;
+  out.views = nodes::prepareHbdsViews(pair, settings.downsample, settings.max_pixels, model_of);
+  stereo::StereoParams params = o.params;
+  nodes::setHbdsRange(&params, settings.min_disparity, settings.disparity_range, settings.downsample, out.views);
+  const stereo::MatchResult result =
+      stereo::match(out.views.images[0], out.views.images[1], stereo::parseMethod(settings.method), params);
+  const nodes::ValidDisparity valid = nodes::validDisparity(result, params, settings.lr_fill);
+  out.depth = out.views.model.depth(valid.disparity);
+  return out;
+}
+
+/// The recording's row from its scores.
+Row summarise(const Options& o, const std::string& recording, long pairs, double total_ms, const Scores& scores) {
+  Row row;
+  row.recording = recording;
+  row.pairs = pairs;
+  row.acupoints = static_cast<long>(scores.errors.size());
+  if (row.acupoints == 0) throw std::runtime_error(recording + ": the matched ground-truth frames have no acupoints");
+  row.no_depth = scores.no_depth;
+  row.median_mm = median(scores.errors) * 1000.0;
+  row.p90_mm = percentile(scores.errors, 0.9) * 1000.0;
+  const long within =
+      std::count_if(scores.errors.begin(), scores.errors.end(), [](double e) { return e * 1000.0 <= kWithinMm; });
+  row.within_pct = 100.0 * within / row.acupoints;
+  row.signed_mm = median(scores.signed_errors) * 1000.0;
+  row.ms_per_pair = total_ms / pairs;
+  row.worst = worstPoints(scores, o.worst);
+  return row;
+}
+
+/// Gathers a bag's messages into stereo pairs by stamp, as the node's exact synchroniser does.
+struct PairAssembler {
+  explicit PairAssembler(std::string stereo_ns) : ns(std::move(stereo_ns)) {}
+  std::string ns;
+  std::optional<ros::Time> first_stamp;            // of the first left camera_info: ground-truth frame 0
+  std::map<ros::Time, nodes::StereoPair> partial;  // pairs waiting for their other messages, by stamp
+
+  /// left image, left camera_info, right image, right camera_info
+  std::vector<std::string> topics() const {
+    return {ns + "/left/image_raw", ns + "/left/camera_info", ns + "/right/image_raw", ns + "/right/camera_info"};
+  }
+  /// Adds one message; returns the stamp of the pair it completes, if any.
+  std::optional<ros::Time> add(const rosbag::MessageInstance& m) {
+    const std::vector<std::string> t = topics();
+    const std::string& topic = m.getTopic();
+    ros::Time stamp;
+    nodes::StereoPair* pair = nullptr;
+    if (topic == t[0] || topic == t[2]) {
+      const sensor_msgs::ImageConstPtr image = m.instantiate<sensor_msgs::Image>();
+      if (!image) throw std::runtime_error(topic + " is not sensor_msgs/Image but " + m.getDataType());
+      stamp = image->header.stamp;
+      pair = &partial[stamp];
+      (topic == t[0] ? pair->left_image : pair->right_image) = image;
+    } else {
+      const sensor_msgs::CameraInfoConstPtr info = m.instantiate<sensor_msgs::CameraInfo>();
+      if (!info) throw std::runtime_error(topic + " is not sensor_msgs/CameraInfo but " + m.getDataType());
+      stamp = info->header.stamp;
+      if (topic == t[1] && !first_stamp) first_stamp = stamp;
+      pair = &partial[stamp];
+      (topic == t[1] ? pair->left_info : pair->right_info) = info;
+    }
+    if (!pair->left_image || !pair->right_image || !pair->left_info || !pair->right_info) return std::nullopt;
+    return stamp;
+  }
+  const nodes::StereoPair& pair(const ros::Time& stamp) const { return partial.at(stamp); }
+  void done(const ros::Time& stamp) { partial.erase(stamp); }
+};
+
+/// Every pair of one recording, in the bag's order: scored against its ground-truth frame.
 Row evaluate(const Options& o, const NodeSettings& settings, const Recording& rec) {
   const GroundTruth& gt = rec.gt;
   rosbag::Bag bag;
@@ -355,11 +432,9 @@ Row evaluate(const Options& o, const NodeSettings& settings, const Recording& re
   } catch (const rosbag::BagException& e) {
     throw std::runtime_error("bag '" + rec.bag + "': " + e.what());
   }
-  const std::string left_image = o.ns + "/left/image_raw", left_info = o.ns + "/left/camera_info";
-  const std::string right_image = o.ns + "/right/image_raw", right_info = o.ns + "/right/camera_info";
-  rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{left_image, left_info, right_image, right_info}));
+  PairAssembler assembler(o.ns);
+  rosbag::View view(bag, rosbag::TopicQuery(assembler.topics()));
 
-  const stereo::Method method = stereo::parseMethod(settings.method);
   nodes::StereoModelCache cache;
   std::shared_ptr<const camera::StereoModel> full_model;
   const nodes::FullModel model_of = [&](const sensor_msgs::CameraInfo& l,
@@ -371,34 +446,16 @@ Row evaluate(const Options& o, const NodeSettings& settings, const Recording& re
     return *full_model;
   };
 
-  std::map<ros::Time, nodes::StereoPair> partial;  // pairs waiting for their other messages, by stamp
-  std::optional<ros::Time> first_stamp;            // of the first left camera_info: ground-truth frame 0
   Scores scores;
-  Row row;
-  row.recording = rec.name;
+  long pairs = 0;
   double total_ms = 0.0;
   try {
     for (const rosbag::MessageInstance& m : view) {
-      const std::string& topic = m.getTopic();
-      ros::Time stamp;
-      nodes::StereoPair* pair = nullptr;
-      if (topic == left_image || topic == right_image) {
-        const sensor_msgs::ImageConstPtr image = m.instantiate<sensor_msgs::Image>();
-        if (!image) throw std::runtime_error(topic + " is not sensor_msgs/Image but " + m.getDataType());
-        pair = &partial[image->header.stamp];
-        (topic == left_image ? pair->left_image : pair->right_image) = image;
-        stamp = image->header.stamp;
-      } else {
-        const sensor_msgs::CameraInfoConstPtr info = m.instantiate<sensor_msgs::CameraInfo>();
-        if (!info) throw std::runtime_error(topic + " is not sensor_msgs/CameraInfo but " + m.getDataType());
-        if (topic == left_info && !first_stamp) first_stamp = info->header.stamp;
-        pair = &partial[info->header.stamp];
-        (topic == left_info ? pair->left_info : pair->right_info) = info;
-        stamp = info->header.stamp;
-      }
-      if (!pair->left_image || !pair->right_image || !pair->left_info || !pair->right_info) continue;
-
-      // A whole pair: the node's views, range, match and depth.
+      const std::optional<ros::Time> complete = assembler.add(m);
+      if (!complete) continue;
+      const ros::Time stamp = *complete;
+      const nodes::StereoPair& pair = assembler.pair(stamp);
+      const std::optional<ros::Time>& first_stamp = assembler.first_stamp;
       const long index = std::lround((stamp - *first_stamp).toSec() * gt.rate);
       if (index < 0 || index >= static_cast<long>(gt.frames.size())) {
         throw std::runtime_error("the pair at " + stampText(stamp) + " (" +
@@ -407,46 +464,28 @@ Row evaluate(const Options& o, const NodeSettings& settings, const Recording& re
                                  rec.ground_truth + "')");
       }
       const auto start = nodes::Clock::now();
-      cv::Mat depth;
-      nodes::HbdsViews views;
+      PairDepth result;
       try {
-        views = nodes::prepareHbdsViews(*pair, settings.downsample, settings.max_pixels, model_of);
-        stereo::StereoParams params = o.params;
-        nodes::setHbdsRange(&params, settings.min_disparity, settings.disparity_range, settings.downsample, views);
-        const stereo::MatchResult result = stereo::match(views.images[0], views.images[1], method, params);
-        const nodes::ValidDisparity valid = nodes::validDisparity(result, params, settings.lr_fill);
-        depth = views.model.depth(valid.disparity);
+        result = matchPair(o, settings, pair, model_of);
       } catch (const std::exception& e) {  // BadInput, the library's std::invalid_argument, OpenCV
         throw std::runtime_error("the pair at " + stampText(stamp) + ": " + e.what());
       }
       total_ms += nodes::msSince(start);
-      score(depth, views.model, gt.frames[index], &scores);
-      partial.erase(stamp);
-      ++row.pairs;
-      if (o.max_pairs > 0 && row.pairs >= o.max_pairs) break;
+      score(result.depth, result.views.model, gt.frames[index], &scores);
+      assembler.done(stamp);
+      if (++pairs == o.max_pairs) break;
     }
   } catch (const rosbag::BagException& e) {
     throw std::runtime_error(rec.name + ": bag '" + rec.bag + "': " + e.what());
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(rec.name + ": " + e.what());
   }
-  if (row.pairs == 0) {
-    throw std::runtime_error(rec.name + ": bag '" + rec.bag + "' has no stereo pair on " + left_image + ", " +
-                             left_info + ", " + right_image + ", " + right_info +
-                             " with equal stamps (rosbag info; --stereo-ns)");
+  if (pairs == 0) {
+    const std::vector<std::string> t = assembler.topics();
+    throw std::runtime_error(rec.name + ": bag '" + rec.bag + "' has no stereo pair on " + t[0] + ", " + t[1] + ", " +
+                             t[2] + ", " + t[3] + " with equal stamps (rosbag info; --stereo-ns)");
   }
-  row.acupoints = static_cast<long>(scores.errors.size());
-  if (row.acupoints == 0) throw std::runtime_error(rec.name + ": the matched ground-truth frames have no acupoints");
-  row.no_depth = scores.no_depth;
-  row.median_mm = median(scores.errors) * 1000.0;
-  row.p90_mm = percentile(scores.errors, 0.9) * 1000.0;
-  const long within =
-      std::count_if(scores.errors.begin(), scores.errors.end(), [](double e) { return e * 1000.0 <= kWithinMm; });
-  row.within_pct = 100.0 * within / row.acupoints;
-  row.signed_mm = median(scores.signed_errors) * 1000.0;
-  row.ms_per_pair = total_ms / row.pairs;
-  row.worst = worstPoints(scores, o.worst);
-  return row;
+  return summarise(o, rec.name, pairs, total_ms, scores);
 }
 
 // ------------------------------------------------------------ output --
