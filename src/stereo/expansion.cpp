@@ -249,6 +249,81 @@ class Mover {
     return commit();
   }
 
+  /// One fusion move (Lempitsky et al. 2010): each pixel keeps its label
+  /// (x_p = 0) or takes proposal[p] (x_p = 1), one binary cut on the exact
+  /// Eq. 2.2 energy. Nodes only where the proposal differs. A pair of two
+  /// nodes, A = E(0,0) = u V(d_p, d_q), B = E(0,1) = u V(d_p, c_q),
+  /// C = E(1,0) = u V(c_p, d_q), D = E(1,1) = u V(c_p, c_q), is submodular
+  /// when A + D <= B + C; otherwise D is lowered to B + C - A (truncation,
+  /// Rother et al. 2005). The cut's labelling is accepted only if its true
+  /// energy is lower (commit), so the energy never rises.
+  bool fuse(const std::vector<int>& proposal) {
+    const int n = pb_.n, w = pb_.w;
+    nodes_.clear();
+    for (int p = 0; p < n; ++p)
+      if (proposal[static_cast<std::size_t>(p)] != lab_[static_cast<std::size_t>(p)]) {
+        node_[static_cast<std::size_t>(p)] = static_cast<int>(nodes_.size());
+        nodes_.push_back(p);
+      } else {
+        node_[static_cast<std::size_t>(p)] = -1;
+      }
+    const int m = static_cast<int>(nodes_.size());
+    if (m == 0) return false;
+    e0_.assign(static_cast<std::size_t>(m), 0.0);
+    e1_.assign(static_cast<std::size_t>(m), 0.0);
+    MaxFlow mf(m, 2 * m);
+    mf.addNodes(m);
+    for (int i = 0; i < m; ++i) {
+      const int p = nodes_[static_cast<std::size_t>(i)];
+      e0_[static_cast<std::size_t>(i)] = pb_.cost(p, lab_[static_cast<std::size_t>(p)]);
+      e1_[static_cast<std::size_t>(i)] = pb_.cost(p, proposal[static_cast<std::size_t>(p)]);
+    }
+    auto pair = [&](int p, int q, float u) {
+      if (u == 0.0f) return;
+      const int np = node_[static_cast<std::size_t>(p)], nq = node_[static_cast<std::size_t>(q)];
+      const int dp = lab_[static_cast<std::size_t>(p)], dq = lab_[static_cast<std::size_t>(q)];
+      const int cp = proposal[static_cast<std::size_t>(p)], cq = proposal[static_cast<std::size_t>(q)];
+      if (np < 0 && nq < 0) return;
+      if (np < 0) {  // p keeps d_p (= c_p)
+        e0_[static_cast<std::size_t>(nq)] += static_cast<double>(u) * pb_.v(dp, dq);
+        e1_[static_cast<std::size_t>(nq)] += static_cast<double>(u) * pb_.v(dp, cq);
+        return;
+      }
+      if (nq < 0) {
+        e0_[static_cast<std::size_t>(np)] += static_cast<double>(u) * pb_.v(dp, dq);
+        e1_[static_cast<std::size_t>(np)] += static_cast<double>(u) * pb_.v(cp, dq);
+        return;
+      }
+      const double a = static_cast<double>(u) * pb_.v(dp, dq);
+      const double b = static_cast<double>(u) * pb_.v(dp, cq);
+      const double c = static_cast<double>(u) * pb_.v(cp, dq);
+      const double d = std::min(static_cast<double>(u) * pb_.v(cp, cq), b + c - a);
+      e0_[static_cast<std::size_t>(np)] += a;
+      e1_[static_cast<std::size_t>(np)] += c;
+      e1_[static_cast<std::size_t>(nq)] += d - c;
+      mf.addEdge(np, nq, std::max(0.0, b + c - a - d), 0.0);
+    };
+    for (int i = 0; i < m; ++i) {
+      const int p = nodes_[static_cast<std::size_t>(i)];
+      const int x = p % w;
+      if (x + 1 < w) pair(p, p + 1, pb_.ur[static_cast<std::size_t>(p)]);
+      if (p + w < n) pair(p, p + w, pb_.ud[static_cast<std::size_t>(p)]);
+      if (x > 0 && node_[static_cast<std::size_t>(p - 1)] < 0) pair(p - 1, p, pb_.ur[static_cast<std::size_t>(p - 1)]);
+      if (p >= w && node_[static_cast<std::size_t>(p - w)] < 0) pair(p - w, p, pb_.ud[static_cast<std::size_t>(p - w)]);
+    }
+    addTerminals(mf, m);
+    mf.solve();
+    ++cuts_;
+    changed_.clear();
+    for (int i = 0; i < m; ++i)
+      if (!mf.isSource(i)) {
+        const int p = nodes_[static_cast<std::size_t>(i)];
+        next_[static_cast<std::size_t>(p)] = proposal[static_cast<std::size_t>(p)];
+        changed_.push_back(p);
+      }
+    return commit();
+  }
+
   /// One alpha-beta swap move over the pixels currently labelled alpha or beta.
   bool swap(int alpha, int beta, const std::vector<int>& members) {
     const int n = pb_.n, w = pb_.w;
@@ -367,11 +442,9 @@ OptimizerResult finish(const CostVolume& volume, const PairwiseWeights& weights,
 
 namespace {
 
-OptimizerResult runExpansion(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
-                             const cv::Mat& initial, int max_cycles, int window) {
-  const Problem pb = makeProblem(volume, weights, smooth, max_cycles);
-  Mover mover(pb, initialLabels(pb, initial));
-  const int levels = volume.levels();
+/// Expansion cycles of `mover` (see the header comment); returns the cycles begun.
+int expansionCycles(const Problem& pb, Mover& mover, int max_cycles, int window) {
+  const int levels = pb.dmax - pb.dmin + 1;
   // failed_at[a]: value of `accepted` when alpha = dmin + a last failed (or
   // succeeded); -1: never tried. Equal to `accepted` -> the move cannot help.
   std::vector<std::int64_t> failed_at(static_cast<std::size_t>(levels), -1);
@@ -383,7 +456,7 @@ OptimizerResult runExpansion(const CostVolume& volume, const PairwiseWeights& we
     ++cycles;
     for (int a = 0; a < levels && !converged; ++a) {
       if (failed_at[static_cast<std::size_t>(a)] != accepted) {
-        if (mover.expand(volume.dmin() + a, window)) {
+        if (mover.expand(pb.dmin + a, window)) {
           ++accepted;
           streak = 0;
         }
@@ -392,6 +465,14 @@ OptimizerResult runExpansion(const CostVolume& volume, const PairwiseWeights& we
       converged = ++streak >= levels;
     }
   }
+  return cycles;
+}
+
+OptimizerResult runExpansion(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                             const cv::Mat& initial, int max_cycles, int window) {
+  const Problem pb = makeProblem(volume, weights, smooth, max_cycles);
+  Mover mover(pb, initialLabels(pb, initial));
+  const int cycles = expansionCycles(pb, mover, max_cycles, window);
   return finish(volume, weights, smooth, pb, mover, cycles);
 }
 
@@ -406,6 +487,63 @@ OptimizerResult localExpansion(const CostVolume& volume, const PairwiseWeights& 
                                const cv::Mat& initial, int window, int max_cycles) {
   if (window < 1) throw std::invalid_argument("localExpansion: window must be >= 1");
   return runExpansion(volume, weights, smooth, initial, max_cycles, window);
+}
+
+OptimizerResult coarsePolish(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                             const cv::Mat& initial, int block, int window, int max_cycles) {
+  if (block < 2) throw std::invalid_argument("coarsePolish: block must be >= 2");
+  if (window < 1) throw std::invalid_argument("coarsePolish: window must be >= 1");
+  const Problem pb = makeProblem(volume, weights, smooth, max_cycles);
+  if (initial.empty()) throw std::invalid_argument("coarsePolish: needs an initial labelling");
+  const std::vector<int> lab = initialLabels(pb, initial);
+  const int w = pb.w, h = pb.h, n = pb.n;
+  const int bw = (w + block - 1) / block, bh = (h + block - 1) / block;
+  std::vector<int> block_of(static_cast<std::size_t>(n));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      block_of[static_cast<std::size_t>(y) * w + x] = (y / block) * bw + x / block;
+  // Block unaries: the sum of the block's pixel costs at each label.
+  CostVolume coarse(bw, bh, pb.dmin, pb.dmax, 0.0f);
+  for (int d = pb.dmin; d <= pb.dmax; ++d) {
+    const float* s = volume.slice(d);
+    float* cs = coarse.slice(d);
+    for (int p = 0; p < n; ++p) cs[block_of[static_cast<std::size_t>(p)]] += s[p];
+  }
+  // Block pairs: the sum of u over the pixel pairs crossing the boundary
+  // (pairs inside a block cost nothing for a block-constant labelling).
+  PairwiseWeights cw{cv::Mat::zeros(bh, bw, CV_32F), cv::Mat::zeros(bh, bw, CV_32F)};
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const std::size_t p = static_cast<std::size_t>(y) * w + x;
+      const int bx = x / block, by = y / block;
+      if (x + 1 < w && (x + 1) / block != bx) cw.right.at<float>(by, bx) += pb.ur[p];
+      if (y + 1 < h && (y + 1) / block != by) cw.down.at<float>(by, bx) += pb.ud[p];
+    }
+  // Initial block labels: the (lower) median of the block's labels.
+  cv::Mat binit(bh, bw, CV_32F);
+  std::vector<int> members;
+  for (int by = 0; by < bh; ++by)
+    for (int bx = 0; bx < bw; ++bx) {
+      members.clear();
+      for (int y = by * block; y < std::min(h, (by + 1) * block); ++y)
+        for (int x = bx * block; x < std::min(w, (bx + 1) * block); ++x)
+          members.push_back(lab[static_cast<std::size_t>(y) * w + x]);
+      const auto mid = members.begin() + static_cast<std::ptrdiff_t>((members.size() - 1) / 2);
+      std::nth_element(members.begin(), mid, members.end());
+      binit.at<float>(by, bx) = static_cast<float>(*mid);
+    }
+  const Problem cpb = makeProblem(coarse, cw, smooth, max_cycles);
+  Mover cmover(cpb, initialLabels(cpb, binit));
+  const int cycles = expansionCycles(cpb, cmover, max_cycles, window);
+  // Fusion at full resolution of the initial labelling with the blocks' labels.
+  std::vector<int> proposal(static_cast<std::size_t>(n));
+  for (int p = 0; p < n; ++p)
+    proposal[static_cast<std::size_t>(p)] = cmover.labels()[static_cast<std::size_t>(block_of[static_cast<std::size_t>(p)])];
+  Mover mover(pb, lab);
+  mover.fuse(proposal);
+  OptimizerResult r = finish(volume, weights, smooth, pb, mover, cycles);
+  r.cuts += cmover.cuts();
+  return r;
 }
 
 OptimizerResult alphaBetaSwap(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,

@@ -208,7 +208,21 @@ MatchResult matchLeftView(const cv::Mat& left, const cv::Mat& right, Method meth
       OptimizerResult r = hbds(volume, weights, params.smooth, params.threads, params.hbds_overlap, params.hbds_coarse);
       if (params.polish_window > 0) {
         const int hbds_cuts = r.cuts;
-        r = localExpansion(volume, weights, params.smooth, r.disparity, params.polish_window, params.polish_cycles);
+        int coarse_block = params.polish_coarse;
+        int local_after = 0;
+        if (const char* e = std::getenv("MC_PC_BLOCK")) coarse_block = std::atoi(e);  // EXPERIMENT, remove
+        if (const char* e = std::getenv("MC_PC_LOCAL")) local_after = std::atoi(e);   // EXPERIMENT, remove
+        if (coarse_block >= 2) {
+          r = coarsePolish(volume, weights, params.smooth, r.disparity, coarse_block, params.polish_window,
+                           params.polish_cycles);
+          if (local_after > 0) {
+            const int c = r.cuts;
+            r = localExpansion(volume, weights, params.smooth, r.disparity, local_after, params.polish_cycles);
+            r.cuts += c;
+          }
+        } else {
+          r = localExpansion(volume, weights, params.smooth, r.disparity, params.polish_window, params.polish_cycles);
+        }
         r.cuts += hbds_cuts;
       }
       result.optimize_ms = msSince(start);

@@ -50,6 +50,19 @@ OptimizerResult alphaExpansion(const CostVolume& volume, const PairwiseWeights& 
 OptimizerResult localExpansion(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
                                const cv::Mat& initial, int window, int max_cycles = 20);
 
+/// Coarse full-range polish (our addition): the alpha-expansion cycles of
+/// localExpansion (labels within `window` of alpha; window >= levels: plain
+/// alpha-expansion) run on block x block pixel blocks (block >= 2) with the
+/// exact energy of block-constant labellings (block unary = sum of its
+/// pixels' costs, block pair = sum of u over the pixel pairs crossing the
+/// boundary, times V), started from the median of `initial` in each block;
+/// then one fusion move at full resolution: each pixel keeps its `initial`
+/// label or takes its block's label, one binary cut on the Eq. 2.2 energy
+/// (non-submodular pairs truncated, Rother et al. 2005), accepted only when it
+/// lowers the energy (so the result's energy is never above `initial`'s).
+OptimizerResult coarsePolish(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
+                             const cv::Mat& initial, int block, int window, int max_cycles = 1);
+
 /// alpha-beta swap, same stopping rule.
 OptimizerResult alphaBetaSwap(const CostVolume& volume, const PairwiseWeights& weights, const SmoothParams& smooth,
                               const cv::Mat& initial = cv::Mat(), int max_cycles = 20);

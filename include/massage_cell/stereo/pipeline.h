@@ -49,6 +49,12 @@ struct StereoParams {
   /// HBDS labelling; 0 = pure HBDS as in the thesis (default).
   int polish_window = 0;
   int polish_cycles = 1;                    ///< cycles of the polish (it stops earlier when a cycle changes nothing)
+  /// hbds only, with polish_window > 0: block side of a coarse polish (0 or
+  /// 1: off, the polish runs at full resolution). >= 2: the polish's
+  /// expansion cycles run on polish_coarse x polish_coarse blocks, then one
+  /// fusion move at full resolution picks, per pixel, the HBDS label or its
+  /// block's label (coarsePolish() in optimizers.h).
+  int polish_coarse = 0;
   Refinement refine = Refinement::kFfdMdc;  ///< after any method (none: the method's own output)
   RefineParams refine_params;               ///< detect_fattening is set from `refine`
   FilterParams filter_params;               ///< the 2dbf / 3dbf / wmf refiners
