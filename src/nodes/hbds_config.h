@@ -28,6 +28,7 @@ inline stereo::StereoParams stereoParams(const HBDSConfig& config) {
   params.smooth.u_max = static_cast<float>(config.u_max);
   params.threads = config.threads;
   params.polish_window = config.polish_window;
+  params.polish_coarse = config.polish_coarse;
   params.hbds_overlap = config.overlap;
   params.hbds_coarse = config.coarse;
   params.refine = stereo::parseRefinement(refine);
@@ -65,9 +66,10 @@ inline std::string describe(const HBDSConfig& c) {
   s << "method " << c.method << ", disparities " << c.min_disparity << ".." << c.min_disparity + c.disparity_range - 1
     << ", cost " << c.cost << ", eta " << c.eta << ", ncc_window " << c.ncc_window << ", gradient_saturation "
     << c.gradient_saturation << ", tau " << c.tau << ", u " << c.u_min << ".." << c.u_max << ", overlap " << c.overlap
-    << ", coarse " << c.coarse << ", polish_window " << c.polish_window << ", refine " << c.refine << ", subpixel "
-    << c.subpixel << ", lr_check " << (c.lr_check ? "on" : "off") << " (tolerance " << c.lr_tolerance << ", fill "
-    << (c.lr_fill ? "on" : "off") << "), threads " << c.threads << ", downsample " << c.downsample;
+    << ", coarse " << c.coarse << ", polish_window " << c.polish_window << ", polish_coarse " << c.polish_coarse
+    << ", refine " << c.refine << ", subpixel " << c.subpixel << ", lr_check " << (c.lr_check ? "on" : "off")
+    << " (tolerance " << c.lr_tolerance << ", fill " << (c.lr_fill ? "on" : "off") << "), threads " << c.threads
+    << ", downsample " << c.downsample;
   return s.str();
 }
 

@@ -32,6 +32,22 @@
 // their pairwise capacities are at most u * 2 window, which keeps the cuts
 // cheap.
 //
+// Coarse polish (coarsePolish, our addition: a full-range polish of HBDS at a
+// fraction of the cost). The expansion cycles run on B x B blocks with the
+// exact energy of block-constant labellings (block unary = sum of the pixel
+// costs, block pair = sum of u over the pixel pairs crossing the boundary,
+// pairs inside a block cost 0), from each block's median label; then one
+// fusion move at full resolution (x_p = 0: keep d_p, x_p = 1: take c_p, the
+// block's label; nodes where c_p != d_p):
+//   unary E_p(0) = S(p, d_p), E_p(1) = S(p, c_p); a neighbour q outside the
+//   move (c_q = d_q): E_p(0) += u V(d_p, d_q), E_p(1) += u V(c_p, d_q)
+//   pair of two nodes: A = u V(d_p, d_q), B = u V(d_p, c_q), C = u V(c_p, d_q),
+//     D = u V(c_p, c_q); if A + D > B + C, D is lowered to B + C - A
+//     (truncation, Rother et al. 2005); E_p(0) += A, E_p(1) += C,
+//     E_q(1) += D - C, arc p -> q capacity B + C - A - D.
+// Truncated pairs make the cut approximate, so the fused labelling is kept
+// only when its exact energy is lower (commit): never above the start's.
+//
 // alpha-beta swap, alpha < beta (x_p = 0: alpha, x_p = 1: beta). Nodes only
 // for pixels labelled alpha or beta.
 //   unary: E_p(0) = S(p, alpha), E_p(1) = S(p, beta); for each neighbour q
@@ -500,8 +516,7 @@ OptimizerResult coarsePolish(const CostVolume& volume, const PairwiseWeights& we
   const int bw = (w + block - 1) / block, bh = (h + block - 1) / block;
   std::vector<int> block_of(static_cast<std::size_t>(n));
   for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      block_of[static_cast<std::size_t>(y) * w + x] = (y / block) * bw + x / block;
+    for (int x = 0; x < w; ++x) block_of[static_cast<std::size_t>(y) * w + x] = (y / block) * bw + x / block;
   // Block unaries: the sum of the block's pixel costs at each label.
   CostVolume coarse(bw, bh, pb.dmin, pb.dmax, 0.0f);
   for (int d = pb.dmin; d <= pb.dmax; ++d) {
@@ -538,7 +553,8 @@ OptimizerResult coarsePolish(const CostVolume& volume, const PairwiseWeights& we
   // Fusion at full resolution of the initial labelling with the blocks' labels.
   std::vector<int> proposal(static_cast<std::size_t>(n));
   for (int p = 0; p < n; ++p)
-    proposal[static_cast<std::size_t>(p)] = cmover.labels()[static_cast<std::size_t>(block_of[static_cast<std::size_t>(p)])];
+    proposal[static_cast<std::size_t>(p)] =
+        cmover.labels()[static_cast<std::size_t>(block_of[static_cast<std::size_t>(p)])];
   Mover mover(pb, lab);
   mover.fuse(proposal);
   OptimizerResult r = finish(volume, weights, smooth, pb, mover, cycles);

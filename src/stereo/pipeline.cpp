@@ -184,6 +184,7 @@ std::vector<ParamProblem> checkParams(const StereoParams& p) {
   require(p.hbds_coarse >= 1 && p.hbds_coarse <= 8, "coarse", "must be in 1..8");
   require(p.polish_window >= 0, "polish_window", "must be >= 0");
   require(p.polish_cycles >= 1, "polish_cycles", "must be >= 1");
+  require(p.polish_coarse >= 0 && p.polish_coarse <= 8, "polish_coarse", "must be in 0..8");
   nested("refine_window", [&] { validate(p.refine_params); });
   nested("filter", [&] { validate(p.filter_params); });
   nested("subpixel_window", [&] { validate(p.subpixel_params); });
@@ -208,21 +209,11 @@ MatchResult matchLeftView(const cv::Mat& left, const cv::Mat& right, Method meth
       OptimizerResult r = hbds(volume, weights, params.smooth, params.threads, params.hbds_overlap, params.hbds_coarse);
       if (params.polish_window > 0) {
         const int hbds_cuts = r.cuts;
-        int coarse_block = params.polish_coarse;
-        int local_after = 0;
-        if (const char* e = std::getenv("MC_PC_BLOCK")) coarse_block = std::atoi(e);  // EXPERIMENT, remove
-        if (const char* e = std::getenv("MC_PC_LOCAL")) local_after = std::atoi(e);   // EXPERIMENT, remove
-        if (coarse_block >= 2) {
-          r = coarsePolish(volume, weights, params.smooth, r.disparity, coarse_block, params.polish_window,
-                           params.polish_cycles);
-          if (local_after > 0) {
-            const int c = r.cuts;
-            r = localExpansion(volume, weights, params.smooth, r.disparity, local_after, params.polish_cycles);
-            r.cuts += c;
-          }
-        } else {
-          r = localExpansion(volume, weights, params.smooth, r.disparity, params.polish_window, params.polish_cycles);
-        }
+        // polish_coarse >= 2: the cycle on blocks, then one full-resolution fusion (coarsePolish).
+        r = params.polish_coarse >= 2 ? coarsePolish(volume, weights, params.smooth, r.disparity, params.polish_coarse,
+                                                     params.polish_window, params.polish_cycles)
+                                      : localExpansion(volume, weights, params.smooth, r.disparity,
+                                                       params.polish_window, params.polish_cycles);
         r.cuts += hbds_cuts;
       }
       result.optimize_ms = msSince(start);

@@ -38,9 +38,12 @@ inline std::string stereoParamsHelp() {
   --polish W         hbds: then local alpha-expansion moves over labels within W levels
                      of alpha, lowering the Eq. 2.2 energy (0: pure HBDS; default %d)
   --polish-cycles N  cycles of that polish (default %d)
+  --polish-coarse B  hbds, with --polish: the polish's cycles on B x B pixel blocks, then one
+                     full-resolution fusion of each pixel's label with its block's (0: off,
+                     the polish at full resolution; default %d)
 )",
               d.smooth.tau, d.smooth.u_min, d.smooth.u_max, d.smooth.truncation, d.hbds_overlap, d.hbds_coarse,
-              d.polish_window, d.polish_cycles);
+              d.polish_window, d.polish_cycles, d.polish_coarse);
   h += format(R"(  --refine R         after the method: none, mdc (Gu's disparity calibration, thesis
                      Eq. 2.11-2.13 without FFD), ffd-mdc (the thesis's refinement: fattening
                      foreground detection, then MDC), or a conventional refiner (thesis
@@ -99,6 +102,7 @@ inline void addStereoParams(OptionTable& table, stereo::StereoParams& p) {
   table.values["--coarse"] = integer(p.hbds_coarse);
   table.values["--polish"] = integer(p.polish_window);
   table.values["--polish-cycles"] = integer(p.polish_cycles);
+  table.values["--polish-coarse"] = integer(p.polish_coarse);
   table.values["--refine"] = [&p](const std::string&, const std::string& v) {
     try {
       p.refine = stereo::parseRefinement(v);

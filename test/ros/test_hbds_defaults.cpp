@@ -33,6 +33,7 @@ std::map<std::string, std::string> fields(const ms::StereoParams& p) {
           {"overlap", str(p.hbds_overlap)},
           {"coarse", str(p.hbds_coarse)},
           {"polish_window", str(p.polish_window)},
+          {"polish_coarse", str(p.polish_coarse)},
           {"refine", ms::toString(p.refine)},
           {"refine_window", str(p.refine_params.window)},
           {"subpixel", p.subpixel ? ms::toString(p.subpixel_params.fit) : "none"},

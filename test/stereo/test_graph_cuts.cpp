@@ -781,3 +781,66 @@ TEST(LocalExpansion, ConvergedResultHasNoImprovingMoveBruteForce) {
     }
   }
 }
+
+// ------------------------------------------------------------- coarse polish
+
+// The fusion is accepted only when it lowers the energy: from any start, any
+// block side (partial blocks at the borders), any truncation, the result's
+// energy is never above the start's and is reported exactly.
+TEST(CoarsePolish, EnergyNeverIncreases) {
+  const int w = 23, h = 17;
+  const ms::CostVolume v = randomVolume(w, h, -2, 7, 81);
+  const ms::PairwiseWeights pw = randomWeights(w, h, 0.05f, 0.4f, 82);
+  for (unsigned seed : {83u, 84u, 85u}) {
+    const cv::Mat init = randomLabels(w, h, -2, 7, seed);
+    for (float trunc : {0.0f, 3.0f}) {
+      ms::SmoothParams sp;
+      sp.truncation = trunc;
+      const double e0 = ms::labellingEnergy(v, pw, init, trunc).total();
+      for (int block : {2, 3, 4}) {
+        for (int window : {2, 10}) {
+          const ms::OptimizerResult r = ms::coarsePolish(v, pw, sp, init, block, window, 1);
+          EXPECT_LE(r.energy.total(), e0 + 1e-9) << "block " << block << " window " << window;
+          const ms::Energy e = ms::labellingEnergy(v, pw, r.disparity, trunc);
+          EXPECT_NEAR(r.energy.total(), e.total(), 1e-9);
+          EXPECT_GT(r.cuts, 0);
+        }
+      }
+    }
+  }
+}
+
+// A flat region of the layered scene's rectangle (true level 4) labelled 0,
+// far outside a local window: the coarse full-range cycle finds level 4 for
+// its blocks and the fusion brings it back at full resolution. Without the
+// fusion step (the start returned) the region stays wrong.
+TEST(CoarsePolish, RecoversWronglyLabelledFlatRegion) {
+  for (float trunc : {0.0f, 3.0f}) {
+    const LayerScene s = layerScene(19);
+    const ms::SmoothParams sp = layerSmooth(trunc);
+    const ms::PairwiseWeights pw = ms::pairwiseWeights(s.image, sp);
+    cv::Mat init = s.truth.clone();
+    init(cv::Rect(9, 20, 19, 4)).setTo(0.0f);  // 76 pixels of the rectangle, below the disc
+    const int wrong = countDiff(init, s.truth);
+    ASSERT_EQ(wrong, 76);
+    for (int block : {2, 3}) {
+      const ms::OptimizerResult r = ms::coarsePolish(s.volume, pw, sp, init, block, 7, 1);
+      EXPECT_LT(r.energy.total(), ms::labellingEnergy(s.volume, pw, init, trunc).total());
+      EXPECT_LE(countDiff(r.disparity(cv::Rect(9, 20, 19, 4)), s.truth(cv::Rect(9, 20, 19, 4))), 2)
+          << "block " << block << " truncation " << trunc;
+      // Nothing that was right becomes wrong but a few outlier pixels.
+      EXPECT_LE(countDiff(r.disparity, s.truth), 6) << "block " << block << " truncation " << trunc;
+    }
+  }
+}
+
+TEST(CoarsePolish, InvalidInputThrows) {
+  const ms::CostVolume v = randomVolume(6, 5, 0, 4, 91);
+  const ms::PairwiseWeights pw = randomWeights(6, 5, 0.1f, 0.2f, 92);
+  const ms::SmoothParams sp;
+  const cv::Mat init = randomLabels(6, 5, 0, 4, 93);
+  EXPECT_THROW(ms::coarsePolish(v, pw, sp, init, 1, 4), std::invalid_argument);
+  EXPECT_THROW(ms::coarsePolish(v, pw, sp, init, 2, 0), std::invalid_argument);
+  EXPECT_THROW(ms::coarsePolish(v, pw, sp, cv::Mat(), 2, 4), std::invalid_argument);
+  EXPECT_THROW(ms::coarsePolish(v, pw, sp, cv::Mat(5, 6, CV_32F, cv::Scalar(9)), 2, 4), std::invalid_argument);
+}

@@ -175,6 +175,8 @@ TEST(StereoBench, CellFramesPrintTimesAndAccuracy) {
   expectFailure(kBench + " --frame --frame-size 20x10", 2, "--frame-size must be between");
   expectFailure(kBench + " --frame --repeat 0", 2, "--repeat must be in 1..100");
   expectFailure(kMatch + " a.png b.png --dmax 8 --polish -1 -o x", 2, "--polish must be >= 0");
+  expectFailure(kMatch + " a.png b.png --dmax 8 --polish 4 --polish-coarse 9 -o x", 2,
+                "--polish-coarse must be in 0..8");
 }
 
 TEST(StereoEval, CsvOnMiddlebury) {

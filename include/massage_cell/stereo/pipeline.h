@@ -48,7 +48,7 @@ struct StereoParams {
   /// within polish_window levels of alpha) lower the Eq. 2.2 energy of the
   /// HBDS labelling; 0 = pure HBDS as in the thesis (default).
   int polish_window = 0;
-  int polish_cycles = 1;                    ///< cycles of the polish (it stops earlier when a cycle changes nothing)
+  int polish_cycles = 1;  ///< cycles of the polish (it stops earlier when a cycle changes nothing)
   /// hbds only, with polish_window > 0: block side of a coarse polish (0 or
   /// 1: off, the polish runs at full resolution). >= 2: the polish's
   /// expansion cycles run on polish_coarse x polish_coarse blocks, then one
