@@ -110,6 +110,7 @@ stereo::StereoParams validParams(fuzz::FuzzInput& in, cv::Size size) {
   p.cost.census_lambda = static_cast<float>(in.real(1, 60));
   p.cost.ad_lambda = static_cast<float>(in.real(1, 60));
   p.hbds_coarse = static_cast<int>(in.range(1, 4));
+  p.polish_coarse = static_cast<int>(in.range(0, 3));
   return p;
 }
 

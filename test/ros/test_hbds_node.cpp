@@ -478,14 +478,17 @@ TEST_F(HbdsNode, LeftRightCheck) {
       << "the back is not confirmed by the right view";
   EXPECT_GT(count(0, 8, [&](long i) { return d[i] >= disparity->min_disparity; }), band * 9 / 10)
       << "lr_fill: the band should be filled";
-  // `surface`, the arm's: the confirmed pixels only (not the filled band), one in `step` across and down.
+  // `surface`, the arm's: the confirmed pixels only (not the filled band), one in `step` across and down, without the
+  // search range's far end (disparity > min_disparity + 0.5: what lies beyond the range piles up there, confirmed
+  // or not).
   ASSERT_TRUE(spinUntil([&] { return surface && surface->header.stamp == disparity->header.stamp; }, 10.0))
       << "no surface of the pair's stamp";
   EXPECT_EQ(surface->header.frame_id, disparity->header.frame_id);
   const int step = std::max(1, w / 80);
   long grid_confirmed = 0;
   for (int y = step / 2; y < h; y += step)
-    for (int x = step / 2; x < w; x += step) grid_confirmed += c[y * w + x] == 255 ? 1 : 0;
+    for (int x = step / 2; x < w; x += step)
+      grid_confirmed += c[y * w + x] == 255 && d[y * w + x] > disparity->min_disparity + 0.5f ? 1 : 0;
   const long points = static_cast<long>(surface->width) * surface->height;
   EXPECT_LE(points, grid_confirmed) << "surface points where the right view confirms nothing";
   EXPECT_GT(points, grid_confirmed * 8 / 10) << "the confirmed back and table missing from the surface";
