@@ -43,8 +43,9 @@
 //   move (c_q = d_q): E_p(0) += u V(d_p, d_q), E_p(1) += u V(c_p, d_q)
 //   pair of two nodes: A = u V(d_p, d_q), B = u V(d_p, c_q), C = u V(c_p, d_q),
 //     D = u V(c_p, c_q); if A + D > B + C, D is lowered to B + C - A
-//     (truncation, Rother et al. 2005); E_p(0) += A, E_p(1) += C,
-//     E_q(1) += D - C, arc p -> q capacity B + C - A - D.
+//     (truncation, Rother et al. 2005); E_p(1) += C - A, E_q(1) += D - C,
+//     arc p -> q capacity B + C - A - D (Mover::binaryMove, which the
+//     expansion move shares with c_p = alpha).
 // Truncated pairs make the cut approximate, so the fused labelling is kept
 // only when its exact energy is lower (commit): never above the start's.
 //
@@ -185,7 +186,11 @@ double energyOf(const Problem& pb, const std::vector<int>& lab) {
 class Mover {
  public:
   explicit Mover(const Problem& pb, std::vector<int> lab)
-      : pb_(pb), lab_(std::move(lab)), next_(lab_), node_(static_cast<std::size_t>(pb.n), -1) {
+      : pb_(pb),
+        lab_(std::move(lab)),
+        next_(lab_),
+        target_(static_cast<std::size_t>(pb.n)),
+        node_(static_cast<std::size_t>(pb.n), -1) {
     energy_ = energyOf(pb_, lab_);
   }
 
@@ -197,147 +202,16 @@ class Mover {
   /// window > 0 restricts the move to the pixels whose label is within
   /// `window` levels of alpha (the others stay fixed).
   bool expand(int alpha, int window = 0) {
-    const int n = pb_.n, w = pb_.w;
-    nodes_.clear();
-    for (int p = 0; p < n; ++p)
-      if (lab_[static_cast<std::size_t>(p)] != alpha &&
-          (window <= 0 || std::abs(lab_[static_cast<std::size_t>(p)] - alpha) <= window)) {
-        node_[static_cast<std::size_t>(p)] = static_cast<int>(nodes_.size());
-        nodes_.push_back(p);
-      } else {
-        node_[static_cast<std::size_t>(p)] = -1;
-      }
-    const int m = static_cast<int>(nodes_.size());
-    if (m == 0) return false;
-    e0_.assign(static_cast<std::size_t>(m), 0.0);
-    e1_.assign(static_cast<std::size_t>(m), 0.0);
-    MaxFlow mf(m, 2 * m);
-    mf.addNodes(m);
-    for (int i = 0; i < m; ++i) {
-      const int p = nodes_[static_cast<std::size_t>(i)];
-      e0_[static_cast<std::size_t>(i)] = pb_.cost(p, lab_[static_cast<std::size_t>(p)]);
-      e1_[static_cast<std::size_t>(i)] = pb_.cost(p, alpha);
-    }
-    auto pair = [&](int p, int q, float u) {
-      if (u == 0.0f) return;
-      const int np = node_[static_cast<std::size_t>(p)], nq = node_[static_cast<std::size_t>(q)];
-      const int dp = lab_[static_cast<std::size_t>(p)], dq = lab_[static_cast<std::size_t>(q)];
-      if (np < 0 && nq < 0) return;
-      // A neighbour outside the move keeps its label (alpha, or any label
-      // outside the window of a restricted move).
-      if (np < 0) {
-        e0_[static_cast<std::size_t>(nq)] += static_cast<double>(u) * pb_.v(dp, dq);
-        e1_[static_cast<std::size_t>(nq)] += static_cast<double>(u) * pb_.v(dp, alpha);
-        return;
-      }
-      if (nq < 0) {
-        e0_[static_cast<std::size_t>(np)] += static_cast<double>(u) * pb_.v(dp, dq);
-        e1_[static_cast<std::size_t>(np)] += static_cast<double>(u) * pb_.v(alpha, dq);
-        return;
-      }
-      const double a = static_cast<double>(u) * pb_.v(dp, dq);
-      const double b = static_cast<double>(u) * pb_.v(dp, alpha);
-      const double c = static_cast<double>(u) * pb_.v(alpha, dq);
-      e1_[static_cast<std::size_t>(np)] += c - a;
-      e1_[static_cast<std::size_t>(nq)] -= c;
-      mf.addEdge(np, nq, std::max(0.0, b + c - a), 0.0);
-    };
-    for (int i = 0; i < m; ++i) {
-      const int p = nodes_[static_cast<std::size_t>(i)];
-      const int x = p % w;
-      // Each pair once, from its first member if that is a node, else from
-      // the second (the first is then outside the move).
-      if (x + 1 < w) pair(p, p + 1, pb_.ur[static_cast<std::size_t>(p)]);
-      if (p + w < n) pair(p, p + w, pb_.ud[static_cast<std::size_t>(p)]);
-      if (x > 0 && node_[static_cast<std::size_t>(p - 1)] < 0) pair(p - 1, p, pb_.ur[static_cast<std::size_t>(p - 1)]);
-      if (p >= w && node_[static_cast<std::size_t>(p - w)] < 0) pair(p - w, p, pb_.ud[static_cast<std::size_t>(p - w)]);
-    }
-    addTerminals(mf, m);
-    mf.solve();
-    ++cuts_;
-    changed_.clear();
-    for (int i = 0; i < m; ++i)
-      if (!mf.isSource(i)) {
-        const int p = nodes_[static_cast<std::size_t>(i)];
-        next_[static_cast<std::size_t>(p)] = alpha;
-        changed_.push_back(p);
-      }
-    return commit();
+    return binaryMove([&](int p) {
+      const int d = lab_[static_cast<std::size_t>(p)];
+      return window <= 0 || std::abs(d - alpha) <= window ? alpha : d;
+    });
   }
 
-  /// One fusion move (Lempitsky et al. 2010): each pixel keeps its label
-  /// (x_p = 0) or takes proposal[p] (x_p = 1), one binary cut on the exact
-  /// Eq. 2.2 energy. Nodes only where the proposal differs. A pair of two
-  /// nodes, A = E(0,0) = u V(d_p, d_q), B = E(0,1) = u V(d_p, c_q),
-  /// C = E(1,0) = u V(c_p, d_q), D = E(1,1) = u V(c_p, c_q), is submodular
-  /// when A + D <= B + C; otherwise D is lowered to B + C - A (truncation,
-  /// Rother et al. 2005). The cut's labelling is accepted only if its true
-  /// energy is lower (commit), so the energy never rises.
+  /// One fusion move (Lempitsky et al. 2010): each pixel keeps its label or
+  /// takes proposal[p]; true when accepted (energy decreased).
   bool fuse(const std::vector<int>& proposal) {
-    const int n = pb_.n, w = pb_.w;
-    nodes_.clear();
-    for (int p = 0; p < n; ++p)
-      if (proposal[static_cast<std::size_t>(p)] != lab_[static_cast<std::size_t>(p)]) {
-        node_[static_cast<std::size_t>(p)] = static_cast<int>(nodes_.size());
-        nodes_.push_back(p);
-      } else {
-        node_[static_cast<std::size_t>(p)] = -1;
-      }
-    const int m = static_cast<int>(nodes_.size());
-    if (m == 0) return false;
-    e0_.assign(static_cast<std::size_t>(m), 0.0);
-    e1_.assign(static_cast<std::size_t>(m), 0.0);
-    MaxFlow mf(m, 2 * m);
-    mf.addNodes(m);
-    for (int i = 0; i < m; ++i) {
-      const int p = nodes_[static_cast<std::size_t>(i)];
-      e0_[static_cast<std::size_t>(i)] = pb_.cost(p, lab_[static_cast<std::size_t>(p)]);
-      e1_[static_cast<std::size_t>(i)] = pb_.cost(p, proposal[static_cast<std::size_t>(p)]);
-    }
-    auto pair = [&](int p, int q, float u) {
-      if (u == 0.0f) return;
-      const int np = node_[static_cast<std::size_t>(p)], nq = node_[static_cast<std::size_t>(q)];
-      const int dp = lab_[static_cast<std::size_t>(p)], dq = lab_[static_cast<std::size_t>(q)];
-      const int cp = proposal[static_cast<std::size_t>(p)], cq = proposal[static_cast<std::size_t>(q)];
-      if (np < 0 && nq < 0) return;
-      if (np < 0) {  // p keeps d_p (= c_p)
-        e0_[static_cast<std::size_t>(nq)] += static_cast<double>(u) * pb_.v(dp, dq);
-        e1_[static_cast<std::size_t>(nq)] += static_cast<double>(u) * pb_.v(dp, cq);
-        return;
-      }
-      if (nq < 0) {
-        e0_[static_cast<std::size_t>(np)] += static_cast<double>(u) * pb_.v(dp, dq);
-        e1_[static_cast<std::size_t>(np)] += static_cast<double>(u) * pb_.v(cp, dq);
-        return;
-      }
-      const double a = static_cast<double>(u) * pb_.v(dp, dq);
-      const double b = static_cast<double>(u) * pb_.v(dp, cq);
-      const double c = static_cast<double>(u) * pb_.v(cp, dq);
-      const double d = std::min(static_cast<double>(u) * pb_.v(cp, cq), b + c - a);
-      e0_[static_cast<std::size_t>(np)] += a;
-      e1_[static_cast<std::size_t>(np)] += c;
-      e1_[static_cast<std::size_t>(nq)] += d - c;
-      mf.addEdge(np, nq, std::max(0.0, b + c - a - d), 0.0);
-    };
-    for (int i = 0; i < m; ++i) {
-      const int p = nodes_[static_cast<std::size_t>(i)];
-      const int x = p % w;
-      if (x + 1 < w) pair(p, p + 1, pb_.ur[static_cast<std::size_t>(p)]);
-      if (p + w < n) pair(p, p + w, pb_.ud[static_cast<std::size_t>(p)]);
-      if (x > 0 && node_[static_cast<std::size_t>(p - 1)] < 0) pair(p - 1, p, pb_.ur[static_cast<std::size_t>(p - 1)]);
-      if (p >= w && node_[static_cast<std::size_t>(p - w)] < 0) pair(p - w, p, pb_.ud[static_cast<std::size_t>(p - w)]);
-    }
-    addTerminals(mf, m);
-    mf.solve();
-    ++cuts_;
-    changed_.clear();
-    for (int i = 0; i < m; ++i)
-      if (!mf.isSource(i)) {
-        const int p = nodes_[static_cast<std::size_t>(i)];
-        next_[static_cast<std::size_t>(p)] = proposal[static_cast<std::size_t>(p)];
-        changed_.push_back(p);
-      }
-    return commit();
+    return binaryMove([&](int p) { return proposal[static_cast<std::size_t>(p)]; });
   }
 
   /// One alpha-beta swap move over the pixels currently labelled alpha or beta.
@@ -390,6 +264,87 @@ class Mover {
   }
 
  private:
+  /// The binary move both expand() and fuse() are: each pixel p keeps its
+  /// label d_p (x_p = 0) or takes target(p) = c_p (x_p = 1), one cut on the
+  /// exact Eq. 2.2 energy; nodes only where c_p != d_p. A neighbour q outside
+  /// the move keeps d_q: E_p(0) += u V(d_p, d_q), E_p(1) += u V(c_p, d_q). A
+  /// pair of two nodes, A = u V(d_p, d_q), B = u V(d_p, c_q), C = u V(c_p, d_q),
+  /// D = u V(c_p, c_q): E_p(1) += C - A, E_q(1) += D - C, arc p -> q with
+  /// B + C - A - D. An expansion's pairs are submodular (D = 0, V a metric);
+  /// a fusion's that are not (A + D > B + C) have D lowered to B + C - A
+  /// (truncation, Rother et al. 2005), so its cut is approximate; commit()
+  /// keeps the result only when the exact energy drops.
+  template <typename Target>
+  bool binaryMove(const Target& target) {
+    const int n = pb_.n, w = pb_.w;
+    nodes_.clear();
+    for (int p = 0; p < n; ++p) {
+      target_[static_cast<std::size_t>(p)] = target(p);
+      if (target_[static_cast<std::size_t>(p)] != lab_[static_cast<std::size_t>(p)]) {
+        node_[static_cast<std::size_t>(p)] = static_cast<int>(nodes_.size());
+        nodes_.push_back(p);
+      } else {
+        node_[static_cast<std::size_t>(p)] = -1;
+      }
+    }
+    const int m = static_cast<int>(nodes_.size());
+    if (m == 0) return false;
+    e0_.assign(static_cast<std::size_t>(m), 0.0);
+    e1_.assign(static_cast<std::size_t>(m), 0.0);
+    MaxFlow mf(m, 2 * m);
+    mf.addNodes(m);
+    for (int i = 0; i < m; ++i) {
+      const int p = nodes_[static_cast<std::size_t>(i)];
+      e0_[static_cast<std::size_t>(i)] = pb_.cost(p, lab_[static_cast<std::size_t>(p)]);
+      e1_[static_cast<std::size_t>(i)] = pb_.cost(p, target_[static_cast<std::size_t>(p)]);
+    }
+    auto pair = [&](int p, int q, float u) {
+      if (u == 0.0f) return;
+      const int np = node_[static_cast<std::size_t>(p)], nq = node_[static_cast<std::size_t>(q)];
+      if (np < 0 && nq < 0) return;
+      const int dp = lab_[static_cast<std::size_t>(p)], dq = lab_[static_cast<std::size_t>(q)];
+      const int cp = target_[static_cast<std::size_t>(p)], cq = target_[static_cast<std::size_t>(q)];
+      const double uu = static_cast<double>(u);
+      if (np < 0) {  // p keeps d_p (= c_p)
+        e0_[static_cast<std::size_t>(nq)] += uu * pb_.v(dp, dq);
+        e1_[static_cast<std::size_t>(nq)] += uu * pb_.v(dp, cq);
+        return;
+      }
+      if (nq < 0) {
+        e0_[static_cast<std::size_t>(np)] += uu * pb_.v(dp, dq);
+        e1_[static_cast<std::size_t>(np)] += uu * pb_.v(cp, dq);
+        return;
+      }
+      const double a = uu * pb_.v(dp, dq), b = uu * pb_.v(dp, cq), c = uu * pb_.v(cp, dq);
+      const double slack = b + c - a - uu * pb_.v(cp, cq);  // < 0: not submodular
+      const double d = uu * pb_.v(cp, cq) + std::min(0.0, slack);
+      e1_[static_cast<std::size_t>(np)] += c - a;
+      e1_[static_cast<std::size_t>(nq)] += d - c;
+      mf.addEdge(np, nq, std::max(0.0, slack), 0.0);
+    };
+    for (int i = 0; i < m; ++i) {
+      const int p = nodes_[static_cast<std::size_t>(i)];
+      const int x = p % w;
+      // Each pair once, from its first member if that is a node, else from
+      // the second (the first is then outside the move).
+      if (x + 1 < w) pair(p, p + 1, pb_.ur[static_cast<std::size_t>(p)]);
+      if (p + w < n) pair(p, p + w, pb_.ud[static_cast<std::size_t>(p)]);
+      if (x > 0 && node_[static_cast<std::size_t>(p - 1)] < 0) pair(p - 1, p, pb_.ur[static_cast<std::size_t>(p - 1)]);
+      if (p >= w && node_[static_cast<std::size_t>(p - w)] < 0) pair(p - w, p, pb_.ud[static_cast<std::size_t>(p - w)]);
+    }
+    addTerminals(mf, m);
+    mf.solve();
+    ++cuts_;
+    changed_.clear();
+    for (int i = 0; i < m; ++i)
+      if (!mf.isSource(i)) {
+        const int p = nodes_[static_cast<std::size_t>(i)];
+        next_[static_cast<std::size_t>(p)] = target_[static_cast<std::size_t>(p)];
+        changed_.push_back(p);
+      }
+    return commit();
+  }
+
   void addTerminals(MaxFlow& mf, int m) const {
     for (int i = 0; i < m; ++i) {
       const double a = e0_[static_cast<std::size_t>(i)], b = e1_[static_cast<std::size_t>(i)];
@@ -432,6 +387,7 @@ class Mover {
 
   const Problem& pb_;
   std::vector<int> lab_, next_;
+  std::vector<int> target_;   ///< pixel -> the label x_p = 1 gives it in the current move
   std::vector<int> node_;     ///< pixel -> graph node of the current move, -1 if none
   std::vector<int> nodes_;    ///< graph node -> pixel (expansion)
   std::vector<int> changed_;  ///< pixels whose label the current cut changes
