@@ -449,22 +449,31 @@ Section overForceSection(ArmBench& b, const ForceWorld& w) {
   if (!by_cap && !by_rate)
     throw std::runtime_error("the over-force press was not stopped by its cap or its force rate: " +
                              (run.success ? std::string("it ended") : run.message));
-  std::optional<std::uint64_t> estimate_over, truth_over, backing_off;
+  std::optional<std::uint64_t> estimate_over, truth_over, backing_off, before_backing_off;
   double peak = 0.0;
   for (const ForceSample& f : run.samples) {
     if (!truth_over && f.truth > cap) truth_over = f.cycle;
     if (!estimate_over && f.estimate > cap) estimate_over = f.cycle;
     if (!backing_off && f.phase == Phase::kBackOff) backing_off = f.cycle;
+    if (!backing_off) before_backing_off = f.cycle;
     peak = std::max(peak, f.truth);
   }
   const auto cycles = [&](const std::optional<std::uint64_t>& from) {
     return from && backing_off ? static_cast<double>(*backing_off) - static_cast<double>(*from) : NAN;
   };
+  // The status is polled, not pushed: on a loaded machine the poll may miss the cycles just before the back-off. When
+  // the estimate was not seen past the cap before the back-off and cycles were missed there, it passed it unseen: the
+  // latency is unknown (NaN, the missed cycles said), never a negative number.
+  const double missed = before_backing_off && backing_off ? static_cast<double>(*backing_off - *before_backing_off) - 1
+                                                          : NAN;
+  const bool estimate_unseen = (!estimate_over || (backing_off && *estimate_over > *backing_off)) && missed > 0;
+  const double estimate_to_backoff = by_rate ? 0.0 : estimate_unseen ? NAN : cycles(estimate_over) * period_ms;
   return {format("over-force: holding %.0f N (%s cap %.1f N), the back pushes up 10 mm at 40 mm/s: %s", target,
                  w.region.c_str(), cap, run.message.c_str()),
           {{"overforce_by_rate", by_rate ? 1.0 : 0.0, "", "stopped by the force rate before the cap (1)"},
-           {"overforce_estimate_to_backoff_ms", by_rate ? 0.0 : cycles(estimate_over) * period_ms, "ms",
-            "the estimate past the cap (or the rate) -> backing off (target <= 10 ms)"},
+           {"overforce_estimate_to_backoff_ms", estimate_to_backoff, "ms",
+            "the estimate past the cap (or the rate) -> backing off (target <= 10 ms; NaN: passed in unpolled cycles)"},
+           {"overforce_unpolled_cycles", missed, "count", "controller cycles the status poll missed before the back-off"},
            {"overforce_truth_to_backoff_ms", cycles(truth_over) * period_ms, "ms",
             "the true force past the cap -> backing off (the estimate's lag included)"},
            {"overforce_peak_N", peak, "N", "true force peak"},

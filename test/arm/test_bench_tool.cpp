@@ -140,9 +140,17 @@ TEST(ArmBenchTool, ForceRunEstimatesThePressingForce) {
   EXPECT_LT(values["stroke_20N_error_rms_N"], 5.0) << r.out;
   EXPECT_GT(values["stroke_20N_within_10pct_pct"], 20.0) << r.out;
   // The over-force: stopped by the cap (the bench fails otherwise), backing off within a cycle of seeing it.
+  // A loaded machine's status poll may miss the cycles where the estimate passed the cap: then the latency is
+  // unknown (NaN), and only then.
   ASSERT_TRUE(values.count("overforce_estimate_to_backoff_ms")) << r.out;
-  EXPECT_GE(values["overforce_estimate_to_backoff_ms"], 0.0) << r.out;
-  EXPECT_LE(values["overforce_estimate_to_backoff_ms"], 10.0) << r.out;
+  ASSERT_TRUE(values.count("overforce_unpolled_cycles")) << r.out;
+  const double latency = values["overforce_estimate_to_backoff_ms"];
+  if (std::isnan(latency)) {
+    EXPECT_GT(values["overforce_unpolled_cycles"], 0.0) << r.out;
+  } else {
+    EXPECT_GE(latency, 0.0) << r.out;
+    EXPECT_LE(latency, 10.0) << r.out;
+  }
   EXPECT_TRUE(std::isfinite(values["overforce_peak_over_cap_N"])) << r.out;
   EXPECT_TRUE(std::isfinite(values["force_cycle_jitter_p99_ms"])) << r.out;
 }
