@@ -206,10 +206,9 @@ void HbdsNodelet::publish(const std_msgs::Header& header, const Config& config, 
     disparity_pub_.publish(disparityImage(header, v.model, params, valid, delta_d));
   }
   if (wanted.confidence) {
-    // mono8: 255 where the right view confirms the disparity, 0 elsewhere; without the left-right check, 255
-    // wherever the disparity is valid.
-    const cv::Mat confidence = params.lr_check ? result.consistent.clone() : valid.mask;
-    confidence_pub_.publish(cv_bridge::CvImage(header, sensor_msgs::image_encodings::MONO8, confidence).toImageMsg());
+    // mono8: 255 where the disparity is a measurement (validDisparity's `confirmed`), 0 elsewhere.
+    confidence_pub_.publish(
+        cv_bridge::CvImage(header, sensor_msgs::image_encodings::MONO8, valid.confirmed).toImageMsg());
   }
   if (!wanted.depth && !wanted.points && !wanted.surface) return;
   // Depth (REP 118: metres along the rectified optical axis, NaN where unknown or at / beyond infinity).
@@ -221,19 +220,18 @@ void HbdsNodelet::publish(const std_msgs::Header& header, const Config& config, 
   if (!wanted.points && !wanted.surface) return;
   const cv::Mat points = v.model.points(depth);
   if (wanted.points) points_pub_.publish(pointCloud(header, points, v.images[0]));
-  if (wanted.surface) publishSurface(header, params, result, valid, points);
+  if (wanted.surface) publishSurface(header, params, valid, points);
 }
 
 void HbdsNodelet::publishSurface(const std_msgs::Header& header, const stereo::StereoParams& params,
-                                 const stereo::MatchResult& result, const ValidDisparity& valid,
-                                 const cv::Mat& points) {
+                                 const ValidDisparity& valid, const cv::Mat& points) {
   if (!params.lr_check) {  // nothing confirms a disparity: no confident surface
     NODELET_WARN_ONCE("hbds: 'surface' needs lr_check (the confirmed pixels): nothing is published on it");
     return;
   }
   // ~80 points across whatever the resolution: 1-2 cm apart on the back at the cell's distance, the arm's cells.
   const int step = std::max(1, points.cols / kSurfaceColumns);
-  surface_pub_.publish(surfaceCloud(header, points, result.consistent, valid.disparity, params.cost.dmin, step));
+  surface_pub_.publish(surfaceCloud(header, points, valid.confirmed, step));
 }
 
 // -------------------------------------------------------- diagnostics --

@@ -68,8 +68,8 @@ class HbdsNodelet : public nodelet::Nodelet {
   void publish(const std_msgs::Header& header, const Config& config, const Views& views,
                const stereo::StereoParams& params, const stereo::MatchResult& result, const Outputs& wanted);
   /// `surface`: the confirmed points (needs lr_check), ~kSurfaceColumns across.
-  void publishSurface(const std_msgs::Header& header, const stereo::StereoParams& params,
-                      const stereo::MatchResult& result, const ValidDisparity& valid, const cv::Mat& points);
+  void publishSurface(const std_msgs::Header& header, const stereo::StereoParams& params, const ValidDisparity& valid,
+                      const cv::Mat& points);
   static constexpr int kSurfaceColumns = 80;
   void badPair(const std::string& problem);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);

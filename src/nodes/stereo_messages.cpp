@@ -32,16 +32,21 @@ ValidDisparity validDisparity(const stereo::MatchResult& result, const stereo::S
   v.x0 = params.lr_check ? 0 : params.cost.dmax;
   v.disparity.create(height, width, CV_32F);
   v.mask.create(height, width, CV_8U);
-  const cv::Mat keep = params.lr_check && !lr_fill ? result.consistent : cv::Mat();
+  v.confirmed.create(height, width, CV_8U);
+  const cv::Mat checked = params.lr_check ? result.consistent : cv::Mat();
   for (int y = 0; y < height; ++y) {
     const float* in = result.disparity.ptr<float>(y);
     float* out = v.disparity.ptr<float>(y);
     unsigned char* mask = v.mask.ptr<unsigned char>(y);
-    const unsigned char* k = keep.empty() ? nullptr : keep.ptr<unsigned char>(y);
+    unsigned char* sure = v.confirmed.ptr<unsigned char>(y);
+    const unsigned char* c = checked.empty() ? nullptr : checked.ptr<unsigned char>(y);
     for (int x = 0; x < width; ++x) {
-      const bool ok = x >= v.x0 && std::isfinite(in[x]) && (k == nullptr || k[x] != 0);
+      const bool found = x >= v.x0 && std::isfinite(in[x]);
+      const bool confirmed = found && (c == nullptr || c[x] != 0) && !atFarEnd(in[x], params.cost.dmin);
+      const bool ok = c != nullptr && !lr_fill ? confirmed : found;
       out[x] = ok ? in[x] : std::numeric_limits<float>::quiet_NaN();
       mask[x] = ok ? 255 : 0;
+      sure[x] = confirmed ? 255 : 0;
     }
   }
   return v;
@@ -102,12 +107,12 @@ sensor_msgs::PointCloud2Ptr pointCloud(const std_msgs::Header& header, const cv:
 }
 
 sensor_msgs::PointCloud2Ptr surfaceCloud(const std_msgs::Header& header, const cv::Mat& points,
-                                         const cv::Mat& consistent, const cv::Mat& disparity, int dmin, int step) {
+                                         const cv::Mat& confirmed, int step) {
   std::vector<cv::Vec3f> kept;
   for (int y = step / 2; y < points.rows; y += step) {
     for (int x = step / 2; x < points.cols; x += step) {
       const cv::Vec3f& p = points.at<cv::Vec3f>(y, x);
-      if (consistent.at<unsigned char>(y, x) == 0 || !(disparity.at<float>(y, x) > dmin + 0.5f)) continue;
+      if (confirmed.at<unsigned char>(y, x) == 0) continue;
       if (std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2])) kept.push_back(p);
     }
   }

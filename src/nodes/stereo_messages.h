@@ -17,12 +17,18 @@ namespace massage_cell::nodes {
 struct ValidDisparity {
   cv::Mat disparity;  ///< CV_32F x_l - x_r where valid, NaN elsewhere
   cv::Mat mask;       ///< CV_8U 255 where valid
+  cv::Mat confirmed;  ///< CV_8U 255 where the disparity is a measurement (the node's `confidence`), 0 elsewhere
   int x0 = 0;         ///< the first column that can be valid
 };
 
+/// Whether a disparity lies at the search range's far end (`d` <= `dmin` + 0.5): whatever is beyond the range piles
+/// up there, so such a disparity only bounds the depth from below, whatever the left-right check says.
+inline bool atFarEnd(float d, int dmin) { return d <= static_cast<float>(dmin) + 0.5f; }
+
 /// Invalid: what the method left empty (NaN); without the left-right check the left band x < dmax, whose search ran
-/// off the right image's edge; with it and `lr_fill` off, what the right view does not confirm (with `lr_fill` on
-/// those pixels hold the background's disparity and the confidence image marks them).
+/// off the right image's edge; with it and `lr_fill` off, what is not confirmed (with `lr_fill` on those pixels hold
+/// the background's disparity and `confirmed` marks them). Confirmed: what the right view confirms (without the
+/// check: what is valid), except the range's far end (atFarEnd).
 ValidDisparity validDisparity(const stereo::MatchResult& result, const stereo::StereoParams& params, bool lr_fill);
 
 /// stereo_msgs/DisparityImage as the message defines it: d = x_l - x_r - (cx_l - cx_r); invalid pixels hold
@@ -39,10 +45,9 @@ sensor_msgs::CameraInfo depthInfo(const std_msgs::Header& header, const camera::
 sensor_msgs::PointCloud2Ptr pointCloud(const std_msgs::Header& header, const cv::Mat& points, const cv::Mat& colours);
 
 /// The confident surface for a robot (the arm's body model): an unorganised cloud `x y z` of `points` (CV_32FC3,
-/// the left optical frame) where the left-right check confirmed the disparity (`consistent` non-zero) and it is not at
-/// the search range's far end (`disparity` > `dmin` + 0.5: the background beyond the range piles up there), one pixel
-/// in `step` across and down.
+/// the left optical frame) where `confirmed` (ValidDisparity::confirmed of a left-right checked result) is non-zero,
+/// one pixel in `step` across and down.
 sensor_msgs::PointCloud2Ptr surfaceCloud(const std_msgs::Header& header, const cv::Mat& points,
-                                         const cv::Mat& consistent, const cv::Mat& disparity, int dmin, int step);
+                                         const cv::Mat& confirmed, int step);
 
 }  // namespace massage_cell::nodes

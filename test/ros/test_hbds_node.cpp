@@ -478,9 +478,14 @@ TEST_F(HbdsNode, LeftRightCheck) {
       << "the back is not confirmed by the right view";
   EXPECT_GT(count(0, 8, [&](long i) { return d[i] >= disparity->min_disparity; }), band * 9 / 10)
       << "lr_fill: the band should be filled";
-  // `surface`, the arm's: the confirmed pixels only (not the filled band), one in `step` across and down, without the
-  // search range's far end (disparity > min_disparity + 0.5: what lies beyond the range piles up there, confirmed
-  // or not).
+  // The search range's far end (disparity <= min_disparity + 0.5) is where the wall beyond the range piles up: the
+  // right view confirms it there, yet it only bounds the depth, never confirmed.
+  const auto far_end = [&](long i) { return d[i] >= disparity->min_disparity && d[i] <= disparity->min_disparity + 0.5f; };
+  EXPECT_GT(count(0, w, far_end), 0) << "the scene has nothing at the range's far end: the check below checks nothing";
+  EXPECT_EQ(count(0, w, [&](long i) { return far_end(i) && c[i] == 255; }), 0)
+      << "the range's far end marked confirmed";
+  // `surface`, the arm's: the confirmed pixels only (not the filled band, not the far end), one in `step` across and
+  // down.
   ASSERT_TRUE(spinUntil([&] { return surface && surface->header.stamp == disparity->header.stamp; }, 10.0))
       << "no surface of the pair's stamp";
   EXPECT_EQ(surface->header.frame_id, disparity->header.frame_id);
@@ -488,7 +493,7 @@ TEST_F(HbdsNode, LeftRightCheck) {
   long grid_confirmed = 0;
   for (int y = step / 2; y < h; y += step)
     for (int x = step / 2; x < w; x += step)
-      grid_confirmed += c[y * w + x] == 255 && d[y * w + x] > disparity->min_disparity + 0.5f ? 1 : 0;
+      grid_confirmed += c[y * w + x] == 255 ? 1 : 0;
   const long points = static_cast<long>(surface->width) * surface->height;
   EXPECT_LE(points, grid_confirmed) << "surface points where the right view confirms nothing";
   EXPECT_GT(points, grid_confirmed * 8 / 10) << "the confirmed back and table missing from the surface";
@@ -507,7 +512,7 @@ TEST_F(HbdsNode, LeftRightCheck) {
   const float* unfilled = floats(disparity->image);
   const auto& c2 = confidence->data;
   EXPECT_EQ(count(0, w, [&](long i) { return c2[i] == 0 && unfilled[i] >= disparity->min_disparity; }), 0)
-      << "lr_fill off: unconfirmed pixels must be invalid";
+      << "lr_fill off: unconfirmed pixels (the far end among them) must be invalid";
   EXPECT_GT(count(3 * w / 8, 5 * w / 8, [&](long i) { return unfilled[i] >= disparity->min_disparity; }),
             centre * 8 / 10);
 }
