@@ -817,6 +817,7 @@ ArmStatus Controller::status() const {
           s.press_phase = toString(press_->phase());
           s.force_target = press_->setPoint();
           s.force_limit = press_->limit();
+          s.force_zero = press_->zero();
         }
         break;
       case Action::Kind::kWaitStopped:

@@ -188,6 +188,8 @@ double ForcePress::admittance(double force, double z, double feed_forward, doubl
   return z_cmd_ - v * dt;
 }
 
+double ForcePress::zero() const { return air_cycles_ >= kAirSettleCycles + kAirCycles ? air_ : 0.0; }
+
 bool ForcePress::measureAir(double force) {
   ++air_cycles_;
   if (!std::isfinite(force)) {

@@ -29,6 +29,7 @@ struct ForceSample {
   Eigen::Vector2d xy{0, 0};  ///< m, the tool across the skin
   double tool_z = 0.0;       ///< m
   double estimate = 0.0;     ///< N, ArmStatus::force
+  double pressed = 0.0;      ///< N, what the press acts on: the estimate less the press's zero (ArmStatus::force_zero)
   double truth = 0.0;        ///< N, SimCell::bodyForce
   double indentation = NAN;  ///< m, the tool tip into the skin (SimBody::indentation at SimCell::bodyTime)
   double error() const { return estimate - truth; }
@@ -71,6 +72,7 @@ PressRun samplePress(ArmBench& b, const arm::SimBody& body, const arm::PressRequ
       f.indentation = body.indentation(s.tool, b.cell().bodyTime());
       f.tool_z = s.tool.z();
       f.estimate = s.force.force;
+      f.pressed = s.force.force - s.force_zero;
       const std::string& act = s.activity;
       if (has(act, ": approach")) f.phase = Phase::kApproach;
       if (has(act, ": descend")) f.phase = Phase::kDescend;
@@ -453,7 +455,7 @@ Section overForceSection(ArmBench& b, const ForceWorld& w) {
   double peak = 0.0;
   for (const ForceSample& f : run.samples) {
     if (!truth_over && f.truth > cap) truth_over = f.cycle;
-    if (!estimate_over && f.estimate > cap) estimate_over = f.cycle;
+    if (!estimate_over && f.pressed > cap) estimate_over = f.cycle;
     if (!backing_off && f.phase == Phase::kBackOff) backing_off = f.cycle;
     if (!backing_off) before_backing_off = f.cycle;
     peak = std::max(peak, f.truth);

@@ -23,6 +23,7 @@ struct PressRun {
   Eigen::Vector2d end_xy{NAN, NAN};
   ForcePress::Phase phase = ForcePress::Phase::kSeek;
   std::string failure;
+  double zero = NAN;  ///< the press's zero at the end (ForcePress::zero)
 };
 
 /// Presses `goal` into `body` at (0.3, 0.2) at 100 Hz: the servo reaches each command by the next cycle, the force
@@ -74,6 +75,7 @@ PressRun press(const SimBody& body, ForcePressGoal goal, ForceControlConfig conf
   r.end_xy = xy;
   r.phase = p.phase();
   r.failure = p.failure();
+  r.zero = p.zero();
   return r;
 }
 
@@ -125,6 +127,7 @@ TEST(ForcePress, TheForceInTheAirIsItsZero) {
   const PressRun r = press(back(1.0, 0.0), goal(30.0), {}, -1, 2.5);
   EXPECT_EQ(r.phase, ForcePress::Phase::kDone) << r.failure;
   EXPECT_LT(r.rms, 1.0);
+  EXPECT_NEAR(r.zero, 2.5, 0.6) << "the zero the press reports (the arm's status) is not what it took out";
   // Off by 8 N (more than twice the contact force): the press does not start.
   const PressRun off = press(back(1.0, 0.0), goal(30.0), {}, -1, 8.0);
   EXPECT_EQ(off.phase, ForcePress::Phase::kFailed);

@@ -102,10 +102,12 @@ struct ArmStatus {
   int presses_done = 0;       ///< of the running (or last) massage
   ForceReading force;         ///< the tool's force along z (tool_force.h)
   /// A press by force running: its phase ("seek", "ramp", "hold", "release", "back off"; empty otherwise), the force
-  /// it asks for now (N, ramps included) and its cap (N: the region's force and pressure limits).
+  /// it asks for now (N, ramps included), its cap (N: the region's force and pressure limits) and its zero (N: the
+  /// force read in the air before the seek; the press acts on force.force - force_zero).
   std::string press_phase;
   double force_target = 0.0;
   double force_limit = 0.0;
+  double force_zero = 0.0;
 };
 
 /// How the arm is, for diagnostics: ERROR in fault or e-stop, WARN until homed, else OK; `text` says which.

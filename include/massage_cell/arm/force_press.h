@@ -102,6 +102,8 @@ class ForcePress {
   double setPoint() const { return set_point_; }
   /// The press's force cap (the region's force and pressure limits), N.
   double limit() const { return g_.max_force; }
+  /// The press's zero, N: the force read in the air before the seek (0 until measured); update() acts on force - zero.
+  double zero() const;
   /// Where contact was found (m; NaN before).
   double contactZ() const { return contact_z_; }
   /// Where the tool should be across the skin now (x, y; m): the path's first point until the glide, then along it.
