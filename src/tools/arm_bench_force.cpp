@@ -466,20 +466,21 @@ Section overForceSection(ArmBench& b, const ForceWorld& w) {
   // The status is polled, not pushed: on a loaded machine the poll may miss the cycles just before the back-off. When
   // the estimate was not seen past the cap before the back-off and cycles were missed there, it passed it unseen: the
   // latency is unknown (NaN, the missed cycles said), never a negative number.
-  const double missed = before_backing_off && backing_off ? static_cast<double>(*backing_off - *before_backing_off) - 1
-                                                          : NAN;
+  const double missed =
+      before_backing_off && backing_off ? static_cast<double>(*backing_off - *before_backing_off) - 1 : NAN;
   const bool estimate_unseen = (!estimate_over || (backing_off && *estimate_over > *backing_off)) && missed > 0;
   const double estimate_to_backoff = by_rate ? 0.0 : estimate_unseen ? NAN : cycles(estimate_over) * period_ms;
-  return {format("over-force: holding %.0f N (%s cap %.1f N), the back pushes up 10 mm at 40 mm/s: %s", target,
-                 w.region.c_str(), cap, run.message.c_str()),
-          {{"overforce_by_rate", by_rate ? 1.0 : 0.0, "", "stopped by the force rate before the cap (1)"},
-           {"overforce_estimate_to_backoff_ms", estimate_to_backoff, "ms",
-            "the estimate past the cap (or the rate) -> backing off (target <= 10 ms; NaN: passed in unpolled cycles)"},
-           {"overforce_unpolled_cycles", missed, "count", "controller cycles the status poll missed before the back-off"},
-           {"overforce_truth_to_backoff_ms", cycles(truth_over) * period_ms, "ms",
-            "the true force past the cap -> backing off (the estimate's lag included)"},
-           {"overforce_peak_N", peak, "N", "true force peak"},
-           {"overforce_peak_over_cap_N", peak - cap, "N", "true force peak past the cap"}}};
+  return {
+      format("over-force: holding %.0f N (%s cap %.1f N), the back pushes up 10 mm at 40 mm/s: %s", target,
+             w.region.c_str(), cap, run.message.c_str()),
+      {{"overforce_by_rate", by_rate ? 1.0 : 0.0, "", "stopped by the force rate before the cap (1)"},
+       {"overforce_estimate_to_backoff_ms", estimate_to_backoff, "ms",
+        "the estimate past the cap (or the rate) -> backing off (target <= 10 ms; NaN: passed in unpolled cycles)"},
+       {"overforce_unpolled_cycles", missed, "count", "controller cycles the status poll missed before the back-off"},
+       {"overforce_truth_to_backoff_ms", cycles(truth_over) * period_ms, "ms",
+        "the true force past the cap -> backing off (the estimate's lag included)"},
+       {"overforce_peak_N", peak, "N", "true force peak"},
+       {"overforce_peak_over_cap_N", peak - cap, "N", "true force peak past the cap"}}};
 }
 
 void printSections(const std::vector<Section>& sections, const ForceWorld& w, const Options& o, ArmBench& b) {
