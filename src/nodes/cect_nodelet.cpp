@@ -192,7 +192,7 @@ void CectNodelet::process(const StereoPair& pair, const Config& config) {
       std::make_shared<const cect::CectFrame>(cect::CectFrame::analyse(left, right, geometry, pairParams(config)));
   {
     std::lock_guard<std::mutex> lock(latest_mutex_);
-    latest_ = Analysed{frame, header, decimation, {}};  // the layout comes after the tracking
+    latest_ = Analysed{frame, header, decimation, {}, nullptr};  // the layout comes after the tracking
   }
 
   // 3. The model's acupoints in the left view, each to 3D, through the temporal filter.

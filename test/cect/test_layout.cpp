@@ -36,6 +36,14 @@ cect::BackLandmarks back(double l4_row = 300.0, double lean = 0.0) {
   return l;
 }
 
+/// Trust rules with only the two measured-landmark rules set (no client, no configuration problem).
+cect::TrustRules rules(bool c7_at_neck, bool l4_measured) {
+  cect::TrustRules r;
+  r.c7_at_neck = c7_at_neck;
+  r.l4_measured = l4_measured;
+  return r;
+}
+
 cect::AcupointModel model() {
   cect::AcupointModel m;
   m.level_fraction = {{"C7", 0.0}, {"T7", 0.36}, {"L4", 1.0}};
@@ -431,13 +439,13 @@ TEST(LayoutCheck, ProportionsTheModelImposedAreNotCheckedAgainstThemselves) {
   l.c7.detail = cect::kFromShoulderLine;
   const cect::AcupointModel m = model();
   const cect::LayoutCheck c =
-      cect::checkLayout(l, m, cect::PixelScale(), {false, false});  // the proportions alone here
+      cect::checkLayout(l, m, cect::PixelScale(), rules(false, false));  // the proportions alone here
   EXPECT_TRUE(c.trusted) << c.reason();
   EXPECT_TRUE(std::isnan(c.length_per_shoulder_width));
   EXPECT_TRUE(std::isnan(c.shoulder_below_c7));
   // ... but a given L4 is the therapist's, and the proportion is checked again.
   l.l4.source = cect::LandmarkSource::kGiven;
-  EXPECT_FALSE(cect::checkLayout(l, m, cect::PixelScale(), {false, false}).trusted);
+  EXPECT_FALSE(cect::checkLayout(l, m, cect::PixelScale(), rules(false, false)).trusted);
 }
 
 TEST(LayoutCheck, AC7NotMeasuredAtANecksBaseIsNotTrustedUnlessGiven) {
@@ -456,7 +464,7 @@ TEST(LayoutCheck, AC7NotMeasuredAtANecksBaseIsNotTrustedUnlessGiven) {
       std::string::npos);
   top.c7.source = cect::LandmarkSource::kGiven;  // a therapist's C7
   EXPECT_TRUE(cect::checkLayout(top, model(), kScale).trusted);
-  EXPECT_TRUE(cect::checkLayout(shoulders, model(), kScale, {false, true}).trusted);
+  EXPECT_TRUE(cect::checkLayout(shoulders, model(), kScale, rules(false, true)).trusted);
 }
 
 TEST(LayoutCheck, AnL4InferredFromTheShoulderWidthIsNotTrustedUnlessGiven) {
@@ -468,7 +476,7 @@ TEST(LayoutCheck, AnL4InferredFromTheShoulderWidthIsNotTrustedUnlessGiven) {
   EXPECT_NE(c.reason().find("L4 not measured: no waist in view, only inferred from C7 and the shoulder width; give L4"),
             std::string::npos)
       << c.reason();
-  EXPECT_TRUE(cect::checkLayout(l, model(), kScale, {true, false}).trusted) << "the rule off";
+  EXPECT_TRUE(cect::checkLayout(l, model(), kScale, rules(true, false)).trusted) << "the rule off";
   l.l4.source = cect::LandmarkSource::kGiven;  // a therapist's L4, or a skin marker
   EXPECT_TRUE(cect::checkLayout(l, model(), kScale).trusted) << cect::checkLayout(l, model(), kScale).reason();
 }

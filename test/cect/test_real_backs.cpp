@@ -301,7 +301,8 @@ TEST(RealBacks, TheFloorBeyondTheTableStaysOutOfThePalestBack) {
 /// the layout only shows the back was found.
 cect::LocateOptions segmentationCheck() {
   cect::LocateOptions o;
-  o.trust = {false, false};
+  o.trust.c7_at_neck = false;
+  o.trust.l4_measured = false;
   return o;
 }
 
