@@ -21,6 +21,11 @@ namespace {
 
 constexpr double kErrorLogPeriod = 5.0;  // s between two ERRORs naming the same problem
 
+/// A surface nearer than the search range piles up at its near end. A real surface lying exactly at the range's last
+/// level is a thin band of the image (one level of 16-256); 5 % of the pixels there is something too near to
+/// measure (the back of the bundled recording, 16..47: none; the rendered back searched at 0..15: ~all).
+constexpr double kNearEndWarnShare = 0.05;
+
 }  // namespace
 
 // ------------------------------------------------------------- set-up --
@@ -176,10 +181,11 @@ void HbdsNodelet::process(const StereoPair& pair, const Config& config, const Ou
   const stereo::StereoParams params = matchParams(config, v);
   const stereo::Method method = stereo::parseMethod(config.method);
   const stereo::MatchResult result = stereo::match(v.images[0], v.images[1], method, params);
-  // 3. Outputs.
+  // 3. Outputs: the valid and the confirmed disparities, then each output wanted.
   std_msgs::Header header = pair.left_image->header;
   if (header.frame_id.empty()) header.frame_id = pair.left_info->header.frame_id;
-  publish(header, config, v, params, result, wanted);
+  const ValidDisparity valid = validDisparity(result, params, config.lr_fill);
+  publish(header, config, v, params, valid, wanted);
   // 4. Status.
   const double elapsed = msSince(start);
   const CameraInfo& li = *pair.left_info;
@@ -193,14 +199,14 @@ void HbdsNodelet::process(const StereoPair& pair, const Config& config, const Ou
   std::lock_guard<std::mutex> lock(status_mutex_);
   stats_.processedOne(elapsed);
   last_matcher_ms_ = result.total_ms();
+  last_far_end_ = valid.far_end;
+  last_near_end_ = valid.near_end;
   if (geometry_summary_.empty()) NODELET_INFO_STREAM("first pair: " << geometry.str() << ", " << elapsed << " ms");
   geometry_summary_ = geometry.str();
 }
 
 void HbdsNodelet::publish(const std_msgs::Header& header, const Config& config, const Views& v,
-                          const stereo::StereoParams& params, const stereo::MatchResult& result,
-                          const Outputs& wanted) {
-  const ValidDisparity valid = validDisparity(result, params, config.lr_fill);
+                          const stereo::StereoParams& params, const ValidDisparity& valid, const Outputs& wanted) {
   if (wanted.disparity) {
     const float delta_d = config.method == "sgbm" || params.subpixel ? 1.0f / 16.0f : 1.0f;
     disparity_pub_.publish(disparityImage(header, v.model, params, valid, delta_d));
@@ -251,6 +257,10 @@ void HbdsNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) 
     status.summary(DiagnosticStatus::WARN, "some pairs were bad and skipped");
   } else if (input.received == 0) {
     status.summary(DiagnosticStatus::OK, wantedOutputs().any() ? "waiting for stereo pairs" : "idle (no subscribers)");
+  } else if (last_near_end_ > kNearEndWarnShare) {
+    status.summary(DiagnosticStatus::WARN, std::to_string(static_cast<int>(std::lround(100.0 * last_near_end_))) +
+                                               " % of the last pair at the range's near end: something is closer "
+                                               "than the range (raise disparity_range); not confirmed there");
   } else {
     status.summary(DiagnosticStatus::OK, "processing");
   }
@@ -261,6 +271,8 @@ void HbdsNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) 
   status.add("input", geometry_summary_);
   stats_.addCounts(status, input);
   stats_.addTimes(status, "last matcher time (ms)", last_matcher_ms_);
+  status.addf("last pair at the range's far end (%)", "%.1f", 100.0 * last_far_end_);
+  status.addf("last pair at the range's near end (%)", "%.1f", 100.0 * last_near_end_);
   status.add("last error", stats_.lastError());
 }
 

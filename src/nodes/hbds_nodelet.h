@@ -66,7 +66,7 @@ class HbdsNodelet : public nodelet::Nodelet {
   Views prepareViews(const StereoPair& pair, int downsample);
   stereo::StereoParams matchParams(const Config& config, const Views& views);
   void publish(const std_msgs::Header& header, const Config& config, const Views& views,
-               const stereo::StereoParams& params, const stereo::MatchResult& result, const Outputs& wanted);
+               const stereo::StereoParams& params, const ValidDisparity& valid, const Outputs& wanted);
   /// `surface`: the confirmed points (needs lr_check), ~kSurfaceColumns across.
   void publishSurface(const std_msgs::Header& header, const stereo::StereoParams& params, const ValidDisparity& valid,
                       const cv::Mat& points);
@@ -100,7 +100,8 @@ class HbdsNodelet : public nodelet::Nodelet {
   std::mutex status_mutex_;
   PairStats stats_;
   double last_matcher_ms_ = 0.0;
-  std::string geometry_summary_;  // size, rectification, f, baseline of the last good pair
+  double last_far_end_ = 0.0, last_near_end_ = 0.0;  // shares of the last pair's disparities at the range's ends
+  std::string geometry_summary_;                     // size, rectification, f, baseline of the last good pair
 };
 
 }  // namespace massage_cell::nodes

@@ -34,6 +34,7 @@ ValidDisparity validDisparity(const stereo::MatchResult& result, const stereo::S
   v.mask.create(height, width, CV_8U);
   v.confirmed.create(height, width, CV_8U);
   const cv::Mat checked = params.lr_check ? result.consistent : cv::Mat();
+  long found_pixels = 0, far_pixels = 0, near_pixels = 0;
   for (int y = 0; y < height; ++y) {
     const float* in = result.disparity.ptr<float>(y);
     float* out = v.disparity.ptr<float>(y);
@@ -42,12 +43,20 @@ ValidDisparity validDisparity(const stereo::MatchResult& result, const stereo::S
     const unsigned char* c = checked.empty() ? nullptr : checked.ptr<unsigned char>(y);
     for (int x = 0; x < width; ++x) {
       const bool found = x >= v.x0 && std::isfinite(in[x]);
-      const bool confirmed = found && (c == nullptr || c[x] != 0) && !atFarEnd(in[x], params.cost.dmin);
+      const bool far = found && atFarEnd(in[x], params.cost.dmin), near = found && atNearEnd(in[x], params.cost.dmax);
+      found_pixels += found;
+      far_pixels += far;
+      near_pixels += near;
+      const bool confirmed = found && (c == nullptr || c[x] != 0) && !far && !near;
       const bool ok = c != nullptr && !lr_fill ? confirmed : found;
       out[x] = ok ? in[x] : std::numeric_limits<float>::quiet_NaN();
       mask[x] = ok ? 255 : 0;
       sure[x] = confirmed ? 255 : 0;
     }
+  }
+  if (found_pixels > 0) {
+    v.far_end = static_cast<double>(far_pixels) / static_cast<double>(found_pixels);
+    v.near_end = static_cast<double>(near_pixels) / static_cast<double>(found_pixels);
   }
   return v;
 }

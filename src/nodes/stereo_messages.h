@@ -19,16 +19,20 @@ struct ValidDisparity {
   cv::Mat mask;       ///< CV_8U 255 where valid
   cv::Mat confirmed;  ///< CV_8U 255 where the disparity is a measurement (the node's `confidence`), 0 elsewhere
   int x0 = 0;         ///< the first column that can be valid
+  /// Shares (0..1) of the pixels with a disparity (x >= x0, filled ones included) at the range's far / near end.
+  double far_end = 0.0, near_end = 0.0;
 };
 
-/// Whether a disparity lies at the search range's far end (`d` <= `dmin` + 0.5): whatever is beyond the range piles
-/// up there, so such a disparity only bounds the depth from below, whatever the left-right check says.
+/// Whether a disparity lies at an end of the search range dmin..dmax (within half a level): whatever is farther than
+/// the range piles up at its far end (`dmin`), whatever is nearer at its near end (`dmax`), so such a disparity only
+/// bounds the depth, whatever the left-right check says.
 inline bool atFarEnd(float d, int dmin) { return d <= static_cast<float>(dmin) + 0.5f; }
+inline bool atNearEnd(float d, int dmax) { return d >= static_cast<float>(dmax) - 0.5f; }
 
 /// Invalid: what the method left empty (NaN); without the left-right check the left band x < dmax, whose search ran
 /// off the right image's edge; with it and `lr_fill` off, what is not confirmed (with `lr_fill` on those pixels hold
 /// the background's disparity and `confirmed` marks them). Confirmed: what the right view confirms (without the
-/// check: what is valid), except the range's far end (atFarEnd).
+/// check: what is valid), except the range's ends (atFarEnd, atNearEnd).
 ValidDisparity validDisparity(const stereo::MatchResult& result, const stereo::StereoParams& params, bool lr_fill);
 
 /// stereo_msgs/DisparityImage as the message defines it: d = x_l - x_r - (cx_l - cx_r); invalid pixels hold

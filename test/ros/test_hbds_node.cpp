@@ -11,6 +11,8 @@
 // good pair afterwards is still processed.
 // LeftRightCheck: a fourth node in /lr_input runs with lr_check: ~confidence
 // marks the left band unconfirmed, filled or invalid as lr_fill says.
+// SomethingNearerThanTheRangeIsSaid: a fifth node in /near_input searches 0..15 px, the rendered back lies at ~33:
+// its diagnostics say how much piled up at the range's near end, and ~confidence confirms none of it.
 // RawPairIsRectified: a third node in /raw_input gets a raw (distorted,
 // unaligned) pair rendered by the simulator with its raw calibration; it
 // must rectify it and find the back at the ground-truth depth.
@@ -241,6 +243,9 @@ TEST_F(HbdsNode, BagOutputs) {
   EXPECT_EQ(status.count("bad pairs"), 0) << status.text("last error");
   EXPECT_GE(status.count("pairs processed"), static_cast<long>(disparities.size()));
   EXPECT_EQ(status.count("pairs received"), static_cast<long>(pairs));
+  // The recording's range holds the back: nothing piles up at its near end (SomethingNearerThanTheRangeIsSaid).
+  ASSERT_FALSE(status.text("last pair at the range's near end (%)").empty()) << "no near-end share in the diagnostics";
+  EXPECT_LT(std::stod(status.text("last pair at the range's near end (%)")), 5.0);
   ROS_INFO_STREAM(
       "hbds on the bag: " << disparities.size() << " of " << pairs << " pairs processed, mean "
                           << status.text("mean processing time (ms)") << " ms a pair, " << status.count("dropped pairs")
@@ -480,7 +485,9 @@ TEST_F(HbdsNode, LeftRightCheck) {
       << "lr_fill: the band should be filled";
   // The search range's far end (disparity <= min_disparity + 0.5) is where the wall beyond the range piles up: the
   // right view confirms it there, yet it only bounds the depth, never confirmed.
-  const auto far_end = [&](long i) { return d[i] >= disparity->min_disparity && d[i] <= disparity->min_disparity + 0.5f; };
+  const auto far_end = [&](long i) {
+    return d[i] >= disparity->min_disparity && d[i] <= disparity->min_disparity + 0.5f;
+  };
   EXPECT_GT(count(0, w, far_end), 0) << "the scene has nothing at the range's far end: the check below checks nothing";
   EXPECT_EQ(count(0, w, [&](long i) { return far_end(i) && c[i] == 255; }), 0)
       << "the range's far end marked confirmed";
@@ -492,8 +499,7 @@ TEST_F(HbdsNode, LeftRightCheck) {
   const int step = std::max(1, w / 80);
   long grid_confirmed = 0;
   for (int y = step / 2; y < h; y += step)
-    for (int x = step / 2; x < w; x += step)
-      grid_confirmed += c[y * w + x] == 255 ? 1 : 0;
+    for (int x = step / 2; x < w; x += step) grid_confirmed += c[y * w + x] == 255 ? 1 : 0;
   const long points = static_cast<long>(surface->width) * surface->height;
   EXPECT_LE(points, grid_confirmed) << "surface points where the right view confirms nothing";
   EXPECT_GT(points, grid_confirmed * 8 / 10) << "the confirmed back and table missing from the surface";
@@ -515,6 +521,47 @@ TEST_F(HbdsNode, LeftRightCheck) {
       << "lr_fill off: unconfirmed pixels (the far end among them) must be invalid";
   EXPECT_GT(count(3 * w / 8, 5 * w / 8, [&](long i) { return unfilled[i] >= disparity->min_disparity; }),
             centre * 8 / 10);
+}
+
+// ------------------------------------------------- the range's near end --
+
+TEST_F(HbdsNode, SomethingNearerThanTheRangeIsSaid) {
+  massage_cell::test::TempDir dir("hbds_near");
+  StereoPair pair;
+  ASSERT_NO_FATAL_FAILURE(renderPair(dir, false, pair));
+  ros::NodeHandle ns("/near_input");
+  PairPublisher input(ns, 2);
+  NodeStatus status;
+  ros::Subscriber diag = watchDiagnostics(nh_, "near_input/hbds", kDiagnostics, status);
+  stereo_msgs::DisparityImageConstPtr disparity;
+  sensor_msgs::ImageConstPtr confidence;
+  ros::Subscriber subs[2] = {
+      ns.subscribe<stereo_msgs::DisparityImage>("disparity", 2,
+                                                [&](const stereo_msgs::DisparityImageConstPtr& m) { disparity = m; }),
+      ns.subscribe<sensor_msgs::Image>("confidence", 2, [&](const sensor_msgs::ImageConstPtr& m) { confidence = m; })};
+  ASSERT_NO_FATAL_FAILURE(waitForNode(input, status, "/near_input"));
+  for (int attempt = 0; attempt < 5 && !(disparity && confidence); ++attempt) {
+    input.publish(pair, ros::Time(4000 + attempt, 0));
+    spinUntil([&] { return disparity && confidence; }, 10.0);
+  }
+  ASSERT_TRUE(disparity && confidence) << "no disparity and confidence from /near_input";
+  // The back and the table piled up at 15 px (the range's last level): most of the image, said in the diagnostics.
+  const std::string key = "last pair at the range's near end (%)";
+  ASSERT_TRUE(spinUntil([&] { return status.count("pairs processed") >= 1 && !status.text(key).empty(); }, 5.0))
+      << "no near-end share in the diagnostics";
+  const double near_end = std::stod(status.text(key));
+  EXPECT_GT(near_end, 30.0) << "the back nearer than the range is not counted at its near end";
+  // ... and none of it confirmed (the right view agrees on the pile-up, the range's end does not).
+  const int w = disparity->image.width, h = disparity->image.height;
+  const float* d = floats(disparity->image);
+  long at_end = 0, confirmed_at_end = 0;
+  for (long i = 0; i < static_cast<long>(w) * h; ++i) {
+    const bool end = d[i] >= disparity->max_disparity - 0.5f;
+    at_end += end;
+    confirmed_at_end += end && confidence->data[i] == 255;
+  }
+  EXPECT_GT(at_end, static_cast<long>(w) * h / 4);
+  EXPECT_EQ(confirmed_at_end, 0) << "the range's near end marked confirmed";
 }
 
 }  // namespace
