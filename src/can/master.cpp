@@ -591,8 +591,11 @@ void Master::process(const TimedFrame& tf) {
 
 void Master::timers(TimePoint now) {
   checkBus();
+  const Duration gap = last_timers_ ? now - *last_timers_ : Duration::zero();
+  last_timers_ = now;
   for (auto& [id, np] : nodes_) {
     Node& n = *np;
+    n.last_heartbeat = pastOwnStall(n.last_heartbeat, gap, now);  // the master's own stall is no node's silence
     n.sdo.poll();
     switch (n.state) {
       case NodeState::kResetting:

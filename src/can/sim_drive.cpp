@@ -38,6 +38,8 @@ void SimDrive::advance(TimePoint now) {
     return;
   }
   double left = std::chrono::duration<double>(now - last_advance_).count();
+  consumer_last_ =
+      pastOwnStall(consumer_last_, now - last_advance_, now);  // a stall of its own thread: not the master's
   last_advance_ = now;
   left = std::min(left, 10.0);  // after a long stall, do not replay more than 10 s
   while (left > 1e-12) {

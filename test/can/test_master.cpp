@@ -441,6 +441,26 @@ TEST_F(MasterFixture, TimeoutIsNotDeclaredEarly) {
   EXPECT_LE(clock.now() - t0, 152ms);
 }
 
+TEST_F(MasterFixture, AStallOfItsOwnIsNotANodesSilence) {
+  // The host paused 400 ms (longer than the 150 ms timeout) and the master ran first after it: nothing from the
+  // nodes in its queue, yet no node was silent while the master listened.
+  bringUp();
+  master->takeEvents();
+  clock.advance(400ms);
+  master->poll();
+  for (int i = 0; i < 100; ++i) step();
+  const auto events = master->takeEvents();
+  for (std::uint8_t id : {1, 2}) {
+    EXPECT_EQ(master->nodeState(id), NodeState::kOperational) << "node " << int(id);
+    EXPECT_FALSE(hasEvent(events, EventType::kHeartbeatTimeout, id)) << "node " << int(id);
+  }
+  // A node silent after the stall is still lost within its timeout of the master's running.
+  nodes[0]->silent = true;
+  const TimePoint t0 = clock.now();
+  ASSERT_TRUE(runUntil([&] { return master->nodeState(1) == NodeState::kLost; }, 1s));
+  EXPECT_LE(clock.now() - t0, 152ms);
+}
+
 TEST_F(MasterFixture, UnexpectedBootUpIsReconfigured) {
   bringUp();
   master->takeEvents();

@@ -4,6 +4,7 @@
 // by hand (deterministic, no sleeps), and the tools on the steady clock.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -12,6 +13,19 @@ namespace massage_cell::can {
 
 using Duration = std::chrono::nanoseconds;
 using TimePoint = std::chrono::steady_clock::time_point;
+
+/// A gap between two polls of one's own longer than this is a stall of one's own thread (a paused or overloaded host),
+/// not silence on the bus: far beyond the master's and the simulated drives' poll periods (1-2 ms) and a SYNC period
+/// (10 ms), well under the heartbeat timeouts (150-300 ms). A heartbeat consumer does not count such a stall against
+/// its producer: on a real bus what the producer sent meanwhile waits in the receive queue (drained first), and a
+/// simulated producer paused with the host sent nothing.
+constexpr Duration kOwnStall = std::chrono::milliseconds(50);
+
+/// The heartbeat consumer's reference after a poll `gap` of one's own: `last` moved on by a stall (gap > kOwnStall),
+/// never past `now`; unchanged otherwise.
+inline TimePoint pastOwnStall(TimePoint last, Duration gap, TimePoint now) {
+  return gap > kOwnStall ? std::min(now, last + gap) : last;
+}
 
 /// A monotonic time source.
 class Clock {

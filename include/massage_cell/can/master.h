@@ -48,6 +48,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "massage_cell/can/bus.h"
@@ -280,6 +281,7 @@ class Master {
   BusState bus_state_ = BusState::kErrorActive;
   std::uint64_t seen_bus_offs_ = 0, seen_recoveries_ = 0;  // the bus's counters at the last check
   TimePoint next_heartbeat_{};
+  std::optional<TimePoint> last_timers_;  // the previous timers() run: a longer gap is a stall of the master's own
   NmtState own_nmt_ = NmtState::kPreOperational;
   TimePoint last_unknown_malformed_{};
   std::thread thread_;
